@@ -1,0 +1,38 @@
+// sempose: hard-real-time vision controller for robotic nanohandling in an SEM.
+#include <cstdio>
+#include <cstring>
+
+#include "cli.hpp"
+
+namespace {
+
+struct Command {
+  const char* name;
+  int (*fn)(int, char**);
+  const char* help;
+};
+
+constexpr Command kCommands[] = {
+    {"run", sempose::cli::run, "run the controller (pipeline, governor, CAN output)"},
+    {"sim", sempose::cli::sim, "record a simulated SEM sequence with ground truth"},
+    {"pattern", sempose::cli::pattern, "make a pattern PGM from recorded frames"},
+    {"replay", sempose::cli::replay, "track through a recorded sequence"},
+};
+
+int usage(std::FILE* out) {
+  std::fprintf(out, "usage: sempose <command> [options]   (sempose <command> --help)\n\ncommands:\n");
+  for (const auto& c : kCommands) std::fprintf(out, "  %-8s %s\n", c.name, c.help);
+  return out == stdout ? 0 : 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) return usage(stderr);
+  if (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) return usage(stdout);
+  for (const auto& c : kCommands) {
+    if (std::strcmp(argv[1], c.name) == 0) return c.fn(argc - 1, argv + 1);
+  }
+  std::fprintf(stderr, "sempose: unknown command '%s'\n", argv[1]);
+  return usage(stderr);
+}

@@ -1,0 +1,77 @@
+// The scan-source boundary: the simulated SEM, replay of recorded frames, and real scan
+// generators all implement this. Every method after construction is RT-safe: noexcept, no
+// allocation, no blocking. Errors are return codes.
+//
+// A real scan generator implements it as: start() writes the ROI and dwell to the
+// generator's registers and arms a DMA transfer into the slot's (locked) pixel buffer;
+// poll() checks the DMA-complete flag or reads a pending frame-done GPIO edge from
+// wait_fd() without blocking; now_ns() is CLOCK_MONOTONIC.
+#pragma once
+
+#include <cstdint>
+
+#include "sempose/hal/frame.hpp"
+
+namespace sempose::hal {
+
+struct ScanRequest {
+  Roi roi;
+  std::uint32_t dwell_ns = 0;
+  std::uint8_t target = 0;  // copied into FrameMeta::target
+};
+
+// What the scan generator can do (from config).
+struct ScanLimits {
+  std::int32_t field_w = 1024;
+  std::int32_t field_h = 768;
+  std::int32_t max_roi_w = 256;
+  std::int32_t max_roi_h = 256;
+  std::uint32_t min_dwell_ns = 100;
+  std::uint32_t max_dwell_ns = 10'000;
+  std::uint32_t dwell_step_ns = 50;
+  std::uint32_t line_flyback_ns = 2'000;
+
+  // w·h·dwell + h·flyback (DESIGN.md §5).
+  std::int64_t scan_time_ns(std::int32_t w, std::int32_t h, std::uint32_t dwell_ns) const noexcept {
+    return static_cast<std::int64_t>(w) * h * dwell_ns + static_cast<std::int64_t>(h) * line_flyback_ns;
+  }
+};
+
+enum class StartResult : std::uint8_t {
+  kStarted = 0,
+  kBusy,         // a scan is still in progress
+  kBadRequest,   // ROI outside the field or above the max size, dwell outside limits
+  kNoRoom,       // the slot's buffer is smaller than the ROI
+  kEnded,        // a finite source (replay) has no more frames
+};
+
+enum class PollResult : std::uint8_t {
+  kIdle = 0,  // no scan started
+  kBusy,      // scanning
+  kDone,      // the slot passed to start() is complete (meta and pixels filled)
+  kError,     // the scan failed; the slot's meta.status says why; the source is idle again
+};
+
+class ScanSource {
+ public:
+  virtual ~ScanSource() = default;
+  virtual const ScanLimits& limits() const noexcept = 0;
+  // Begins scanning req into slot. The caller must not touch the slot until poll() returns
+  // kDone or kError.
+  virtual StartResult start(const ScanRequest& req, FrameSlot& slot) noexcept = 0;
+  // ISR-like: only checks whether the scan in progress is complete.
+  virtual PollResult poll() noexcept = 0;
+  // The source's clock: CLOCK_MONOTONIC for live sources, a virtual clock otherwise.
+  virtual std::int64_t now_ns() const noexcept = 0;
+  // When the scan in progress is expected to complete (for sleep-then-poll); 0 if idle.
+  virtual std::int64_t expected_done_ns() const noexcept = 0;
+  // True when now_ns() is a deterministic virtual clock (tests, benchmarks).
+  virtual bool is_virtual_time() const noexcept { return false; }
+  // Virtual time only: lets time pass (e.g. the modelled compute time) without scanning.
+  virtual void advance_virtual_ns(std::int64_t /*ns*/) noexcept {}
+  // An fd that becomes readable when a scan completes (e.g. a GPIO frame-done edge), so a
+  // caller can wait in poll(2) with a timeout; -1 when the source has none.
+  virtual int wait_fd() const noexcept { return -1; }
+};
+
+}  // namespace sempose::hal
