@@ -1,0 +1,175 @@
+// Validated reading of one YAML config file. Every problem is collected (not only the first)
+// and names the file, line, full key, the value and what is allowed:
+//   config/default.yaml:12:3: tracker.score_threshold: 1.7 is outside [0, 1]
+// Unknown keys are errors too (a typo must not silently fall back to a default).
+// Setup only: allocates and may throw inside yaml-cpp; nothing here runs on an RT thread.
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <cstdint>
+#include <limits>
+#include <set>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace sempose::config {
+
+class Errors {
+ public:
+  explicit Errors(std::string file) : file_(std::move(file)) {}
+  void add(const YAML::Mark& mark, const std::string& key, const std::string& what);
+  void add(const std::string& what) { messages_.push_back(file_ + ": " + what); }
+  bool empty() const noexcept { return messages_.empty(); }
+  const std::vector<std::string>& messages() const noexcept { return messages_; }
+  std::string joined() const;  // one message per line
+  const std::string& file() const noexcept { return file_; }
+
+ private:
+  std::string file_;
+  std::vector<std::string> messages_;
+};
+
+// A mapping node with its dotted path. Read keys with opt()/req()/child(); call
+// finish() (or let the destructor do it) to report keys nobody read as unknown.
+class Section {
+ public:
+  Section(YAML::Node node, std::string path, Errors& errors);
+  ~Section() { finish(); }
+  Section(const Section&) = delete;
+  Section& operator=(const Section&) = delete;
+  Section(Section&&) noexcept;
+
+  bool present() const noexcept { return node_.IsDefined() && !node_.IsNull(); }
+  bool has(const char* key) const { return present() && node_[key].IsDefined(); }
+  std::string key_path(const char* key) const { return path_.empty() ? key : path_ + "." + key; }
+
+  // Optional scalar: leaves `out` (the default) when absent. Numbers are range-checked.
+  template <typename T>
+  void opt(const char* key, T& out, T lo = lowest<T>(), T hi = highest<T>());
+  // Required scalar: an error when absent.
+  template <typename T>
+  void req(const char* key, T& out, T lo = lowest<T>(), T hi = highest<T>());
+  // String restricted to a set of words (e.g. "sim" | "replay").
+  void opt_choice(const char* key, std::string& out, const std::vector<std::string>& allowed);
+  // Optional list of scalars (e.g. [0, 1]); each element range-checked.
+  template <typename T>
+  void opt_list(const char* key, std::vector<T>& out, T lo = lowest<T>(), T hi = highest<T>());
+
+  // Nested mapping (may be absent: then present() is false and reads keep defaults).
+  Section child(const char* key);
+  // Sequence of mappings (e.g. targets: [ {...}, {...} ]).
+  std::vector<Section> children(const char* key);
+
+  Errors& errors() noexcept { return *errors_; }
+  const YAML::Mark mark() const { return node_.Mark(); }
+  void error(const char* key, const std::string& what);
+  void finish();
+
+ private:
+  template <typename T>
+  static constexpr T lowest() {
+    if constexpr (std::is_arithmetic_v<T>) return std::numeric_limits<T>::lowest();
+    else return T{};
+  }
+  template <typename T>
+  static constexpr T highest() {
+    if constexpr (std::is_arithmetic_v<T>) return std::numeric_limits<T>::max();
+    else return T{};
+  }
+  template <typename T>
+  void read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T hi);
+
+  YAML::Node node_;
+  std::string path_;
+  Errors* errors_;
+  std::set<std::string> read_;
+  bool finished_ = false;
+};
+
+// Loads and parses a file; a syntax error or a non-mapping top level goes to errors.
+YAML::Node load_file(const std::string& path, Errors& errors);
+
+// ---- template definitions ----
+
+std::string describe_range(double lo, double hi);
+
+template <typename T>
+void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T hi) {
+  const std::string shown = n.IsScalar() ? n.Scalar() : std::string("(a ") +
+                            (n.IsSequence() ? "list" : n.IsMap() ? "mapping" : "null") + ")";
+  if (!n.IsScalar()) {
+    errors_->add(n.Mark(), key_path(key), shown + " is not a single value");
+    return;
+  }
+  if constexpr (std::is_same_v<T, bool>) {
+    bool v = false;
+    if (!YAML::convert<bool>::decode(n, v)) {
+      errors_->add(n.Mark(), key_path(key), "'" + shown + "' is not a boolean (true/false)");
+      return;
+    }
+    out = v;
+  } else if constexpr (std::is_arithmetic_v<T>) {
+    // Parse as long double first so "300" into uint8 reports the range, not a type error.
+    long double v = 0;
+    if (!YAML::convert<long double>::decode(n, v)) {
+      errors_->add(n.Mark(), key_path(key), "'" + shown + "' is not a number");
+      return;
+    }
+    if (std::is_integral_v<T> && v != static_cast<long double>(static_cast<long long>(v))) {
+      errors_->add(n.Mark(), key_path(key), shown + " is not a whole number");
+      return;
+    }
+    if (v < static_cast<long double>(lo) || v > static_cast<long double>(hi)) {
+      errors_->add(n.Mark(), key_path(key),
+                   shown + " is outside the allowed range " +
+                       describe_range(static_cast<double>(lo), static_cast<double>(hi)));
+      return;
+    }
+    out = static_cast<T>(v);
+  } else {
+    out = n.as<T>();
+  }
+}
+
+template <typename T>
+void Section::opt(const char* key, T& out, T lo, T hi) {
+  read_.insert(key);
+  if (!present()) return;
+  const YAML::Node n = node_[key];
+  if (!n.IsDefined()) return;
+  read_scalar(key, n, out, lo, hi);
+}
+
+template <typename T>
+void Section::req(const char* key, T& out, T lo, T hi) {
+  read_.insert(key);
+  if (!present() || !node_[key].IsDefined()) {
+    errors_->add(node_.Mark(), key_path(key), "required key is missing");
+    return;
+  }
+  read_scalar(key, node_[key], out, lo, hi);
+}
+
+template <typename T>
+void Section::opt_list(const char* key, std::vector<T>& out, T lo, T hi) {
+  read_.insert(key);
+  if (!present()) return;
+  const YAML::Node n = node_[key];
+  if (!n.IsDefined()) return;
+  if (!n.IsSequence()) {
+    errors_->add(n.Mark(), key_path(key), "expected a list, e.g. [1, 2]");
+    return;
+  }
+  std::vector<T> values;
+  for (std::size_t i = 0; i < n.size(); ++i) {
+    T v{};
+    const std::string item = std::string(key) + "[" + std::to_string(i) + "]";
+    read_scalar(item.c_str(), n[i], v, lo, hi);
+    values.push_back(v);
+  }
+  out = std::move(values);
+}
+
+}  // namespace sempose::config

@@ -1,0 +1,36 @@
+// Tracker state and the reasons a target is lost (DESIGN.md §2: TRACKING, ACQUIRING, LOST
+// and why). Shared by pose estimation, the pipeline and the wire protocol mapping.
+#pragma once
+
+#include <cstdint>
+
+namespace sempose::pose {
+
+enum class TrackState : std::uint8_t {
+  kTracking = 0,
+  kAcquiring = 1,  // full-field search running / not found yet
+  kLost = 2,       // was tracking, lost it this frame; a full-field search follows
+};
+
+// Bit set of why a pose is not trusted (0 while TRACKING normally).
+enum LostReason : std::uint8_t {
+  kReasonNone = 0,
+  kReasonLowScore = 1u << 0,      // ZNCC peak below the threshold for K frames
+  kReasonLowPsr = 1u << 1,        // weak peak-to-sidelobe ratio for K frames
+  kReasonFlatFrame = 1u << 2,     // blank / saturated / constant ROI
+  kReasonOutOfField = 1u << 3,    // predicted pose left the scan field
+  kReasonBadFrame = 1u << 4,      // the scan source flagged the frame
+  kReasonCommanded = 1u << 5,     // re-acquire requested by the controller
+  kReasonAngleUnsettled = 1u << 6 // orientation walk hit its per-frame step bound
+};
+
+constexpr const char* to_string(TrackState s) noexcept {
+  switch (s) {
+    case TrackState::kTracking: return "TRACKING";
+    case TrackState::kAcquiring: return "ACQUIRING";
+    case TrackState::kLost: return "LOST";
+  }
+  return "?";
+}
+
+}  // namespace sempose::pose
