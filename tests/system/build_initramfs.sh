@@ -38,7 +38,7 @@ add_bin() { # add_bin SRC DEST
   strip --strip-unneeded "$S/$dst" 2>/dev/null || true
   # ldd lines: "libx.so => /path (0x..)" or "/lib64/ld-linux-x86-64.so.2 (0x..)"
   for lib in $(LD_LIBRARY_PATH="$LIBPATH" ldd "$src" 2>/dev/null |
-               awk '/=> \//{print $3} /^\s*\/[^ ]*ld-linux/{print $1}'); do
+               awk '/=> \//{print $3} $1 ~ /^\/.*ld-linux/{print $1}'); do
     case "$lib" in
       *ld-linux*) [ -e "$S/lib64/$(basename "$lib")" ] || cp -L "$lib" "$S/lib64/" ;;
       *) [ -e "$S/lib/x86_64-linux-gnu/$(basename "$lib")" ] || cp -L "$lib" "$S/lib/x86_64-linux-gnu/" ;;

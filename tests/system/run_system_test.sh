@@ -74,7 +74,7 @@ for attempt in $(seq 1 "$BOOTS"); do
   log "boot attempt $attempt/$BOOTS (kernel $KVER, TCG)"
   timeout "$VM_MAX_S" "$QEMU" -accel tcg -machine pc -smp 2 -m 512 -cpu max \
     -kernel "$VMLINUX" -initrd "$OUT/initramfs.img" \
-    -append "console=ttyS0 panic=-1 quiet loglevel=4 tsc=reliable" \
+    -append "console=ttyS0 panic=-1 tsc=reliable" \
     -display none -nodefaults -no-reboot -nic none \
     -serial "file:$ATT/console.log" -serial "file:$ATT/results.raw" \
     -device isa-debug-exit,iobase=0xf4,iosize=0x04 > "$ATT/qemu.log" 2>&1 &
@@ -102,7 +102,7 @@ cp "$ATT/console.log" "$OUT/artifacts/console.log" 2>/dev/null
 cp "$ATT/results.txt" "$OUT/artifacts/results.txt" 2>/dev/null
 # Unpack the artifact tarball (base64 between marker lines).
 sed -n '/^=== ARTIFACTS BEGIN/,/^=== ARTIFACTS END/p' "$OUT/artifacts/results.txt" | sed '1d;$d' |
-  base64 -d 2>/dev/null | tar xzf - -C "$OUT/artifacts" 2>/dev/null ||
+  base64 -d 2>/dev/null | tar xzf - --no-overwrite-dir -C "$OUT/artifacts" 2>/dev/null ||
   log "could not unpack the guest artifacts"
 
 fail_tail() {

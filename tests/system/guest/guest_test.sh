@@ -34,7 +34,7 @@ wait_for() {
   done
   return 0
 }
-can_rx_count() { cat /proc/net/can/rcvlist_* 2>/dev/null | grep -c "vcan0" ; }
+can_rx_count() { cat /proc/net/can/rcvlist_* 2>/dev/null | grep vcan0 | grep -vc "no entry" ; }
 can_rx_more_than() { [ "$(can_rx_count)" -gt "$1" ]; }
 line_requested() { gpioinfo "$CHIP" 2>/dev/null | grep -E "line +$1:" | grep -q '\[used'; }
 file_has() { grep -q "$2" "$1"; }
