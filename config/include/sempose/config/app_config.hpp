@@ -1,0 +1,26 @@
+// The whole application's settings: one YAML file, one section per part of sempose.
+// load_app_config reads every section with that part's reader and reports ALL problems
+// (file:line: key: value: allowed range), unknown top-level sections included.
+// Setup only (allocates); nothing here runs on an RT thread.
+#pragma once
+
+#include <string>
+
+#include "sempose/config/governor_config.hpp"
+#include "sempose/config/pipeline_config.hpp"
+
+namespace sempose::config {
+
+struct AppConfig {
+  std::string source = "sim";  // "sim" | "replay": which scan source `sempose run` uses
+  GovernorConfig governor;
+  PipelineConfig pipeline;
+  OutputConfig output;
+  std::string path;            // the file it was read from (for messages)
+};
+
+// Reads and validates `path` into `out`. On failure returns false and error_text holds
+// one line per problem; `out` then holds defaults plus whatever could be read.
+bool load_app_config(const std::string& path, AppConfig& out, std::string& error_text);
+
+}  // namespace sempose::config

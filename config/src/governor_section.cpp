@@ -1,0 +1,29 @@
+#include "sempose/config/governor_config.hpp"
+
+#include <string>
+
+namespace sempose::config {
+
+void read_governor(Section& s, GovernorConfig& c) {
+  s.opt("enabled", c.enabled);
+  s.opt("initial_dwell_ns", c.initial_dwell_ns, 1u, 10'000'000u);
+  s.opt("min_dwell_ns", c.min_dwell_ns, 0u, 10'000'000u);
+  s.opt("max_dwell_ns", c.max_dwell_ns, 0u, 10'000'000u);
+  s.opt("margin", c.margin, 0.0, 4.0);
+  s.opt("percentile", c.percentile, 0.5, 1.0);
+  s.opt("window", c.window, 1u, 64u);
+  s.opt("ewma_alpha", c.ewma_alpha, 0.01, 1.0);
+  s.opt("hysteresis", c.hysteresis, 0.0, 0.5);
+  s.opt("max_decrease_per_frame", c.max_decrease_per_frame, 0.01, 1.0);
+  s.opt("low_score", c.low_score, -1.0f, 1.0f);
+  s.opt("low_psr", c.low_psr, 0.0f, 1000.0f);
+  s.opt("quality_gain", c.quality_gain, 1.0, 4.0);
+  s.opt("max_quality_factor", c.max_quality_factor, 1.0, 100.0);
+  s.opt("min_pose_rate_hz", c.min_pose_rate_hz, 0.01, 100'000.0);
+  if (c.min_dwell_ns != 0 && c.max_dwell_ns != 0 && c.min_dwell_ns > c.max_dwell_ns) {
+    s.error("max_dwell_ns", std::to_string(c.max_dwell_ns) + " is below min_dwell_ns " +
+                                std::to_string(c.min_dwell_ns));
+  }
+}
+
+}  // namespace sempose::config
