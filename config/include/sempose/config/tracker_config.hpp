@@ -1,0 +1,61 @@
+// Settings of pose estimation (the `tracker:` section) and of the tracked targets (the
+// `targets:` list with one pattern set per magnification step). Plain structs with defaults.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace sempose::config {
+
+class Section;
+
+struct TrackerConfig {
+  // Correlation geometry.
+  std::int32_t pattern_size_px = 128;  // square pattern side (patterns are resampled/cropped to it)
+  std::int32_t roi_size_px = 192;      // square tracking ROI side (>= pattern_size_px)
+  double angle_step_deg = 1.0;         // pattern bank step: 360/step rotated copies
+  bool circular_mask = true;           // mask the pattern to its inscribed circle (corners don't bias)
+  // Orientation walk (paper): correlate j and j±1, move to the best, until the centre wins.
+  std::int32_t max_angle_steps_per_frame = 8;
+  // In-ROI recovery when the walk hits its bound or the score collapses: FFT correlations
+  // at predicted ± sweep window, every sweep step (bounded cost), before declaring LOST.
+  double recover_sweep_deg = 30.0;
+  double recover_step_deg = 5.0;
+  // Loss detection.
+  double score_threshold = 0.25;  // ZNCC peak below this = weak frame
+  double psr_threshold = 4.0;     // peak-to-sidelobe ratio below this = weak frame (0 = off)
+  std::int32_t lost_after_frames = 1;  // K consecutive weak frames -> LOST, full-field search
+  // Start search (full field): box pyramid, coarse angles, best candidates refined.
+  std::int32_t search_downsample = 8;
+  double search_angle_step_deg = 20.0;
+  std::int32_t search_candidates = 4;
+  double search_refine_window_deg = 12.0;  // ± around a candidate's coarse angle
+  double search_refine_step_deg = 4.0;     // FFT correlations inside that window, then the walk
+  // Motion model and sub-pixel.
+  bool predict_velocity = true;            // constant-velocity prediction of x, y and phi
+  std::string subpixel = "gaussian";       // gaussian | quadratic (3-point fits per axis)
+};
+
+struct PatternSetConfig {
+  std::string file;            // PGM of the pattern at this magnification step
+  double nm_per_px = 1.0;      // scale of this magnification step
+};
+
+struct TargetConfig {
+  std::string name;
+  std::vector<PatternSetConfig> pattern_sets;  // index = magnification step
+};
+
+// Reads the `tracker:` mapping (section may be absent: defaults stay). Errors go to the
+// section's Errors (file:line, key, value, allowed range).
+void read_tracker(Section& tracker, TrackerConfig& out);
+
+// Reads `targets:` from the top-level section:
+//   targets:
+//     - name: gripper
+//       pattern_sets: [ {file: gripper_x1000.pgm, nm_per_px: 40}, {file: ..., nm_per_px: 10} ]
+// Relative file names stay as written (the caller resolves them against the config's folder).
+void read_targets(Section& root, std::vector<TargetConfig>& out);
+
+}  // namespace sempose::config

@@ -1,0 +1,61 @@
+#include <cmath>
+#include <string>
+
+#include "sempose/config/reader.hpp"
+#include "sempose/config/tracker_config.hpp"
+
+namespace sempose::config {
+
+void read_tracker(Section& s, TrackerConfig& c) {
+  s.opt("pattern_size_px", c.pattern_size_px, 8, 512);
+  s.opt("roi_size_px", c.roi_size_px, 8, 1024);
+  s.opt("angle_step_deg", c.angle_step_deg, 0.25, 45.0);
+  s.opt("circular_mask", c.circular_mask);
+  s.opt("max_angle_steps_per_frame", c.max_angle_steps_per_frame, 1, 180);
+  s.opt("recover_sweep_deg", c.recover_sweep_deg, 0.0, 180.0);
+  s.opt("recover_step_deg", c.recover_step_deg, 0.25, 90.0);
+  s.opt("score_threshold", c.score_threshold, 0.0, 1.0);
+  s.opt("psr_threshold", c.psr_threshold, 0.0, 1000.0);
+  s.opt("lost_after_frames", c.lost_after_frames, 1, 1000);
+  s.opt("search_downsample", c.search_downsample, 1, 32);
+  s.opt("search_angle_step_deg", c.search_angle_step_deg, 0.25, 90.0);
+  s.opt("search_candidates", c.search_candidates, 1, 64);
+  s.opt("search_refine_window_deg", c.search_refine_window_deg, 0.0, 180.0);
+  s.opt("search_refine_step_deg", c.search_refine_step_deg, 0.25, 90.0);
+  s.opt("predict_velocity", c.predict_velocity);
+  s.opt_choice("subpixel", c.subpixel, {"gaussian", "quadratic"});
+  if (c.roi_size_px < c.pattern_size_px) {
+    s.error("roi_size_px", std::to_string(c.roi_size_px) + " is smaller than pattern_size_px " +
+                               std::to_string(c.pattern_size_px) + " (the ROI must contain the pattern)");
+  }
+  if (c.pattern_size_px / c.search_downsample < 4) {
+    s.error("search_downsample", std::to_string(c.search_downsample) + " leaves a coarse pattern of " +
+                                     std::to_string(c.pattern_size_px / c.search_downsample) +
+                                     " px; allowed: pattern_size_px / search_downsample >= 4");
+  }
+  const double steps = 360.0 / c.angle_step_deg;
+  if (std::fabs(steps - std::round(steps)) > 1e-6) {
+    s.error("angle_step_deg", std::to_string(c.angle_step_deg) + " does not divide 360");
+  }
+}
+
+void read_targets(Section& root, std::vector<TargetConfig>& out) {
+  std::vector<Section> list = root.children("targets");
+  if (list.empty()) return;
+  out.clear();
+  for (auto& t : list) {
+    TargetConfig tc;
+    tc.name = "target" + std::to_string(out.size());
+    t.opt("name", tc.name);
+    for (auto& ps : t.children("pattern_sets")) {
+      PatternSetConfig p;
+      ps.req("file", p.file);
+      ps.opt("nm_per_px", p.nm_per_px, 1e-6, 1e9);
+      tc.pattern_sets.push_back(p);
+    }
+    if (tc.pattern_sets.empty()) t.error("pattern_sets", "a target needs at least one pattern set ({file, nm_per_px})");
+    out.push_back(std::move(tc));
+  }
+}
+
+}  // namespace sempose::config

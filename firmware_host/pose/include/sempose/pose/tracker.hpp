@@ -1,0 +1,67 @@
+// One target's pose tracker: ZNCC via FFT against a rotated pattern bank, the paper's
+// orientation walk, a full-field start search, loss detection and constant-velocity ROI
+// prediction. create() is setup (allocates, plans FFTs); every other method is RT-safe:
+// noexcept, no heap allocation, no locks, no I/O.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "sempose/config/tracker_config.hpp"
+#include "sempose/hal/frame.hpp"
+#include "sempose/hal/image.hpp"
+#include "sempose/hal/scan_source.hpp"
+#include "sempose/pose/track_state.hpp"
+#include "sempose/rt/result.hpp"
+
+namespace sempose::pose {
+
+struct PoseEstimate {
+  TrackState state = TrackState::kAcquiring;
+  std::uint8_t reason_bits = kReasonNone;  // LostReason bits
+  double x_px = 0;      // full-field px, DESIGN.md §2 (centre of the pattern)
+  double y_px = 0;
+  double phi_deg = 0;   // (-180, 180]
+  float score = 0;      // ZNCC in [-1, 1]
+  float psr = 0;        // peak-to-sidelobe ratio of the position peak
+  std::uint8_t pattern_set = 0;
+  int angle_steps = 0;  // correlations spent on orientation this frame
+  bool searched = false;  // this frame ran the full-field start search
+};
+
+// One pattern per magnification step.
+struct PatternSet {
+  hal::Image image;
+  double nm_per_px = 1.0;
+};
+
+class Tracker {
+ public:
+  // Setup: pattern bank, FFTW plans (FFTW_MEASURE), spectra. nullptr + message on error.
+  static std::unique_ptr<Tracker> create(const config::TrackerConfig& config, std::vector<PatternSet> sets,
+                                         const hal::ScanLimits& limits, rt::Status& status);
+  ~Tracker();
+  Tracker(const Tracker&) = delete;
+  Tracker& operator=(const Tracker&) = delete;
+
+  // Full field while acquiring / lost, else the ROI at the predicted pose clamped to the field.
+  hal::Roi next_roi() const noexcept;
+  // One finished frame for this target (meta.roi says where it was scanned).
+  PoseEstimate update(const hal::FrameMeta& meta, const hal::Pixel* pixels) noexcept;
+  // Switches the magnification step; out of range: ignored, returns false.
+  bool select_pattern_set(std::uint8_t set) noexcept;
+  std::uint8_t pattern_set() const noexcept;
+  double nm_per_px() const noexcept;
+  void request_reacquire() noexcept;
+  // Bank + spectra + FFT buffers, bytes (printed at start).
+  std::size_t memory_bytes() const noexcept;
+
+  struct Impl;
+
+ private:
+  explicit Tracker(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sempose::pose
