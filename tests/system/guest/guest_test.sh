@@ -11,7 +11,7 @@ export PATH=/usr/bin:/usr/sbin:/bin:/sbin
 R=/dev/ttyS1
 FAILED=""
 DURATION=5
-SYNC_HALF_PERIOD_US=3000     # pull-up / pull-down half period -> ~150 Hz frame sync
+SYNC_HALF_PERIOD_S=0.003     # pull-up / pull-down half period -> ~150 Hz frame sync
 SYNC_LINE=0; VALID_LINE=1; HEARTBEAT_LINE=2
 SELF_IN=7; SELF_OUT=6; SELF_MON=5
 SEMPOSE_ARGS=""
@@ -24,13 +24,16 @@ check() { # check NAME PASS|FAIL|SKIP detail...
   [ "$st" = FAIL ] && FAILED="$FAILED $n"
   return 0
 }
+# Fork-free sleep (fork is expensive under TCG): read with a timeout on an idle fifo.
+mkfifo /tmp/nap.fifo; exec 7<>/tmp/nap.fifo
+nap() { read -t "$1" _nap <&7; }
 now_ms() { awk '{printf "%d\n", $1*1000}' /proc/uptime; }
 # wait_for TIMEOUT_MS COMMAND...: poll (10 ms) until COMMAND succeeds.
 wait_for() {
   t_end=$(( $(now_ms) + $1 )); shift
   while ! "$@" >/dev/null 2>&1; do
     [ "$(now_ms)" -ge "$t_end" ] && return 1
-    usleep 10000
+    nap 0.01
   done
   return 0
 }
@@ -134,17 +137,17 @@ run_sempose() {
   # Frame sync: rising edges on SYNC_LINE driven through gpio-sim's pull attribute.
   pull $SYNC_LINE down
   ( n=0; while [ ! -f /tmp/stop_sync ]; do
-      pull $SYNC_LINE up; usleep $SYNC_HALF_PERIOD_US
-      pull $SYNC_LINE down; usleep $SYNC_HALF_PERIOD_US
-      n=$((n+1)); echo $n > /tmp/sync_edges
-    done ) &
+      pull $SYNC_LINE up; nap $SYNC_HALF_PERIOD_S
+      pull $SYNC_LINE down; nap $SYNC_HALF_PERIOD_S
+      n=$((n+1))
+    done; echo $n > /tmp/sync_edges ) &
   SYNC=$!
   # Output sampler: record every change of the pose-valid / heartbeat outputs.
   ( pv=x; ph=x
     while [ ! -f /tmp/stop_sample ]; do
-      v=$(cat $SIM/sim_gpio$VALID_LINE/value 2>/dev/null); h=$(cat $SIM/sim_gpio$HEARTBEAT_LINE/value 2>/dev/null)
-      if [ "$v" != "$pv" ] || [ "$h" != "$ph" ]; then echo "$(now_ms) valid=$v heartbeat=$h"; pv=$v; ph=$h; fi
-      usleep 1000
+      read v < $SIM/sim_gpio$VALID_LINE/value; read h < $SIM/sim_gpio$HEARTBEAT_LINE/value
+      if [ "$v" != "$pv" ] || [ "$h" != "$ph" ]; then read up _ < /proc/uptime; echo "$up valid=$v heartbeat=$h"; pv=$v; ph=$h; fi
+      nap 0.002
     done ) > /out/gpio_outputs.txt &
   SAMP=$!
   say "STAGE sempose run --duration $DURATION"
@@ -164,7 +167,7 @@ run_sempose() {
     # commands.txt: "<delay_ms> <label> <id>#<data>" (delay before sending)
     while read -r d label frame; do
       case "$d" in ''|\#*) continue ;; esac
-      usleep $((d * 1000))
+      nap "$(awk "BEGIN{print $d/1000}")"
       if cansend vcan0 "$frame"; then echo "$(now_ms) $label $frame" >> /out/commands_sent.txt
       else echo "$(now_ms) $label $frame SEND-FAILED" >> /out/commands_sent.txt; fi
     done < /cfg/commands.txt
@@ -173,7 +176,7 @@ run_sempose() {
   echo $SRC > /out/sempose_exit_code.txt
   touch /tmp/stop_sync /tmp/stop_sample; wait $SYNC $SAMP 2>/dev/null
   echo "$(cat /tmp/sync_edges 2>/dev/null) rising edges" > /out/sync_edges.txt
-  usleep 200000   # let candump drain what sempose sent last (socket already closed)
+  nap 0.2   # let candump drain what sempose sent last (socket already closed)
   kill $CD 2>/dev/null; wait $CD 2>/dev/null
   if grep -q "not built yet" /out/sempose_stderr.txt /out/sempose_stdout.txt; then
     check sempose_built FAIL "sempose answers: $(grep -h 'not built yet' /out/sempose_stderr.txt /out/sempose_stdout.txt | head -1)"
