@@ -15,11 +15,11 @@ struct GovernorConfig {
   std::uint32_t min_dwell_ns = 0;      // 0: the scan generator's min_dwell_ns
   std::uint32_t max_dwell_ns = 0;      // 0: the scan generator's max_dwell_ns
   double margin = 0.2;                 // scan time = compute estimate × (1 + margin)
-  double percentile = 0.9;             // high percentile of the recent compute times...
-  std::uint32_t window = 16;           // ...over this many poses...
-  double ewma_alpha = 0.25;            // ...smoothed by an EWMA when falling (rises are taken at once)
+  double percentile = 0.8;             // high percentile of the recent compute times...
+  std::uint32_t window = 10;           // ...over this many poses...
+  double ewma_alpha = 0.5;             // ...smoothed by an EWMA when falling (rises are taken at once)
   double hysteresis = 0.08;            // relative band: shorter dwells are taken only below it
-  double max_decrease_per_frame = 0.1; // a falling dwell shrinks at most this fraction per pose
+  double max_decrease_per_frame = 0.15; // a falling dwell shrinks at most this fraction per pose
   // Match quality: below these the dwell is lengthened (cleaner image), recovering above
   // them plus the hysteresis band.
   float low_score = 0.5f;

@@ -1,0 +1,74 @@
+// Adaptive scan-speed governor (pure algorithm, no I/O, no clock; PX4 style). Picks the pixel
+// dwell of the next ROI so that its scan time ≈ the robust recent compute time per pose ×
+// (1 + margin): the beam and the CPU are both busy and the image is as clean as the compute
+// time allows. When match quality falls it lengthens the dwell further, but never so far
+// that a target's pose rate drops below min_pose_rate_hz. RT-safe after construction.
+//
+// Robust compute estimate: the `percentile` of the last `window` compute times, taken at
+// once when it rises (an overrun costs a frame) and followed by an EWMA when it falls.
+// Hysteresis: a longer dwell is taken immediately; a shorter one only once the wanted dwell
+// is more than `hysteresis` below the current one, then approached at most
+// `max_decrease_per_frame` per pose, so noise inside the band never moves the dwell.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "sempose/config/governor_config.hpp"
+#include "sempose/hal/frame.hpp"
+#include "sempose/hal/scan_source.hpp"
+
+namespace sempose::pipeline {
+
+class ScanSpeedGovernor {
+ public:
+  static constexpr std::size_t kMaxWindow = 64;
+
+  // Setup. limits: the scan generator's dwell range, step and flyback; target_count >= 1.
+  ScanSpeedGovernor(const config::GovernorConfig& config, const hal::ScanLimits& limits,
+                    int target_count) noexcept;
+
+  // After each pose of `target`: its compute time and match quality. Compute times of
+  // non-tracking poses (full-field start search) are not representative and are ignored.
+  void observe(std::uint8_t target, std::int64_t compute_ns, float score, float psr,
+               bool tracking) noexcept;
+
+  // Dwell for the next w×h ROI of `target` (updates that target's hysteresis state).
+  std::uint32_t next_dwell_ns(std::uint8_t target, std::int32_t w, std::int32_t h) noexcept;
+
+  // The dwell the estimate alone asks for, before hysteresis (for tests and plots).
+  std::uint32_t wanted_dwell_ns(std::uint8_t target, std::int32_t w, std::int32_t h) const noexcept;
+
+  std::int64_t compute_estimate_ns() const noexcept { return estimate_ns_; }
+  double quality_factor(std::uint8_t target) const noexcept { return targets_[clamp_target(target)].quality; }
+  std::uint32_t min_dwell_ns() const noexcept { return min_dwell_ns_; }
+  std::uint32_t max_dwell_ns() const noexcept { return max_dwell_ns_; }
+
+ private:
+  struct TargetState {
+    double quality = 1.0;           // >= 1: dwell lengthening for poor match quality
+    std::uint32_t dwell_ns = 0;     // current commanded dwell (0: none yet)
+    bool decreasing = false;        // left the hysteresis band downward; approaching
+  };
+  std::size_t clamp_target(std::uint8_t t) const noexcept {
+    return t < static_cast<std::uint8_t>(target_count_) ? t : 0;
+  }
+  std::uint32_t quantize_up(double dwell_ns) const noexcept;
+  std::uint32_t quantize_down(double dwell_ns) const noexcept;
+  std::int64_t window_percentile() const noexcept;
+
+  config::GovernorConfig config_;
+  std::uint32_t min_dwell_ns_;
+  std::uint32_t max_dwell_ns_;
+  std::uint32_t step_ns_;
+  std::uint32_t flyback_ns_;
+  int target_count_;
+  std::array<std::int64_t, kMaxWindow> window_{};
+  std::size_t window_size_;
+  std::size_t window_fill_ = 0;
+  std::size_t window_next_ = 0;
+  std::int64_t estimate_ns_ = 0;  // 0: nothing observed yet
+  std::array<TargetState, hal::kMaxTargets> targets_{};
+};
+
+}  // namespace sempose::pipeline
