@@ -1,5 +1,6 @@
 #include "sempose/config/app_config.hpp"
 
+#include <algorithm>
 #include <string>
 
 #include "sempose/config/reader.hpp"
@@ -9,8 +10,22 @@ namespace {
 
 // Checks that need more than one section (run after every section is read).
 void cross_check(Section& root, const AppConfig& c) {
-  (void)root;
-  (void)c;
+  const int targets = static_cast<int>(c.targets.size());
+  for (int t : c.pipeline.schedule) {
+    if (t >= targets) {
+      root.errors().add(root.mark(), "pipeline.schedule",
+                        std::to_string(t) + " is not a target index (targets: " + std::to_string(targets) +
+                            ", allowed [0, " + std::to_string(std::max(0, targets - 1)) + "])");
+    }
+  }
+}
+
+// Pattern files are written relative to the config file's folder.
+std::string resolve(const std::string& config_path, const std::string& file) {
+  if (file.empty() || file[0] == '/') return file;
+  const auto slash = config_path.rfind('/');
+  if (slash == std::string::npos) return file;
+  return config_path.substr(0, slash + 1) + file;
 }
 
 }  // namespace
@@ -27,6 +42,14 @@ bool load_app_config(const std::string& path, AppConfig& out, std::string& error
   {
     Section root(node, "", errors);
     root.opt_choice("source", out.source, {"sim", "replay"});
+    read_targets(root, out.targets);
+    for (auto& t : out.targets) {
+      for (auto& p : t.pattern_sets) p.file = resolve(path, p.file);
+    }
+    {
+      Section s = root.child("tracker");
+      read_tracker(s, out.tracker);
+    }
     {
       Section s = root.child("governor");
       read_governor(s, out.governor);

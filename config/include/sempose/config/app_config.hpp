@@ -5,14 +5,18 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "sempose/config/governor_config.hpp"
 #include "sempose/config/pipeline_config.hpp"
+#include "sempose/config/tracker_config.hpp"
 
 namespace sempose::config {
 
 struct AppConfig {
   std::string source = "sim";  // "sim" | "replay": which scan source `sempose run` uses
+  std::vector<TargetConfig> targets;  // pattern file names resolved against the config's folder
+  TrackerConfig tracker;
   GovernorConfig governor;
   PipelineConfig pipeline;
   OutputConfig output;
