@@ -10,6 +10,7 @@
 
 #include <cstdint>
 
+#include "sempose/config/scan_config.hpp"
 #include "sempose/hal/frame.hpp"
 
 namespace sempose::hal {
@@ -20,22 +21,8 @@ struct ScanRequest {
   std::uint8_t target = 0;  // copied into FrameMeta::target
 };
 
-// What the scan generator can do (from config).
-struct ScanLimits {
-  std::int32_t field_w = 1024;
-  std::int32_t field_h = 768;
-  std::int32_t max_roi_w = 256;
-  std::int32_t max_roi_h = 256;
-  std::uint32_t min_dwell_ns = 100;
-  std::uint32_t max_dwell_ns = 10'000;
-  std::uint32_t dwell_step_ns = 50;
-  std::uint32_t line_flyback_ns = 2'000;
-
-  // w·h·dwell + h·flyback (DESIGN.md §5).
-  std::int64_t scan_time_ns(std::int32_t w, std::int32_t h, std::uint32_t dwell_ns) const noexcept {
-    return static_cast<std::int64_t>(w) * h * dwell_ns + static_cast<std::int64_t>(h) * line_flyback_ns;
-  }
-};
+// What the scan generator can do (from config, section `scan:`); one definition, in config.
+using ScanLimits = config::ScanLimits;
 
 enum class StartResult : std::uint8_t {
   kStarted = 0,

@@ -1,0 +1,99 @@
+// The simulated SEM (YAML section `sim:`) and the replay source (section `replay:`).
+// Defaults make a usable simulation with no `sim:` section at all: a 1024x768 field, a needle
+// tip textured from the real SEM image ../shared/data/sem/needle_contact_eb.pgm moving on a
+// slow sine, a procedural gripper as a second (disabled) target, and a beam dose that gives
+// single-digit detected electrons per pixel at 250 ns dwell (DESIGN.md §5).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace sempose::config {
+
+class Section;
+
+// x(t), y(t), φ(t) of one target; t in seconds since the source started.
+struct TrajectoryConfig {
+  // static | linear | sine | steps | jumps | spin | random_walk
+  std::string kind = "static";
+  // linear: velocity (bounces off the bounds); spin: omega_deg_s only.
+  double vx_px_s = 0, vy_px_s = 0, omega_deg_s = 0;
+  // sine: amplitudes and period; steps: the step size per period; jumps: the φ range (±).
+  double amplitude_x_px = 0, amplitude_y_px = 0, amplitude_phi_deg = 0;
+  double period_s = 1.0;
+  int steps = 4;  // steps: a staircase of this many steps, then back down
+  // random_walk: diffusion per √s, knots every knot_s, bounded by the bounds.
+  double sigma_px_per_sqrt_s = 4.0, sigma_deg_per_sqrt_s = 2.0, knot_s = 0.05;
+  // Bounds for linear/jumps/random_walk: the field minus this margin.
+  double margin_px = 96;
+};
+
+// Where a texture comes from: a crop of a PGM image or a procedural shape.
+struct TextureConfig {
+  std::string source = "image";  // image | gripper | lamella
+  std::string path;              // image: PGM path (relative: to cwd, then to the repo root)
+  std::int32_t crop_x = 0, crop_y = 0, crop_w = 0, crop_h = 0;  // 0 size: the whole image
+  // image mask: full (the crop rectangle) | threshold (largest bright region of the crop)
+  std::string mask = "full";
+  double mask_level = 0.6;  // threshold mask: brightness 0..1 on the smoothed texture
+};
+
+struct TargetConfig {
+  bool enabled = true;
+  TextureConfig texture;
+  std::int32_t width_px = 0, height_px = 0;  // size on the field; 0: the crop's size
+  double brightness = 1.0;                   // multiplies the texture (0..1 scene brightness)
+  double x_px = 512, y_px = 384, phi_deg = 0;  // pose at t = 0 (DESIGN.md §2)
+  TrajectoryConfig trajectory;
+};
+
+struct DriftTerm {  // one sinusoid of the slow image drift
+  double amplitude_px = 0, period_s = 10, direction_deg = 0, phase_deg = 0;
+};
+
+struct BackgroundConfig {
+  std::string source = "procedural";  // procedural | image
+  std::string path;                   // image: PGM, cropped then resampled to the field
+  std::int32_t crop_x = 0, crop_y = 0, crop_w = 0, crop_h = 0;
+  double mean = 0.30, contrast = 0.12;  // procedural: grey level and granular contrast (0..1)
+  double grain_px = 2.5;                // procedural: size of the surface grains
+};
+
+struct SimConfig {
+  std::uint64_t seed = 1;
+  std::string clock = "real";  // real (CLOCK_MONOTONIC) | virtual (deterministic)
+  bool noise = true;           // false: expected values, no jitter (geometry tests)
+  // Counting law: n = 6.24 · I[pA] · τ[µs] · η electrons for brightness 1.
+  double beam_current_pa = 50.0;
+  double yield = 0.10;              // η: SE yield × detector efficiency
+  double detector_gain_shape = 3.0;  // k of the Gamma gain per electron (excess noise 1 + 1/k)
+  double read_noise_e = 0.3;         // Gaussian read noise, in electrons
+  double output_offset = 0.04;       // black level, fraction of full scale
+  double output_white = 0.85;        // brightness 1 at mean gain, fraction of full scale
+  double psf_sigma_px = 0.8;         // Gaussian beam spot
+  double line_jitter_px = 0.15;      // σ of a random horizontal shift per line
+  double beam_lag_px = 1.5;          // position lag at line start ...
+  double beam_lag_len_px = 3.0;      // ... decaying over this many pixels
+  std::vector<DriftTerm> drift{{0.4, 23.0, 30.0, 0.0}, {0.25, 7.0, 120.0, 90.0}};
+  double brightness_drift = 0.03;        // relative amplitude (charging)
+  double brightness_drift_period_s = 40.0;
+  BackgroundConfig background;
+  std::vector<TargetConfig> targets = default_targets();
+
+  static std::vector<TargetConfig> default_targets();
+  double electrons_per_pixel(std::uint32_t dwell_ns) const noexcept {
+    return 6.24 * beam_current_pa * (dwell_ns * 1e-3) * yield;
+  }
+};
+
+struct ReplayConfig {
+  std::string frames_dir;      // directory of full-field PGM frames (+ frames.csv)
+  bool loop = false;           // at the end: start again (true) or report kEnded
+  std::string clock = "virtual";  // virtual | real (poll busy until the scan time passed)
+};
+
+void read_sim(Section& section, SimConfig& out);
+void read_replay(Section& section, ReplayConfig& out);
+
+}  // namespace sempose::config

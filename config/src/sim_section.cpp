@@ -1,0 +1,161 @@
+#include <string>
+
+#include "sempose/config/reader.hpp"
+#include "sempose/config/sim_config.hpp"
+
+namespace sempose::config {
+
+std::vector<TargetConfig> SimConfig::default_targets() {
+  std::vector<TargetConfig> t(2);
+  // The needle tip of the real SEM image: its crop centre sits on the needle body just
+  // behind the tip; the threshold mask keeps the bright needle and drops the trench.
+  TargetConfig& needle = t[0];
+  needle.texture.source = "image";
+  needle.texture.path = "../shared/data/sem/needle_contact_eb.pgm";
+  needle.texture.crop_x = 420;
+  needle.texture.crop_y = 380;
+  needle.texture.crop_w = 260;
+  needle.texture.crop_h = 260;
+  needle.texture.mask = "threshold";
+  needle.texture.mask_level = 0.62;
+  needle.x_px = 512;
+  needle.y_px = 384;
+  needle.trajectory.kind = "sine";
+  needle.trajectory.amplitude_x_px = 60;
+  needle.trajectory.amplitude_y_px = 30;
+  needle.trajectory.amplitude_phi_deg = 10;
+  needle.trajectory.period_s = 10;
+  // A two-jaw gripper, off by default (enable it for two-target runs).
+  TargetConfig& gripper = t[1];
+  gripper.enabled = false;
+  gripper.texture.source = "gripper";
+  gripper.width_px = 160;
+  gripper.height_px = 120;
+  gripper.brightness = 0.9;
+  gripper.x_px = 800;
+  gripper.y_px = 560;
+  gripper.phi_deg = 90;
+  return t;
+}
+
+namespace {
+
+void read_crop(Section& s, std::int32_t& x, std::int32_t& y, std::int32_t& w, std::int32_t& h) {
+  std::vector<std::int32_t> crop;
+  s.opt_list("crop", crop, std::int32_t{0}, std::int32_t{16384});
+  if (crop.empty()) return;
+  if (crop.size() != 4) {
+    s.error("crop", "expected [x, y, w, h] (4 numbers), got " + std::to_string(crop.size()));
+    return;
+  }
+  x = crop[0], y = crop[1], w = crop[2], h = crop[3];
+}
+
+void read_trajectory(Section& s, TrajectoryConfig& t) {
+  s.opt_choice("kind", t.kind, {"static", "linear", "sine", "steps", "jumps", "spin", "random_walk"});
+  s.opt("vx_px_s", t.vx_px_s, -1e5, 1e5);
+  s.opt("vy_px_s", t.vy_px_s, -1e5, 1e5);
+  s.opt("omega_deg_s", t.omega_deg_s, -1e5, 1e5);
+  s.opt("amplitude_x_px", t.amplitude_x_px, -16384.0, 16384.0);
+  s.opt("amplitude_y_px", t.amplitude_y_px, -16384.0, 16384.0);
+  s.opt("amplitude_phi_deg", t.amplitude_phi_deg, -180.0, 180.0);
+  s.opt("period_s", t.period_s, 1e-3, 1e6);
+  s.opt("steps", t.steps, 1, 1000);
+  s.opt("sigma_px_per_sqrt_s", t.sigma_px_per_sqrt_s, 0.0, 1e4);
+  s.opt("sigma_deg_per_sqrt_s", t.sigma_deg_per_sqrt_s, 0.0, 1e4);
+  s.opt("knot_s", t.knot_s, 1e-4, 100.0);
+  s.opt("margin_px", t.margin_px, 0.0, 8192.0);
+}
+
+void read_target(Section& s, TargetConfig& t) {
+  s.opt("enabled", t.enabled);
+  Section tex = s.child("texture");
+  if (tex.has("path") && !tex.has("source")) t.texture.source = "image";
+  tex.opt_choice("source", t.texture.source, {"image", "gripper", "lamella"});
+  tex.opt("path", t.texture.path);
+  read_crop(tex, t.texture.crop_x, t.texture.crop_y, t.texture.crop_w, t.texture.crop_h);
+  tex.opt_choice("mask", t.texture.mask, {"full", "threshold"});
+  tex.opt("mask_level", t.texture.mask_level, 0.0, 1.0);
+  if (t.texture.source == "image" && t.texture.path.empty()) {
+    tex.error("path", "texture source 'image' needs a PGM path");
+  }
+  std::vector<std::int32_t> size;
+  s.opt_list("size", size, std::int32_t{4}, std::int32_t{4096});
+  if (!size.empty()) {
+    if (size.size() != 2) s.error("size", "expected [width_px, height_px]");
+    else t.width_px = size[0], t.height_px = size[1];
+  }
+  s.opt("brightness", t.brightness, 0.0, 4.0);
+  std::vector<double> start;
+  s.opt_list("start", start, -16384.0, 16384.0);
+  if (!start.empty()) {
+    if (start.size() != 3) s.error("start", "expected [x_px, y_px, phi_deg]");
+    else t.x_px = start[0], t.y_px = start[1], t.phi_deg = start[2];
+  }
+  Section traj = s.child("trajectory");
+  read_trajectory(traj, t.trajectory);
+}
+
+}  // namespace
+
+void read_sim(Section& s, SimConfig& c) {
+  s.opt("seed", c.seed);
+  s.opt_choice("clock", c.clock, {"real", "virtual"});
+  s.opt("noise", c.noise);
+  s.opt("beam_current_pa", c.beam_current_pa, 0.01, 1e5);
+  s.opt("yield", c.yield, 1e-4, 10.0);
+  s.opt("detector_gain_shape", c.detector_gain_shape, 0.2, 1000.0);
+  s.opt("read_noise_e", c.read_noise_e, 0.0, 1e4);
+  s.opt("output_offset", c.output_offset, 0.0, 1.0);
+  s.opt("output_white", c.output_white, 0.01, 1.0);
+  s.opt("psf_sigma_px", c.psf_sigma_px, 0.0, 16.0);
+  s.opt("line_jitter_px", c.line_jitter_px, 0.0, 32.0);
+  s.opt("beam_lag_px", c.beam_lag_px, 0.0, 64.0);
+  s.opt("beam_lag_len_px", c.beam_lag_len_px, 0.1, 256.0);
+  if (s.has("drift")) {
+    c.drift.clear();
+    for (Section& d : s.children("drift")) {
+      DriftTerm term;
+      d.opt("amplitude_px", term.amplitude_px, 0.0, 1000.0);
+      d.opt("period_s", term.period_s, 1e-3, 1e6);
+      d.opt("direction_deg", term.direction_deg, -360.0, 360.0);
+      d.opt("phase_deg", term.phase_deg, -360.0, 360.0);
+      c.drift.push_back(term);
+    }
+  } else {
+    s.children("drift");  // mark as known
+  }
+  s.opt("brightness_drift", c.brightness_drift, 0.0, 0.9);
+  s.opt("brightness_drift_period_s", c.brightness_drift_period_s, 1e-3, 1e6);
+  Section bg = s.child("background");
+  bg.opt_choice("source", c.background.source, {"procedural", "image"});
+  bg.opt("path", c.background.path);
+  read_crop(bg, c.background.crop_x, c.background.crop_y, c.background.crop_w, c.background.crop_h);
+  bg.opt("mean", c.background.mean, 0.0, 1.0);
+  bg.opt("contrast", c.background.contrast, 0.0, 1.0);
+  bg.opt("grain_px", c.background.grain_px, 0.5, 64.0);
+  if (c.background.source == "image" && c.background.path.empty()) {
+    bg.error("path", "background source 'image' needs a PGM path");
+  }
+  if (s.has("targets")) {
+    std::vector<Section> list = s.children("targets");
+    if (list.size() > 4) s.error("targets", std::to_string(list.size()) + " targets; at most 4 are allowed");
+    c.targets.clear();
+    for (Section& ts : list) {
+      TargetConfig t;  // a listed target starts from a static, enabled, untextured default
+      t.texture.source = "lamella";
+      read_target(ts, t);
+      c.targets.push_back(t);
+    }
+  } else {
+    s.children("targets");
+  }
+}
+
+void read_replay(Section& s, ReplayConfig& c) {
+  s.opt("frames_dir", c.frames_dir);
+  s.opt("loop", c.loop);
+  s.opt_choice("clock", c.clock, {"virtual", "real"});
+}
+
+}  // namespace sempose::config

@@ -1,0 +1,60 @@
+// Replay of a recorded sequence (DESIGN.md §11) as a ScanSource: every start() serves the
+// requested ROI as a crop of the current full-field frame and advances one frame; at the end
+// start() returns kEnded, or wraps around when loop is set.
+// All frames are loaded at setup (the loop does no I/O); the constructor refuses sequences
+// larger than half the machine's physical memory. The field size and bits come from the
+// frames (all must share one size). Timestamps: with frames.csv (frame,t_ns) a scan starts at
+// max(virtual now, t_ns of the frame); without it, at the virtual now (scan-time model).
+// With ground_truth.csv (frame,x_px,y_px,phi_deg[,target]) the truth is filled in.
+// clock "real" instead paces poll() on CLOCK_MONOTONIC like the live simulator.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sempose/config/sim_config.hpp"
+#include "sempose/hal/image.hpp"
+#include "sempose/hal/scan_source.hpp"
+
+namespace sempose::hal {
+
+class ReplaySource final : public ScanSource {
+ public:
+  // Setup: throws std::runtime_error naming the directory/file and the problem.
+  ReplaySource(const ScanLimits& limits, const config::ReplayConfig& cfg);
+
+  const ScanLimits& limits() const noexcept override { return limits_; }
+  StartResult start(const ScanRequest& req, FrameSlot& slot) noexcept override;
+  PollResult poll() noexcept override;
+  std::int64_t now_ns() const noexcept override;
+  std::int64_t expected_done_ns() const noexcept override { return slot_ ? end_ns_ : 0; }
+  bool is_virtual_time() const noexcept override { return virtual_; }
+  void advance_virtual_ns(std::int64_t ns) noexcept override {
+    if (virtual_ && ns > 0) now_virtual_ns_ += ns;
+  }
+
+  std::size_t frame_count() const noexcept { return frames_.size(); }
+  std::size_t next_frame() const noexcept { return index_; }
+
+ private:
+  ScanLimits limits_;
+  bool loop_;
+  bool virtual_;
+  std::vector<Image> frames_;
+  std::vector<std::int64_t> t_ns_;  // per frame, or empty
+  std::vector<std::array<TargetTruth, kMaxTargets>> truth_;  // per frame, or empty
+  std::uint8_t truth_count_ = 0;
+  std::int64_t loop_offset_ns_ = 0;
+  std::int64_t now_virtual_ns_ = 1'000'000'000;
+  std::size_t index_ = 0;
+  std::uint64_t seq_ = 0;
+  FrameSlot* slot_ = nullptr;
+  std::int64_t end_ns_ = 0;
+};
+
+// Sorted *.pgm names in a directory (setup; throws when it is missing or has none).
+std::vector<std::string> list_pgm_frames(const std::string& dir);
+
+}  // namespace sempose::hal

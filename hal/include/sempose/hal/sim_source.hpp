@@ -1,0 +1,75 @@
+// The simulated SEM as a ScanSource (DESIGN.md §5). start() renders the whole ROI at once,
+// line by line at each line's own time (targets move during the scan, like a real beam
+// scan), into the slot; poll() only compares the clock with the scan end.
+//   real clock:    poll() is kBusy until CLOCK_MONOTONIC >= start + scan time.
+//   virtual clock: start() begins at the virtual now; poll() returns kDone and moves the
+//                  virtual now to the scan end; advance_virtual_ns() adds modelled compute.
+// Virtual time starts at 1 s (0 means "not reached" in FrameMeta); trajectories and drift use
+// t = now − (creation time) in seconds. Frames are reproducible from (seed, seq) in virtual time.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+
+#include "sempose/config/sim_config.hpp"
+#include "sempose/hal/image.hpp"
+#include "sempose/hal/scan_source.hpp"
+#include "sempose/hal/sim_rng.hpp"
+#include "sempose/hal/sim_scene.hpp"
+#include "sempose/hal/trajectory.hpp"
+
+namespace sempose::hal {
+
+class SimSource final : public ScanSource {
+ public:
+  static constexpr std::int64_t kVirtualEpochNs = 1'000'000'000;
+
+  // Setup: builds the scene; throws std::runtime_error with a message on a bad config.
+  SimSource(const ScanLimits& limits, const config::SimConfig& cfg);
+
+  const ScanLimits& limits() const noexcept override { return limits_; }
+  StartResult start(const ScanRequest& req, FrameSlot& slot) noexcept override;
+  PollResult poll() noexcept override;
+  std::int64_t now_ns() const noexcept override;
+  std::int64_t expected_done_ns() const noexcept override { return slot_ ? end_ns_ : 0; }
+  bool is_virtual_time() const noexcept override { return virtual_; }
+  void advance_virtual_ns(std::int64_t ns) noexcept override {
+    if (virtual_ && ns > 0) virtual_now_ns_ += ns;
+  }
+
+  // Renders roi as scanned from t_start_ns (the source's clock) into out (roi.w·roi.h
+  // pixels) and fills truth[0..target count) with the poses at mid-scan. RT-safe.
+  void render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_start_ns, std::uint64_t seq, Pixel* out,
+              TargetTruth* truth) noexcept;
+  std::uint8_t target_count() const noexcept { return static_cast<std::uint8_t>(scene_.targets().size()); }
+  const SimScene& scene() const noexcept { return scene_; }
+
+ private:
+  struct LinePose {
+    bool active = false;
+    double cx = 0, cy = 0, c = 1, s = 0;
+  };
+  double seconds(std::int64_t t_ns) const noexcept { return static_cast<double>(t_ns - epoch_ns_) * 1e-9; }
+  void drift_at(double t_s, double& dx, double& dy) const noexcept;
+
+  ScanLimits limits_;
+  SimScene scene_;
+  bool virtual_;
+  std::int64_t epoch_ns_;
+  std::int64_t virtual_now_ns_ = kVirtualEpochNs;
+  std::array<Trajectory, kMaxTargets> trajectories_{};
+  std::array<float, 64> lag_px_{};  // beam position lag for the first pixels of a line
+  SimRng rng_{0, 0};
+  std::uint64_t seq_ = 0;
+  FrameSlot* slot_ = nullptr;
+  std::int64_t end_ns_ = 0;
+};
+
+// The pattern an operator would record (the paper averaged 10 frames): target target_index at
+// φ = 0, centred in a size_px x size_px crop over its background, the mean of average_frames
+// noisy scans at dwell_ns; drift and motion off. Setup-time; throws on a bad index/size.
+Image render_sim_pattern(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px,
+                         int average_frames, std::uint32_t dwell_ns, std::uint64_t seed);
+
+}  // namespace sempose::hal

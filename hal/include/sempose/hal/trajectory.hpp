@@ -1,0 +1,42 @@
+// x(t), y(t), φ(t) of a simulated target (t in seconds since the source started), in the
+// DESIGN.md §2 conventions. Pure function of t and the seed, except random_walk, which keeps
+// a cursor so that monotone time costs O(1) per call (going back in time replays from 0).
+#pragma once
+
+#include <cstdint>
+
+#include "sempose/config/sim_config.hpp"
+
+namespace sempose::hal {
+
+struct Pose2 {
+  double x_px = 0, y_px = 0, phi_deg = 0;
+};
+
+class Trajectory {
+ public:
+  Trajectory() = default;
+  // field_w/h and cfg.margin_px give the bounds for bouncing, jumps and the random walk.
+  Trajectory(const config::TrajectoryConfig& cfg, Pose2 start, std::int32_t field_w, std::int32_t field_h,
+             std::uint64_t seed) noexcept;
+  Pose2 at(double t_s) noexcept;
+
+ private:
+  enum class Kind : std::uint8_t { kStatic, kLinear, kSine, kSteps, kJumps, kSpin, kRandomWalk };
+  Pose2 random_walk(double t_s) noexcept;
+  static double bounce(double x, double lo, double hi) noexcept;
+
+  config::TrajectoryConfig cfg_{};
+  Kind kind_ = Kind::kStatic;
+  Pose2 start_{};
+  double lo_x_ = 0, hi_x_ = 0, lo_y_ = 0, hi_y_ = 0;
+  std::uint64_t seed_ = 0;
+  // random walk cursor: pose at knot k_
+  std::int64_t k_ = 0;
+  Pose2 knot_{};
+};
+
+// Wraps degrees into (-180, 180].
+double wrap_deg(double deg) noexcept;
+
+}  // namespace sempose::hal

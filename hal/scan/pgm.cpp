@@ -1,0 +1,125 @@
+#include "sempose/hal/pgm.hpp"
+
+#include <cctype>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+#include <vector>
+
+namespace sempose::hal {
+
+namespace {
+
+// Reads one decimal header field, skipping whitespace and # comments.
+bool next_number(const std::vector<unsigned char>& d, std::size_t& pos, long long& value) {
+  for (;;) {
+    while (pos < d.size() && std::isspace(d[pos])) ++pos;
+    if (pos < d.size() && d[pos] == '#') {
+      while (pos < d.size() && d[pos] != '\n' && d[pos] != '\r') ++pos;
+      continue;
+    }
+    break;
+  }
+  if (pos >= d.size() || !std::isdigit(d[pos])) return false;
+  value = 0;
+  while (pos < d.size() && std::isdigit(d[pos])) {
+    value = value * 10 + (d[pos] - '0');
+    if (value > 1'000'000'000) return false;
+    ++pos;
+  }
+  return true;
+}
+
+std::string parse(const std::vector<unsigned char>& d, Image& out) {
+  if (d.size() < 2 || d[0] != 'P' || d[1] != '5') {
+    std::string got = d.size() >= 2 ? std::string(d.begin(), d.begin() + 2) : std::string("(empty)");
+    for (char& c : got) if (!std::isprint(static_cast<unsigned char>(c))) c = '?';
+    return "wrong magic '" + got + "' (expected P5, binary greymap)";
+  }
+  std::size_t pos = 2;
+  long long w = 0, h = 0, maxval = 0;
+  if (!next_number(d, pos, w)) return "header: missing or bad width";
+  if (!next_number(d, pos, h)) return "header: missing or bad height";
+  if (!next_number(d, pos, maxval)) return "header: missing or bad maxval";
+  if (w <= 0 || h <= 0 || w > kPgmMaxSide || h > kPgmMaxSide) {
+    return "size " + std::to_string(w) + "x" + std::to_string(h) + " is outside 1.." +
+           std::to_string(kPgmMaxSide) + " per side";
+  }
+  if (maxval < 1 || maxval > 65535) return "maxval " + std::to_string(maxval) + " is outside 1..65535";
+  if (pos >= d.size() || !std::isspace(d[pos])) return "header: no whitespace after maxval";
+  ++pos;  // exactly one whitespace byte before the raster
+  const std::size_t bytes_per = maxval > 255 ? 2 : 1;
+  const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  const std::size_t need = n * bytes_per;
+  if (d.size() - pos < need) {
+    return "truncated: " + std::to_string(d.size() - pos) + " of " + std::to_string(need) + " pixel bytes";
+  }
+  Image img;
+  img.width = static_cast<std::int32_t>(w);
+  img.height = static_cast<std::int32_t>(h);
+  img.bits = bytes_per == 2 ? 16 : 8;
+  img.pixels.resize(n);
+  const unsigned char* p = d.data() + pos;
+  for (std::size_t i = 0; i < n; ++i) {
+    img.pixels[i] = bytes_per == 2 ? static_cast<std::uint16_t>((p[2 * i] << 8) | p[2 * i + 1]) : p[i];
+  }
+  out = std::move(img);
+  return {};
+}
+
+}  // namespace
+
+bool try_read_pgm(const std::string& path, Image& out, std::string& error) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) {
+    error = path + ": cannot open (missing or unreadable)";
+    return false;
+  }
+  std::vector<unsigned char> data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (f.bad()) {
+    error = path + ": read error";
+    return false;
+  }
+  const std::string why = parse(data, out);
+  if (!why.empty()) {
+    error = path + ": " + why;
+    return false;
+  }
+  return true;
+}
+
+Image read_pgm(const std::string& path) {
+  Image img;
+  std::string error;
+  if (!try_read_pgm(path, img, error)) throw std::runtime_error(error);
+  return img;
+}
+
+void write_pgm(const std::string& path, const Image& image) {
+  if (image.empty() || image.pixels.size() != static_cast<std::size_t>(image.width) * image.height) {
+    throw std::runtime_error(path + ": cannot write an empty or inconsistent image");
+  }
+  const bool wide = image.bits > 8;
+  std::string out = "P5\n" + std::to_string(image.width) + " " + std::to_string(image.height) + "\n" +
+                    (wide ? "65535" : "255") + "\n";
+  const std::size_t head = out.size();
+  out.resize(head + image.pixels.size() * (wide ? 2 : 1));
+  char* p = out.data() + head;
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    const std::uint16_t v = image.pixels[i];
+    if (wide) {
+      p[2 * i] = static_cast<char>(v >> 8);
+      p[2 * i + 1] = static_cast<char>(v & 0xff);
+    } else {
+      p[i] = static_cast<char>(v > 255 ? 255 : v);
+    }
+  }
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (!f) throw std::runtime_error(path + ": cannot create the file");
+  f.write(out.data(), static_cast<std::streamsize>(out.size()));
+  f.close();
+  if (!f) throw std::runtime_error(path + ": write failed (disk full?)");
+}
+
+}  // namespace sempose::hal

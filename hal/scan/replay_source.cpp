@@ -1,0 +1,175 @@
+#include "sempose/hal/replay_source.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include "sempose/hal/pgm.hpp"
+#include "sempose/hal/scan_request_check.hpp"
+#include "sempose/rt/clock.hpp"
+
+namespace sempose::hal {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> list_pgm_frames(const std::string& dir) {
+  std::error_code ec;
+  if (dir.empty() || !fs::is_directory(dir, ec)) {
+    throw std::runtime_error(dir + ": not a directory of recorded frames (missing?)");
+  }
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.is_regular_file() && e.path().extension() == ".pgm") names.push_back(e.path().string());
+  }
+  if (names.empty()) throw std::runtime_error(dir + ": no *.pgm frames in the directory");
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+namespace {
+
+// Reads rows of a small CSV with a header; returns the numeric fields per row.
+std::vector<std::vector<double>> read_csv(const std::string& path, std::size_t min_cols) {
+  std::ifstream f(path);
+  std::vector<std::vector<double>> rows;
+  std::string line;
+  std::size_t line_no = 0;
+  while (std::getline(f, line)) {
+    ++line_no;
+    if (line_no == 1 || line.empty()) continue;  // header
+    std::vector<double> row;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) {
+      char* end = nullptr;
+      const double v = std::strtod(cell.c_str(), &end);
+      if (end == cell.c_str()) throw std::runtime_error(path + ":" + std::to_string(line_no) + ": '" + cell + "' is not a number");
+      row.push_back(v);
+    }
+    if (row.size() < min_cols) {
+      throw std::runtime_error(path + ":" + std::to_string(line_no) + ": expected at least " + std::to_string(min_cols) + " columns");
+    }
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+}  // namespace
+
+ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig& cfg)
+    : limits_(limits), loop_(cfg.loop), virtual_(cfg.clock != "real") {
+  const std::vector<std::string> names = list_pgm_frames(cfg.frames_dir);
+  // Memory check before loading: all frames stay resident.
+  Image first = read_pgm(names.front());
+  const double bytes = static_cast<double>(names.size()) * first.width * first.height * sizeof(std::uint16_t);
+  const double phys = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * static_cast<double>(sysconf(_SC_PAGESIZE));
+  if (phys > 0 && bytes > 0.5 * phys) {
+    throw std::runtime_error(cfg.frames_dir + ": " + std::to_string(names.size()) + " frames need " +
+                             std::to_string(static_cast<long long>(bytes / 1048576)) + " MiB, more than half of the " +
+                             std::to_string(static_cast<long long>(phys / 1048576)) + " MiB of memory; replay fewer frames");
+  }
+  frames_.reserve(names.size());
+  frames_.push_back(std::move(first));
+  for (std::size_t i = 1; i < names.size(); ++i) {
+    frames_.push_back(read_pgm(names[i]));
+    if (frames_.back().width != frames_[0].width || frames_.back().height != frames_[0].height) {
+      throw std::runtime_error(names[i] + ": size " + std::to_string(frames_.back().width) + "x" +
+                               std::to_string(frames_.back().height) + " differs from the first frame's");
+    }
+  }
+  limits_.field_w = frames_[0].width;
+  limits_.field_h = frames_[0].height;
+  limits_.max_roi_w = std::min(limits_.max_roi_w, limits_.field_w);
+  limits_.max_roi_h = std::min(limits_.max_roi_h, limits_.field_h);
+  limits_.bits = frames_[0].bits;
+
+  const fs::path csv = fs::path(cfg.frames_dir) / "frames.csv";
+  if (fs::exists(csv)) {
+    t_ns_.assign(frames_.size(), 0);
+    std::vector<bool> seen(frames_.size(), false);
+    for (const auto& row : read_csv(csv.string(), 2)) {
+      const auto i = static_cast<long long>(row[0]);
+      if (i < 0 || static_cast<std::size_t>(i) >= frames_.size()) {
+        throw std::runtime_error(csv.string() + ": frame " + std::to_string(i) + " has no PGM (" +
+                                 std::to_string(frames_.size()) + " frames)");
+      }
+      t_ns_[static_cast<std::size_t>(i)] = static_cast<std::int64_t>(row[1]);
+      seen[static_cast<std::size_t>(i)] = true;
+    }
+    if (std::find(seen.begin(), seen.end(), false) != seen.end()) {
+      throw std::runtime_error(csv.string() + ": some frames have no t_ns line");
+    }
+  }
+  const fs::path gt = fs::path(cfg.frames_dir) / "ground_truth.csv";
+  if (fs::exists(gt)) {
+    truth_.assign(frames_.size(), {});
+    for (const auto& row : read_csv(gt.string(), 4)) {
+      const auto i = static_cast<long long>(row[0]);
+      const auto target = row.size() >= 5 ? static_cast<int>(row[4]) : 0;
+      if (i < 0 || static_cast<std::size_t>(i) >= frames_.size() || target < 0 || target >= kMaxTargets) continue;
+      truth_[static_cast<std::size_t>(i)][static_cast<std::size_t>(target)] = {row[1], row[2], row[3], true};
+      truth_count_ = static_cast<std::uint8_t>(std::max<int>(truth_count_, target + 1));
+    }
+  }
+}
+
+std::int64_t ReplaySource::now_ns() const noexcept { return virtual_ ? now_virtual_ns_ : rt::now_ns(); }
+
+StartResult ReplaySource::start(const ScanRequest& req, FrameSlot& slot) noexcept {
+  if (slot_ != nullptr) return StartResult::kBusy;
+  if (index_ >= frames_.size()) {
+    if (!loop_) return StartResult::kEnded;
+    if (!t_ns_.empty()) {
+      const std::int64_t period = frames_.size() > 1 ? (t_ns_.back() - t_ns_.front()) / static_cast<std::int64_t>(frames_.size() - 1) : 0;
+      loop_offset_ns_ += t_ns_.back() - t_ns_.front() + period;
+    }
+    index_ = 0;
+  }
+  std::uint32_t dwell = 0;
+  const StartResult check = check_scan_request(limits_, req, slot.capacity_pixels, dwell);
+  if (check != StartResult::kStarted) return check;
+  const Image& f = frames_[index_];
+  const Roi& r = req.roi;
+  for (int y = 0; y < r.h; ++y) {
+    const std::uint16_t* src = &f.pixels[static_cast<std::size_t>(r.y + y) * f.width + r.x];
+    std::memcpy(slot.pixels + static_cast<std::size_t>(y) * r.w, src, static_cast<std::size_t>(r.w) * sizeof(Pixel));
+  }
+  std::int64_t t0 = now_ns();
+  if (virtual_ && !t_ns_.empty()) t0 = std::max(t0, t_ns_[index_] + loop_offset_ns_);
+  FrameMeta& m = slot.meta;
+  m.seq = seq_++;
+  m.roi = r;
+  m.field_w = limits_.field_w;
+  m.field_h = limits_.field_h;
+  m.dwell_ns = dwell;
+  m.bits = limits_.bits;
+  m.target = req.target;
+  m.status = FrameStatus::kOk;
+  m.t_scan_start_ns = t0;
+  m.t_scan_end_ns = t0 + limits_.scan_time_ns(r.w, r.h, dwell);
+  m.t_seen_ns = m.t_pose_done_ns = m.t_sent_ns = 0;
+  m.truth_count = truth_count_;
+  for (int t = 0; t < kMaxTargets; ++t) m.truth[t] = truth_.empty() ? TargetTruth{} : truth_[index_][static_cast<std::size_t>(t)];
+  ++index_;
+  end_ns_ = m.t_scan_end_ns;
+  slot_ = &slot;
+  return StartResult::kStarted;
+}
+
+PollResult ReplaySource::poll() noexcept {
+  if (slot_ == nullptr) return PollResult::kIdle;
+  if (virtual_) {
+    now_virtual_ns_ = std::max(now_virtual_ns_, end_ns_);
+  } else if (rt::now_ns() < end_ns_) {
+    return PollResult::kBusy;
+  }
+  slot_ = nullptr;
+  return PollResult::kDone;
+}
+
+}  // namespace sempose::hal
