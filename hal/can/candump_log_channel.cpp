@@ -1,0 +1,148 @@
+// candump -l log channel. See can_candump_log.hpp.
+#include "sempose/hal/can_candump_log.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <ctime>
+
+namespace sempose::hal {
+namespace {
+
+constexpr char kHex[] = "0123456789ABCDEF";
+
+char* put_decimal(char* p, std::uint64_t v, int min_digits) noexcept {
+  char tmp[24];
+  int n = 0;
+  do {
+    tmp[n++] = static_cast<char>('0' + v % 10);
+    v /= 10;
+  } while (v != 0 && n < 24);
+  while (n < min_digits && n < 24) tmp[n++] = '0';
+  while (n > 0) *p++ = tmp[--n];
+  return p;
+}
+
+char* put_hex(char* p, std::uint32_t v, int digits) noexcept {
+  for (int i = digits - 1; i >= 0; --i) *p++ = kHex[(v >> (4 * i)) & 0xF];
+  return p;
+}
+
+std::size_t round_up_pow2(std::size_t v) {
+  std::size_t p = 4096;
+  while (p < v) p <<= 1;
+  return p;
+}
+
+}  // namespace
+
+std::size_t CandumpLogChannel::format_line(const CanFrame& f, std::int64_t t_ns, const char* channel,
+                                           char* out) noexcept {
+  char* p = out;
+  const std::uint64_t t = t_ns < 0 ? 0 : static_cast<std::uint64_t>(t_ns);
+  *p++ = '(';
+  p = put_decimal(p, t / 1'000'000'000u, 10);
+  *p++ = '.';
+  p = put_decimal(p, (t % 1'000'000'000u) / 1000u, 6);
+  *p++ = ')';
+  *p++ = ' ';
+  for (int i = 0; channel[i] != '\0' && i < 16; ++i) *p++ = channel[i];
+  *p++ = ' ';
+  p = f.extended() ? put_hex(p, f.id & 0x1FFFFFFFu, 8) : put_hex(p, f.id & 0x7FFu, 3);
+  *p++ = '#';
+  const std::uint8_t max_len = f.fd() ? 64 : 8;
+  const std::uint8_t len = f.len > max_len ? max_len : f.len;
+  if (f.fd()) {
+    *p++ = '#';
+    *p++ = kHex[(f.flags & CanFrame::kBrs) ? 1 : 0];  // candump's FD flags digit (CANFD_BRS = 1)
+  } else if (f.remote()) {
+    *p++ = 'R';
+    *p++ = '\n';
+    return static_cast<std::size_t>(p - out);
+  }
+  for (std::uint8_t i = 0; i < len; ++i) {
+    *p++ = kHex[f.data[i] >> 4];
+    *p++ = kHex[f.data[i] & 0xF];
+  }
+  *p++ = '\n';
+  return static_cast<std::size_t>(p - out);
+}
+
+std::unique_ptr<CandumpLogChannel> CandumpLogChannel::open(const CandumpLogOptions& o, rt::Status& status) {
+  if (o.path.empty()) {
+    status = rt::Status::failure("can.log_file: empty path (set a file for the candump log)");
+    return nullptr;
+  }
+  if (o.channel_name.empty() || o.channel_name.size() > 15 || o.channel_name.find_first_of(" \t\n#()") != std::string::npos) {
+    status = rt::Status::failure("can.log_channel: '" + o.channel_name + "' must be 1..15 characters without spaces, '#' or parentheses");
+    return nullptr;
+  }
+  std::unique_ptr<CandumpLogChannel> ch(new CandumpLogChannel());
+  ch->path_ = o.path;
+  ch->channel_ = o.channel_name;
+  ch->fd_ = o.fd;
+  ch->wall_clock_ = o.wall_clock;
+  ch->ring_.assign(round_up_pow2(o.buffer_bytes < kMaxLine * 4 ? kMaxLine * 4 : o.buffer_bytes), '\0');
+  ch->mask_ = ch->ring_.size() - 1;
+  ch->file_ = ::open(o.path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (ch->file_ < 0) {
+    status = rt::Status::failure("can.log_file '" + o.path + "': cannot create: " + std::strerror(errno));
+    return nullptr;
+  }
+  status = rt::Status::success();
+  return ch;
+}
+
+CandumpLogChannel::~CandumpLogChannel() {
+  flush();
+  if (file_ >= 0) ::close(file_);
+}
+
+CanSendResult CandumpLogChannel::send(const CanFrame& f, std::int64_t t_ns) noexcept {
+  if ((f.fd() && !fd_) || f.len > (f.fd() ? 64 : 8)) {
+    CanChannelCounters::bump(counters_.tx_errors);
+    return CanSendResult::kError;
+  }
+  if (wall_clock_) {
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);  // vDSO: no syscall
+    t_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+  }
+  char line[kMaxLine];
+  const std::size_t n = format_line(f, t_ns, channel_.c_str(), line);
+  const std::size_t tail = tail_.load(std::memory_order_relaxed);
+  const std::size_t head = head_.load(std::memory_order_acquire);
+  if (ring_.size() - (tail - head) < n) {
+    CanChannelCounters::bump(counters_.tx_dropped);
+    return CanSendResult::kDropped;
+  }
+  char* ring = ring_.data();
+  for (std::size_t i = 0; i < n; ++i) ring[(tail + i) & mask_] = line[i];
+  tail_.store(tail + n, std::memory_order_release);
+  CanChannelCounters::bump(counters_.tx_frames);
+  return CanSendResult::kSent;
+}
+
+void CandumpLogChannel::flush() {
+  std::lock_guard<std::mutex> lock(flush_mutex_);
+  if (file_ < 0) return;
+  std::size_t head = head_.load(std::memory_order_relaxed);
+  const std::size_t tail = tail_.load(std::memory_order_acquire);
+  while (head != tail) {
+    const std::size_t start = head & mask_;
+    const std::size_t contiguous = std::min(tail - head, ring_.size() - start);
+    const ssize_t w = ::write(file_, ring_.data() + start, contiguous);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      break;  // disk full etc.: keep the data; the ring fills and send() counts drops
+    }
+    head += static_cast<std::size_t>(w);
+    head_.store(head, std::memory_order_release);
+    written_.fetch_add(static_cast<std::uint64_t>(w), std::memory_order_relaxed);
+  }
+}
+
+}  // namespace sempose::hal

@@ -1,0 +1,64 @@
+// A CAN channel that writes every frame as a candump -l log line instead of sending it:
+//   (0000012345.678901) can0 123#DEADBEEF        classic (3 hex digits id; 8 if extended)
+//   (0000012345.678901) can0 102##0<128 hex>     CAN FD (## + one flags digit, as candump)
+// so canplayer can replay it onto a bus and python-can's CanutilsLogReader reads it.
+//
+// RT-safe: send() formats into a preallocated single-producer/single-consumer byte ring;
+// flush(), called by a non-RT thread (periodically and at shutdown), write()s the ring to
+// the file. A full ring drops the line and counts it (tx_dropped); no file I/O ever runs
+// on the sending thread.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "sempose/hal/can_channel.hpp"
+#include "sempose/rt/result.hpp"
+
+namespace sempose::hal {
+
+struct CandumpLogOptions {
+  std::string path;
+  std::string channel_name = "can0";      // the interface name written on each line
+  std::size_t buffer_bytes = 1u << 20;    // rounded up to a power of two
+  bool wall_clock = false;  // false: timestamps from the sender's clock (t_ns); true: CLOCK_REALTIME
+  bool fd = false;          // accept CAN FD frames (the log can hold them; replay needs an FD bus)
+};
+
+class CandumpLogChannel final : public CanChannel {
+ public:
+  // Setup: creates/truncates the file. nullptr + message naming the path and errno text.
+  static std::unique_ptr<CandumpLogChannel> open(const CandumpLogOptions& options, rt::Status& status);
+  ~CandumpLogChannel() override;  // flushes and closes
+
+  CanSendResult send(const CanFrame& frame, std::int64_t t_ns) noexcept override;
+  bool fd_enabled() const noexcept override { return fd_; }
+  void flush() override;
+  const char* name() const noexcept override { return path_.c_str(); }
+
+  // Formats one line (with '\n') into out (>= kMaxLine bytes); returns its length. Pure.
+  static constexpr std::size_t kMaxLine = 224;
+  static std::size_t format_line(const CanFrame& frame, std::int64_t t_ns, const char* channel,
+                                 char* out) noexcept;
+  std::uint64_t bytes_written() const noexcept { return written_.load(std::memory_order_relaxed); }
+
+ private:
+  CandumpLogChannel() = default;
+
+  std::string path_;
+  std::string channel_;
+  int file_ = -1;
+  bool fd_ = false;
+  bool wall_clock_ = false;
+  std::vector<char> ring_;
+  std::size_t mask_ = 0;
+  alignas(64) std::atomic<std::size_t> head_{0};  // consumer (flush)
+  alignas(64) std::atomic<std::size_t> tail_{0};  // producer (send)
+  std::atomic<std::uint64_t> written_{0};
+  std::mutex flush_mutex_;  // non-RT side only: two non-RT callers of flush() never interleave
+};
+
+}  // namespace sempose::hal
