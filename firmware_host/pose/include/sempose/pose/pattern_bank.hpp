@@ -1,0 +1,57 @@
+// The rotated pattern bank of one pattern set: every angle step's rotated copy (one
+// interpolation — bicubic, Keys a = −0.5 — for every angle including 0°), masked, zero-mean,
+// unit norm, with its spectrum at the tracking FFT size; plus the coarse copies (box
+// downsampled) and their spectra at the start-search FFT size. Setup only.
+#pragma once
+
+#include <complex>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sempose/hal/image.hpp"
+#include "sempose/pose/zncc.hpp"
+
+namespace sempose::pose {
+
+// Rotates src (size×size, row-major) by phi_deg about its centre, counter-clockwise on the
+// screen (DESIGN.md §2), bicubic; samples falling outside are clamped to the border.
+void rotate_pattern(const float* src, int size, double phi_deg, float* out) noexcept;
+
+// Box-downsamples the central (size/factor·factor)² block of a size×size pattern.
+void downsample_pattern(const float* src, int size, int factor, float* out) noexcept;
+
+struct FftwFree {
+  void operator()(void* p) const noexcept;
+};
+
+class PatternBank {
+ public:
+  using Complex = ZnccCorrelator::Complex;
+  // Returns false (and why) when the pattern is flat under the mask at some angle.
+  bool build(const hal::Image& pattern, double angle_step_deg, const PatternMask& fine_mask,
+             ZnccCorrelator& fine, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
+             ZnccCorrelator& coarse, std::string& why);
+
+  int angles() const noexcept { return angles_; }
+  int coarse_angles() const noexcept { return coarse_angles_; }
+  const float* pattern(int j) const noexcept { return spatial_.data() + static_cast<std::size_t>(j) * size_ * size_; }
+  const Complex* spectrum(int j) const noexcept { return spectra_.get() + static_cast<std::size_t>(j) * spectrum_len_; }
+  const Complex* coarse_spectrum(int k) const noexcept {
+    return coarse_spectra_.get() + static_cast<std::size_t>(k) * coarse_len_;
+  }
+  double coarse_angle_deg(int k) const noexcept { return k * coarse_step_deg_; }
+  std::size_t memory_bytes() const noexcept;
+
+ private:
+  int size_ = 0, angles_ = 0, coarse_angles_ = 0;
+  double coarse_step_deg_ = 20;
+  std::size_t spectrum_len_ = 0, coarse_len_ = 0;
+  std::vector<float> spatial_;
+  std::unique_ptr<Complex[], FftwFree> spectra_;
+  std::unique_ptr<Complex[], FftwFree> coarse_spectra_;
+};
+
+}  // namespace sempose::pose

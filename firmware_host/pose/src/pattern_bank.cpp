@@ -1,0 +1,111 @@
+#include "sempose/pose/pattern_bank.hpp"
+
+#include <fftw3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <new>
+
+namespace sempose::pose {
+
+namespace {
+// Keys cubic convolution kernel, a = −0.5.
+inline double keys(double t) noexcept {
+  t = std::fabs(t);
+  if (t < 1) return (1.5 * t - 2.5) * t * t + 1;
+  if (t < 2) return ((-0.5 * t + 2.5) * t - 4) * t + 2;
+  return 0;
+}
+}  // namespace
+
+void FftwFree::operator()(void* p) const noexcept { fftwf_free(p); }
+
+void rotate_pattern(const float* src, int n, double phi_deg, float* out) noexcept {
+  const double c = (n - 1) / 2.0;
+  const double rad = phi_deg * M_PI / 180.0;
+  const double cs = std::cos(rad), sn = std::sin(rad);
+  auto at = [&](int x, int y) {
+    x = std::clamp(x, 0, n - 1);
+    y = std::clamp(y, 0, n - 1);
+    return static_cast<double>(src[y * n + x]);
+  };
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      // Inverse map: output offset d comes from source offset R(−φ)·d. A CCW screen rotation
+      // by φ maps (dx, dy) to (dx cos + dy sin, −dx sin + dy cos) (y points down).
+      const double dx = x - c, dy = y - c;
+      const double sx = c + dx * cs - dy * sn;
+      const double sy = c + dx * sn + dy * cs;
+      const int ix = static_cast<int>(std::floor(sx)), iy = static_cast<int>(std::floor(sy));
+      const double fx = sx - ix, fy = sy - iy;
+      double acc = 0;
+      for (int j = -1; j <= 2; ++j) {
+        const double wy = keys(j - fy);
+        double row = 0;
+        for (int i = -1; i <= 2; ++i) row += keys(i - fx) * at(ix + i, iy + j);
+        acc += wy * row;
+      }
+      out[y * n + x] = static_cast<float>(acc);
+    }
+  }
+}
+
+void downsample_pattern(const float* src, int n, int factor, float* out) noexcept {
+  const int m = n / factor;
+  const int off = (n - m * factor) / 2;
+  for (int y = 0; y < m; ++y) {
+    for (int x = 0; x < m; ++x) {
+      double acc = 0;
+      for (int j = 0; j < factor; ++j) {
+        for (int i = 0; i < factor; ++i) acc += src[(off + y * factor + j) * n + off + x * factor + i];
+      }
+      out[y * m + x] = static_cast<float>(acc);
+    }
+  }
+}
+
+bool PatternBank::build(const hal::Image& pattern, double step_deg, const PatternMask& fine_mask,
+                        ZnccCorrelator& fine, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
+                        ZnccCorrelator& coarse, std::string& why) {
+  size_ = pattern.width;
+  const int n = size_;
+  angles_ = static_cast<int>(std::lround(360.0 / step_deg));
+  coarse_step_deg_ = coarse_step_deg;
+  coarse_angles_ = std::max(1, static_cast<int>(std::lround(360.0 / coarse_step_deg)));
+  spectrum_len_ = fine.spectrum_len();
+  coarse_len_ = coarse.spectrum_len();
+  const int m = coarse_mask.size_px();
+
+  std::vector<float> src(static_cast<std::size_t>(n) * n), raw(src.size()), small(static_cast<std::size_t>(m) * m);
+  for (std::size_t i = 0; i < src.size(); ++i) src[i] = static_cast<float>(pattern.pixels[i]);
+  spatial_.assign(static_cast<std::size_t>(angles_) * n * n, 0.0f);
+  spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len_ * angles_)));
+  coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)));
+  if (!spectra_ || !coarse_spectra_) throw std::bad_alloc();
+
+  for (int j = 0; j < angles_; ++j) {
+    float* p = spatial_.data() + static_cast<std::size_t>(j) * n * n;
+    rotate_pattern(src.data(), n, j * step_deg, p);
+    if (!normalize_pattern(p, fine_mask)) {
+      why = "the pattern is flat (constant grey level) inside its mask";
+      return false;
+    }
+    fine.make_spectrum(p, spectra_.get() + static_cast<std::size_t>(j) * spectrum_len_);
+  }
+  for (int k = 0; k < coarse_angles_; ++k) {
+    rotate_pattern(src.data(), n, k * coarse_step_deg, raw.data());
+    downsample_pattern(raw.data(), n, factor, small.data());
+    if (!normalize_pattern(small.data(), coarse_mask)) {
+      why = "the pattern is flat after downsampling by search_downsample";
+      return false;
+    }
+    coarse.make_spectrum(small.data(), coarse_spectra_.get() + static_cast<std::size_t>(k) * coarse_len_);
+  }
+  return true;
+}
+
+std::size_t PatternBank::memory_bytes() const noexcept {
+  return spatial_.size() * sizeof(float) + sizeof(Complex) * (spectrum_len_ * angles_ + coarse_len_ * coarse_angles_);
+}
+
+}  // namespace sempose::pose

@@ -1,0 +1,573 @@
+// Tracker: glue between the correlator, the pattern banks and the tracking state machine.
+#include "sempose/pose/tracker.hpp"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <string>
+
+#include "sempose/pose/pattern_bank.hpp"
+#include "sempose/pose/zncc.hpp"
+
+namespace sempose::pose {
+
+namespace {
+
+double wrap_deg(double a) noexcept {
+  a = std::fmod(a, 360.0);
+  if (a <= -180.0) a += 360.0;
+  if (a > 180.0) a -= 360.0;
+  return a;
+}
+
+struct Peak {
+  int ux = 0, uy = 0;
+  float score = 0;
+  float psr = 0;
+  bool psr_valid = false;
+};
+
+// Global maximum of a ZNCC map and its peak-to-sidelobe ratio (sidelobe = the map outside
+// an 11×11 window around the peak).
+Peak find_peak(const float* map, int vw, int vh) noexcept {
+  Peak p;
+  p.score = -2.0f;
+  for (int y = 0; y < vh; ++y) {
+    const float* row = map + static_cast<std::size_t>(y) * vw;
+    for (int x = 0; x < vw; ++x) {
+      if (row[x] > p.score) {
+        p.score = row[x];
+        p.ux = x;
+        p.uy = y;
+      }
+    }
+  }
+  double sum = 0, sum2 = 0;
+  int count = 0;
+  for (int y = 0; y < vh; ++y) {
+    const float* row = map + static_cast<std::size_t>(y) * vw;
+    const bool near_y = std::abs(y - p.uy) <= 5;
+    for (int x = 0; x < vw; ++x) {
+      if (near_y && std::abs(x - p.ux) <= 5) continue;
+      sum += row[x];
+      sum2 += static_cast<double>(row[x]) * row[x];
+      ++count;
+    }
+  }
+  if (count >= 20) {
+    const double mean = sum / count;
+    const double var = std::max(0.0, sum2 / count - mean * mean);
+    const double sd = std::sqrt(var);
+    p.psr = sd > 1e-6 ? static_cast<float>(std::clamp((p.score - mean) / sd, -1000.0, 1000.0)) : 1000.0f;
+    p.psr_valid = true;
+  }
+  return p;
+}
+
+// Offset of a peak from three samples (left, centre, right), in (-0.5, 0.5).
+double fit3(float l, float c, float r, bool gaussian) noexcept {
+  double d = 0;
+  if (gaussian && l > 0 && c > 0 && r > 0) {
+    const double ll = std::log(l), lc = std::log(c), lr = std::log(r);
+    const double den = ll - 2 * lc + lr;
+    if (den < -1e-12) d = 0.5 * (ll - lr) / den;
+  } else {
+    const double den = static_cast<double>(l) - 2.0 * c + r;
+    if (den < -1e-12) d = 0.5 * (static_cast<double>(l) - r) / den;
+  }
+  return std::clamp(d, -0.5, 0.5);
+}
+
+}  // namespace
+
+struct Measurement {
+  bool valid = false;
+  int j = 0;            // final angle index
+  int ux = 0, uy = 0;   // integer displacement in the loaded region
+  double dx = 0, dy = 0, dj = 0;  // sub-pixel / sub-step offsets
+  float score = 0, psr = 0;
+  bool psr_valid = false;
+  int steps = 0;
+  bool unsettled = false;
+};
+
+struct Tracker::Impl {
+  config::TrackerConfig cfg;
+  hal::ScanLimits limits;
+  int P = 0, R = 0, N = 0, d = 8, Pc = 0, coarse_off = 0, n_angles = 360;
+  double step = 1.0;
+  PatternMask fine_mask, coarse_mask;
+  std::unique_ptr<ZnccCorrelator> fine, coarse;
+  std::vector<PatternBank> banks;
+  std::vector<double> nm_per_px;
+  std::vector<float> map_a, map_b;  // fine ZNCC maps: work and best-so-far
+  float* map_work = nullptr;
+  float* map_best = nullptr;
+  std::vector<float> cmap;
+  std::vector<std::int32_t> coarse_img;
+  int coarse_cap_w = 0, coarse_cap_h = 0;
+  struct Candidate {
+    int ux, uy, k;
+    float score;
+  };
+  std::vector<Candidate> cands;
+  int n_cands = 0;
+  bool gaussian = true;
+
+  // Tracking state.
+  bool tracking = false;
+  int weak_frames = 0;
+  bool have_prev = false;
+  double pose_x = 0, pose_y = 0, pose_phi = 0;
+  double vx = 0, vy = 0, vphi = 0;
+  double pred_x = 0, pred_y = 0, pred_phi = 0;
+  int field_w = 0, field_h = 0;
+  std::atomic<bool> reacquire{false};
+  std::atomic<std::uint8_t> active{0};
+
+  Impl(const config::TrackerConfig& c, int pattern_px)
+      : cfg(c),
+        fine_mask(pattern_px, c.circular_mask),
+        coarse_mask(pattern_px / c.search_downsample, c.circular_mask) {}
+
+  int wrap_j(int j) const noexcept {
+    j %= n_angles;
+    return j < 0 ? j + n_angles : j;
+  }
+  int angle_index(double deg) const noexcept { return wrap_j(static_cast<int>(std::lround(deg / step))); }
+
+  // Orientation walk (paper) at the integer peak, then sub-pixel and sub-degree fits.
+  Measurement refine(const PatternBank& bank, int j_map, const Peak& pk, int max_moves) noexcept {
+    Measurement m;
+    m.valid = true;
+    m.psr = pk.psr;
+    m.psr_valid = pk.psr_valid;
+    int j = j_map;
+    int ux = pk.ux, uy = pk.uy;
+    float s0 = pk.score;
+    float sm = fine->score_at(bank.pattern(wrap_j(j - 1)), ux, uy);
+    float sp = fine->score_at(bank.pattern(wrap_j(j + 1)), ux, uy);
+    m.steps += 2;
+    int moves = 0;
+    while (!(s0 >= sm && s0 >= sp)) {
+      if (moves >= max_moves) {
+        m.unsettled = true;
+        break;
+      }
+      if (sp > sm) {
+        sm = s0;
+        s0 = sp;
+        ++j;
+        sp = fine->score_at(bank.pattern(wrap_j(j + 1)), ux, uy);
+      } else {
+        sp = s0;
+        s0 = sm;
+        --j;
+        sm = fine->score_at(bank.pattern(wrap_j(j - 1)), ux, uy);
+      }
+      ++m.steps;
+      ++moves;
+    }
+    j = wrap_j(j);
+    // 3×3 neighbourhood at the final angle: from the map when it is the map's angle (the
+    // map's global maximum is its centre), else by direct dot products (moving at most twice).
+    std::array<float, 9> nb{};
+    const int vw = fine->valid_w(), vh = fine->valid_h();
+    auto sample = [&](int x, int yy) -> float {
+      if (x < 0 || yy < 0 || x >= vw || yy >= vh) return -2.0f;
+      if (j == j_map) return map_best[static_cast<std::size_t>(yy) * vw + x];
+      return fine->score_at(bank.pattern(j), x, yy);
+    };
+    for (int iter = 0; iter < 3; ++iter) {
+      for (int k = 0; k < 9; ++k) nb[k] = (k == 4) ? s0 : sample(ux + k % 3 - 1, uy + k / 3 - 1);
+      if (j == j_map) break;
+      m.steps += 8;
+      const int best = static_cast<int>(std::max_element(nb.begin(), nb.end()) - nb.begin());
+      if (best == 4 || iter == 2) break;
+      ux += best % 3 - 1;
+      uy += best / 3 - 1;
+      s0 = nb[best];
+      sm = fine->score_at(bank.pattern(wrap_j(j - 1)), ux, uy);
+      sp = fine->score_at(bank.pattern(wrap_j(j + 1)), ux, uy);
+      m.steps += 2;
+    }
+    m.dx = (nb[3] > -2.0f && nb[5] > -2.0f) ? fit3(nb[3], s0, nb[5], gaussian) : 0.0;
+    m.dy = (nb[1] > -2.0f && nb[7] > -2.0f) ? fit3(nb[1], s0, nb[7], gaussian) : 0.0;
+    m.dj = fit3(sm, s0, sp, false);
+    m.j = j;
+    m.ux = ux;
+    m.uy = uy;
+    m.score = s0;
+    return m;
+  }
+
+  // FFT correlations at angles centre ± window every sweep step (always including centre),
+  // best map kept; then the walk from the best angle.
+  Measurement sweep(const PatternBank& bank, int j_centre, double window_deg, double step_deg,
+                    int max_moves) noexcept {
+    const int stride = std::max(1, static_cast<int>(std::lround(step_deg / step)));
+    const int half = static_cast<int>(std::floor(window_deg / step / stride + 1e-9));
+    Peak best;
+    best.score = -3.0f;
+    int best_j = j_centre;
+    int ffts = 0;
+    for (int i = -half; i <= half; ++i) {
+      const int j = wrap_j(j_centre + i * stride);
+      fine->correlate(bank.spectrum(j), map_work);
+      ++ffts;
+      const Peak pk = find_peak(map_work, fine->valid_w(), fine->valid_h());
+      if (pk.score > best.score) {
+        best = pk;
+        best_j = j;
+        std::swap(map_work, map_best);
+      }
+    }
+    Measurement m = refine(bank, best_j, best, max_moves);
+    m.steps += ffts;
+    return m;
+  }
+
+  // Full-field start search over a w×h frame (row stride in px). Result in frame coordinates.
+  Measurement search(const PatternBank& bank, const hal::Pixel* px, int w, int h, int& roi_x, int& roi_y) noexcept {
+    Measurement none;
+    const int cw = std::min(w / d, coarse_cap_w), ch = std::min(h / d, coarse_cap_h);
+    if (cw < Pc || ch < Pc) return none;
+    for (int y = 0; y < ch; ++y) {
+      std::int32_t* out = coarse_img.data() + static_cast<std::size_t>(y) * cw;
+      for (int x = 0; x < cw; ++x) out[x] = 0;
+      for (int j = 0; j < d; ++j) {
+        const hal::Pixel* row = px + static_cast<std::size_t>(y * d + j) * w;
+        for (int x = 0; x < cw; ++x) {
+          std::int32_t acc = 0;
+          for (int i = 0; i < d; ++i) acc += row[x * d + i];
+          out[x] += acc;
+        }
+      }
+    }
+    if (!coarse->load(coarse_img.data(), cw, ch, cw)) return none;
+    n_cands = 0;
+    const int vw = coarse->valid_w(), vh = coarse->valid_h();
+    const int sep = std::max(2, Pc / 2);
+    for (int k = 0; k < bank.coarse_angles(); ++k) {
+      coarse->correlate(bank.coarse_spectrum(k), cmap.data());
+      for (int y = 0; y < vh; ++y) {
+        for (int x = 0; x < vw; ++x) {
+          const float s = cmap[static_cast<std::size_t>(y) * vw + x];
+          if (s <= 0.0f) continue;
+          if (n_cands == static_cast<int>(cands.size()) && s <= cands[n_cands - 1].score) continue;
+          bool local_max = true;
+          for (int j = -1; j <= 1 && local_max; ++j) {
+            for (int i = -1; i <= 1; ++i) {
+              const int xx = x + i, yy = y + j;
+              if ((i || j) && xx >= 0 && yy >= 0 && xx < vw && yy < vh &&
+                  cmap[static_cast<std::size_t>(yy) * vw + xx] > s) {
+                local_max = false;
+                break;
+              }
+            }
+          }
+          if (local_max) insert_candidate({x, y, k, s}, sep);
+        }
+      }
+    }
+    Measurement best;
+    best.score = -2.0f;
+    const int rw = std::min(R, w), rh = std::min(R, h);
+    const int max_moves = static_cast<int>(std::ceil(cfg.search_refine_step_deg / step)) + 2;
+    for (int c = 0; c < n_cands; ++c) {
+      const Candidate& cd = cands[c];
+      const double cx = cd.ux * d - coarse_off + (P - 1) / 2.0;
+      const double cy = cd.uy * d - coarse_off + (P - 1) / 2.0;
+      const int rx = std::clamp(static_cast<int>(std::lround(cx - (rw - 1) / 2.0)), 0, w - rw);
+      const int ry = std::clamp(static_cast<int>(std::lround(cy - (rh - 1) / 2.0)), 0, h - rh);
+      if (!fine->load(px + static_cast<std::size_t>(ry) * w + rx, rw, rh, w)) continue;
+      Measurement m = sweep(bank, angle_index(bank.coarse_angle_deg(cd.k)), cfg.search_refine_window_deg,
+                            cfg.search_refine_step_deg, max_moves);
+      if (m.score > best.score) {
+        best = m;
+        roi_x = rx;
+        roi_y = ry;
+      }
+    }
+    return best;
+  }
+
+  void insert_candidate(const Candidate& c, int sep) noexcept {
+    for (int i = 0; i < n_cands; ++i) {
+      if (std::abs(cands[i].ux - c.ux) < sep && std::abs(cands[i].uy - c.uy) < sep) {
+        if (cands[i].score >= c.score) return;
+        cands[i] = c;
+        std::sort(cands.begin(), cands.begin() + n_cands, [](const Candidate& a, const Candidate& b) {
+          return a.score > b.score;
+        });
+        return;
+      }
+    }
+    if (n_cands < static_cast<int>(cands.size())) {
+      cands[n_cands++] = c;
+    } else {
+      cands[n_cands - 1] = c;
+    }
+    for (int i = n_cands - 1; i > 0 && cands[i].score > cands[i - 1].score; --i) std::swap(cands[i], cands[i - 1]);
+  }
+
+  bool weak(const Measurement& m) const noexcept {
+    return !m.valid || m.score < cfg.score_threshold ||
+           (cfg.psr_threshold > 0 && m.psr_valid && m.psr < cfg.psr_threshold);
+  }
+  std::uint8_t weak_bits(const Measurement& m) const noexcept {
+    std::uint8_t b = 0;
+    if (!m.valid || m.score < cfg.score_threshold) b |= kReasonLowScore;
+    if (cfg.psr_threshold > 0 && m.psr_valid && m.psr < cfg.psr_threshold) b |= kReasonLowPsr;
+    return b;
+  }
+
+  void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept {
+    e.x_px = origin_x + m.ux + m.dx + (P - 1) / 2.0;
+    e.y_px = origin_y + m.uy + m.dy + (P - 1) / 2.0;
+    e.phi_deg = wrap_deg((m.j + m.dj) * step);
+    e.score = std::clamp(m.score, -1.0f, 1.0f);
+    e.psr = m.psr;
+    e.angle_steps = m.steps;
+  }
+
+  void go_lost() noexcept {
+    tracking = false;
+    have_prev = false;
+    weak_frames = 0;
+    vx = vy = vphi = 0;
+  }
+
+  void accept(const PoseEstimate& e, bool fresh) noexcept {
+    if (!fresh && have_prev) {
+      vx = e.x_px - pose_x;
+      vy = e.y_px - pose_y;
+      vphi = wrap_deg(e.phi_deg - pose_phi);
+    } else {
+      vx = vy = vphi = 0;
+    }
+    pose_x = e.x_px;
+    pose_y = e.y_px;
+    pose_phi = e.phi_deg;
+    have_prev = true;
+    tracking = true;
+    weak_frames = 0;
+    predict();
+  }
+  void predict() noexcept {
+    const bool v = cfg.predict_velocity;
+    pred_x = pose_x + (v ? vx : 0);
+    pred_y = pose_y + (v ? vy : 0);
+    pred_phi = wrap_deg(pose_phi + (v ? vphi : 0));
+  }
+
+  PoseEstimate update(const hal::FrameMeta& meta, const hal::Pixel* px) noexcept;
+};
+
+PoseEstimate Tracker::Impl::update(const hal::FrameMeta& meta, const hal::Pixel* px) noexcept {
+  PoseEstimate e;
+  const std::uint8_t set = active.load(std::memory_order_relaxed);
+  e.pattern_set = set;
+  e.x_px = pose_x;
+  e.y_px = pose_y;
+  e.phi_deg = pose_phi;
+  if (meta.field_w > 0 && meta.field_h > 0) {
+    field_w = meta.field_w;
+    field_h = meta.field_h;
+  }
+  const int w = meta.roi.w, h = meta.roi.h;
+  if (meta.status == hal::FrameStatus::kBad || px == nullptr || w <= 0 || h <= 0) {
+    e.state = tracking ? TrackState::kLost : TrackState::kAcquiring;
+    e.reason_bits = kReasonBadFrame;
+    return e;
+  }
+  const PatternBank& bank = banks[set];
+  const bool full_field = meta.roi.x == 0 && meta.roi.y == 0 && meta.roi.w >= field_w && meta.roi.h >= field_h;
+  if (reacquire.exchange(false, std::memory_order_relaxed)) {
+    go_lost();
+    if (!full_field) {
+      e.state = TrackState::kAcquiring;
+      e.reason_bits = kReasonCommanded;
+      return e;
+    }
+  }
+
+  if (full_field || !tracking || w > N || h > N) {
+    int rx = 0, ry = 0;
+    e.searched = true;
+    const Measurement m = search(bank, px, w, h, rx, ry);
+    if (m.valid) to_estimate(m, meta.roi.x + rx, meta.roi.y + ry, e);
+    if (m.valid && !weak(m)) {
+      e.state = TrackState::kTracking;
+      accept(e, true);
+    } else {
+      e.state = TrackState::kAcquiring;
+      e.reason_bits = m.valid ? weak_bits(m) : static_cast<std::uint8_t>(kReasonFlatFrame);
+      go_lost();
+    }
+    return e;
+  }
+
+  // Tracking: one forward FFT for this ROI, the predicted angle, the walk.
+  if (!fine->load(px, w, h, w)) {
+    e.state = TrackState::kLost;
+    e.reason_bits = static_cast<std::uint8_t>((fine->valid_w() == 0 || fine->valid_h() == 0) ? kReasonOutOfField
+                                                                                      : kReasonFlatFrame);
+    e.score = 0;
+    go_lost();
+    return e;
+  }
+  const int max_moves = cfg.max_angle_steps_per_frame;
+  const int j_pred = angle_index(pred_phi);
+  fine->correlate(bank.spectrum(j_pred), map_work);
+  std::swap(map_work, map_best);
+  Measurement m = refine(bank, j_pred, find_peak(map_best, fine->valid_w(), fine->valid_h()), max_moves);
+  m.steps += 1;
+  if ((weak(m) || m.unsettled) && cfg.recover_sweep_deg > 0) {
+    // The walk hit its bound or the score collapsed: a bounded angle sweep in this ROI
+    // before giving up (a fast spin or a slip in angle is recovered here, not followed).
+    Measurement r = sweep(bank, m.unsettled ? m.j : j_pred, cfg.recover_sweep_deg, cfg.recover_step_deg, max_moves);
+    r.steps += m.steps;
+    if (r.score > m.score) m = r;
+    else m.steps = r.steps;
+  }
+  to_estimate(m, meta.roi.x, meta.roi.y, e);
+  if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
+  const double margin = 0.0;
+  if (pred_x < margin || pred_y < margin || pred_x > field_w - 1 - margin || pred_y > field_h - 1 - margin) {
+    e.reason_bits |= kReasonOutOfField;
+  }
+  if (!weak(m)) {
+    e.state = TrackState::kTracking;
+    accept(e, false);
+    return e;
+  }
+  e.reason_bits |= weak_bits(m);
+  if (++weak_frames >= cfg.lost_after_frames) {
+    e.state = TrackState::kLost;
+    go_lost();
+  } else {
+    // Not yet lost: report the measurement with its reasons, coast on the motion model.
+    e.state = TrackState::kTracking;
+    pose_x = pred_x;
+    pose_y = pred_y;
+    pose_phi = pred_phi;
+    predict();
+  }
+  return e;
+}
+
+// ---------------------------------------------------------------------------------------
+
+Tracker::Tracker(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Tracker::~Tracker() = default;
+
+std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::vector<PatternSet> sets,
+                                         const hal::ScanLimits& limits, rt::Status& status) {
+  auto fail = [&](std::string why) {
+    status = rt::Status::failure("tracker: " + std::move(why));
+    return std::unique_ptr<Tracker>();
+  };
+  if (sets.empty()) return fail("no pattern given (need at least one pattern set)");
+  const int P = sets[0].image.width;
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    const hal::Image& im = sets[i].image;
+    const std::string which = "pattern set " + std::to_string(i) + ": ";
+    if (im.empty()) return fail(which + "the pattern image is empty");
+    if (im.width != im.height)
+      return fail(which + "the pattern is " + std::to_string(im.width) + "x" + std::to_string(im.height) +
+                  "; patterns must be square");
+    if (im.pixels.size() != static_cast<std::size_t>(im.width) * im.height)
+      return fail(which + "pixel count does not match width x height");
+    if (im.width != P)
+      return fail(which + "is " + std::to_string(im.width) + " px, pattern set 0 is " + std::to_string(P) +
+                  " px; all pattern sets of a target must have the same size");
+    if (!(sets[i].nm_per_px > 0)) return fail(which + "nm_per_px must be > 0");
+  }
+  if (sets.size() > 255) return fail("at most 255 pattern sets");
+  if (P > cfg.roi_size_px)
+    return fail("the pattern (" + std::to_string(P) + " px) is larger than tracker.roi_size_px (" +
+                std::to_string(cfg.roi_size_px) + " px)");
+  if (P / cfg.search_downsample < 4)
+    return fail("pattern of " + std::to_string(P) + " px with tracker.search_downsample " +
+                std::to_string(cfg.search_downsample) + " leaves under 4 px at the coarse level");
+  if (limits.field_w < P || limits.field_h < P) return fail("the scan field is smaller than the pattern");
+  const double steps = 360.0 / cfg.angle_step_deg;
+  if (!(cfg.angle_step_deg > 0) || std::fabs(steps - std::round(steps)) > 1e-6)
+    return fail("tracker.angle_step_deg " + std::to_string(cfg.angle_step_deg) + " must divide 360");
+
+  auto impl = std::make_unique<Impl>(cfg, P);
+  Impl& t = *impl;
+  t.limits = limits;
+  t.P = P;
+  t.R = std::min({cfg.roi_size_px, limits.field_w, limits.field_h});
+  t.N = good_fft_size(t.R);
+  t.d = cfg.search_downsample;
+  t.Pc = P / t.d;
+  t.coarse_off = (P - t.Pc * t.d) / 2;
+  t.step = cfg.angle_step_deg;
+  t.n_angles = static_cast<int>(std::lround(steps));
+  t.gaussian = cfg.subpixel == "gaussian";
+  t.field_w = limits.field_w;
+  t.field_h = limits.field_h;
+  t.coarse_cap_w = std::max(t.Pc, limits.field_w / t.d);
+  t.coarse_cap_h = std::max(t.Pc, limits.field_h / t.d);
+  t.fine = std::make_unique<ZnccCorrelator>(t.N, t.N, t.fine_mask);
+  t.coarse = std::make_unique<ZnccCorrelator>(good_fft_size(t.coarse_cap_w), good_fft_size(t.coarse_cap_h),
+                                              t.coarse_mask);
+  t.banks.resize(sets.size());
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    std::string why;
+    if (!t.banks[i].build(sets[i].image, t.step, t.fine_mask, *t.fine, cfg.search_angle_step_deg, t.d,
+                          t.coarse_mask, *t.coarse, why))
+      return fail("pattern set " + std::to_string(i) + ": " + why);
+    t.nm_per_px.push_back(sets[i].nm_per_px);
+  }
+  const std::size_t vmax = static_cast<std::size_t>(t.N) * t.N;
+  t.map_a.assign(vmax, 0.0f);
+  t.map_b.assign(vmax, 0.0f);
+  t.map_work = t.map_a.data();
+  t.map_best = t.map_b.data();
+  t.cmap.assign(static_cast<std::size_t>(t.coarse_cap_w) * t.coarse_cap_h, 0.0f);
+  t.coarse_img.assign(static_cast<std::size_t>(t.coarse_cap_w) * t.coarse_cap_h, 0);
+  t.cands.assign(static_cast<std::size_t>(cfg.search_candidates), {0, 0, 0, 0.0f});
+  status = rt::Status::success();
+  return std::unique_ptr<Tracker>(new Tracker(std::move(impl)));
+}
+
+hal::Roi Tracker::next_roi() const noexcept {
+  const Impl& t = *impl_;
+  if (!t.tracking || t.reacquire.load(std::memory_order_relaxed)) return {0, 0, t.field_w, t.field_h};
+  const int rw = std::min(t.R, t.field_w), rh = std::min(t.R, t.field_h);
+  const int rx = std::clamp(static_cast<int>(std::lround(t.pred_x - (rw - 1) / 2.0)), 0, t.field_w - rw);
+  const int ry = std::clamp(static_cast<int>(std::lround(t.pred_y - (rh - 1) / 2.0)), 0, t.field_h - rh);
+  return {rx, ry, rw, rh};
+}
+
+PoseEstimate Tracker::update(const hal::FrameMeta& meta, const hal::Pixel* pixels) noexcept {
+  return impl_->update(meta, pixels);
+}
+
+bool Tracker::select_pattern_set(std::uint8_t set) noexcept {
+  if (set >= impl_->banks.size()) return false;
+  if (impl_->active.exchange(set, std::memory_order_relaxed) != set) {
+    // A new magnification changes the target's size on screen: find it again.
+    impl_->reacquire.store(true, std::memory_order_relaxed);
+  }
+  return true;
+}
+
+std::uint8_t Tracker::pattern_set() const noexcept { return impl_->active.load(std::memory_order_relaxed); }
+double Tracker::nm_per_px() const noexcept { return impl_->nm_per_px[impl_->active.load(std::memory_order_relaxed)]; }
+void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::memory_order_relaxed); }
+
+std::size_t Tracker::memory_bytes() const noexcept {
+  const Impl& t = *impl_;
+  std::size_t b = t.fine->buffer_bytes() + t.coarse->buffer_bytes();
+  for (const auto& bank : t.banks) b += bank.memory_bytes();
+  b += (t.map_a.size() + t.map_b.size() + t.cmap.size()) * sizeof(float) + t.coarse_img.size() * 4;
+  return b;
+}
+
+}  // namespace sempose::pose
