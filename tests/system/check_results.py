@@ -88,8 +88,17 @@ class Ctx:
             return None
 
     # DBC roles, found by name so the checker follows ipc/sempose.dbc.
-    def pose_msgs(self):
-        return self.db.find(r"pose") if self.db else []
+    def pose_msgs(self, target0=False):
+        """Pose messages that actually appear on vcan0 (classic XY+ATTR or the FD one);
+        with target0, only those of the first target block (name ends in T0 / _0)."""
+        if not self.db:
+            return []
+        ids = {i for _, i, _ in (self.frames or [])}
+        msgs = [m for m in self.db.find(r"pose") if m.frame_id in ids]
+        if target0:
+            t0 = [m for m in msgs if re.search(r"(T0|_0)$", m.name, re.I)]
+            msgs = t0 or msgs[:2]
+        return msgs
 
     def heartbeat_msg(self):
         if not self.db:
@@ -167,7 +176,8 @@ def check_pose_rate(ctx):
         return FAIL, "no candump.log"
     msgs = ctx.pose_msgs()
     if not msgs:
-        return FAIL, "no pose message (name ~ pose) in the DBC"
+        return FAIL, (f"no pose frames on vcan0 (DBC pose ids: "
+                      f"{[hex(m.frame_id) for m in ctx.db.find(r'pose')][:8]})")
     poses = ctx.sem_float("poses")
     rate = ctx.sem_float("poses_per_s")
     details, ok = [], True
@@ -212,6 +222,8 @@ def check_sequence(ctx):
                 pass
     details, ok = [], True
     seqs = {}
+    if not ctx.pose_msgs():
+        return FAIL, "no pose frames on vcan0"
     for m in ctx.pose_msgs():
         sig = _counter(m)
         fr = ctx.frames_of(m)
@@ -264,8 +276,10 @@ def check_values_vs_csv(ctx):
         if col not in rows[0]:
             return FAIL, f"{name} lacks column {col} (has {list(rows[0])})"
     # decode every pose frame; pair pose messages by counter
+    if "target" in rows[0]:
+        rows = [r for r in rows if r["target"] in ("0", "")]
     decoded = {}
-    for m in ctx.pose_msgs():
+    for m in ctx.pose_msgs(target0=True):
         sig = _counter(m)
         for i, (t, d) in enumerate(ctx.frames_of(m)):
             key = sig.raw(d) if sig else i
@@ -289,7 +303,7 @@ def check_values_vs_csv(ctx):
         merged.append(rec)
 
     def sig_for(pattern):
-        for m in ctx.pose_msgs():
+        for m in ctx.pose_msgs(target0=True):
             s = m.find_signal(pattern)
             if s:
                 return s
@@ -324,11 +338,25 @@ def check_values_vs_csv(ctx):
     cfg_k = ctx.cfg("nm_per_px")
     bad = []
     tol_xy = max(sx.factor, sy.factor) + 1e-6
+    # nm/px may change when a select-pattern command carries a new scale: allow one
+    # re-fit per select command sent, everything else must match the current scale.
+    selects = sum(1 for lbl, _ in _sent_commands(ctx) if lbl.startswith("select"))
+    scale, segments = k, 1
     for a, b in pairs:
-        for col, s, scale in (("x_px", sx, k), ("y_px", sy, k)):
-            p = csv_f(a, col)
-            if not math.isnan(p) and abs(b.get(s.name, math.nan) - scale * p) > tol_xy + abs(scale) * 0.01:
-                bad.append(f"row {a.get('frame')}: {s.name}={b.get(s.name)} vs {col}={p}")
+        px, py = csv_f(a, "x_px"), csv_f(a, "y_px")
+        fx, fy = b.get(sx.name, math.nan), b.get(sy.name, math.nan)
+
+        def fits(sc):
+            return all(math.isnan(p) or abs(f - sc * p) <= tol_xy + abs(sc) * 0.01
+                       for p, f in ((px, fx), (py, fy)))
+        if not fits(scale):
+            ref = (px, fx) if abs(px) >= abs(py) else (py, fy)
+            new = ref[1] / ref[0] if ref[0] else math.nan
+            if segments <= selects and not math.isnan(new) and fits(new):
+                scale, segments = new, segments + 1
+            else:
+                bad.append(f"row {a.get('frame')}: {sx.name},{sy.name}=({fx},{fy}) vs "
+                           f"px ({px},{py}) at {scale:.4g} nm/px")
         if sphi is not None and sphi.name in b:
             p = csv_f(a, "phi_deg")
             sc = 1000.0 if "m" in sphi.unit.lower() else 1.0
@@ -343,7 +371,8 @@ def check_values_vs_csv(ctx):
             if a["status"] and not (a["status"].strip().upper() in name.upper()
                                     or a["status"].strip() == str(int(b[sstat.name]))):
                 bad.append(f"row {a.get('frame')}: {sstat.name}={name} vs status={a['status']}")
-    detail = (f"{len(pairs)} poses compared (CSV offset {off}, fitted {k:.4g} nm/px"
+    detail = (f"{len(pairs)} poses compared (CSV offset {off}, fitted {k:.4g} nm/px, "
+              f"{segments} scale segment(s)"
               f"{', config ' + cfg_k if cfg_k else ''})")
     if k <= 0:
         bad.insert(0, f"fitted nm/px {k} <= 0")

@@ -156,13 +156,18 @@ run_sempose() {
       $SEMPOSE_ARGS > /out/sempose_stdout.txt 2> /out/sempose_stderr.txt &
   SP=$!
   # Commands only once sempose's CAN socket is bound and its frame-sync line requested.
-  if wait_for 15000 can_rx_more_than "$base"; then
+  # (stop waiting as soon as sempose has exited)
+  bound_or_gone() { ! kill -0 $SP 2>/dev/null || can_rx_more_than "$base"; }
+  requested_or_gone() { ! kill -0 $SP 2>/dev/null || line_requested $SYNC_LINE; }
+  wait_for 15000 bound_or_gone
+  if can_rx_more_than "$base"; then
     check sempose_can_bound PASS "sempose CAN socket bound on vcan0"
   else
-    check sempose_can_bound FAIL "sempose bound no CAN socket on vcan0 within 15 s"
+    check sempose_can_bound FAIL "sempose bound no CAN socket on vcan0 within 15 s$(kill -0 $SP 2>/dev/null || echo ' (sempose exited)')"
   fi
-  wait_for 5000 line_requested $SYNC_LINE && check sempose_gpio_requested PASS "line $SYNC_LINE requested" \
-    || check sempose_gpio_requested FAIL "frame-sync line $SYNC_LINE not requested: $(gpioinfo "$CHIP" 2>&1 | head -3 | tr '\n' ' ')"
+  wait_for 5000 requested_or_gone
+  line_requested $SYNC_LINE && check sempose_gpio_requested PASS "line $SYNC_LINE requested" \
+    || check sempose_gpio_requested FAIL "frame-sync line $SYNC_LINE not requested: $(gpioinfo "$CHIP" 2>&1 | sed -n 2,4p | tr -s ' \n' ' ')"
   if [ -s /cfg/commands.txt ] && kill -0 $SP 2>/dev/null; then
     # commands.txt: "<delay_ms> <label> <id>#<data>" (delay before sending)
     while read -r d label frame; do
