@@ -7,19 +7,28 @@
 #include <string>
 #include <vector>
 
+#include "sempose/config/can_config.hpp"
 #include "sempose/config/governor_config.hpp"
+#include "sempose/config/gpio_config.hpp"
 #include "sempose/config/pipeline_config.hpp"
+#include "sempose/config/scan_config.hpp"
+#include "sempose/config/sim_config.hpp"
 #include "sempose/config/tracker_config.hpp"
 
 namespace sempose::config {
 
 struct AppConfig {
   std::string source = "sim";  // "sim" | "replay": which scan source `sempose run` uses
+  ScanLimits scan;             // the scan generator (hal::ScanLimits)
+  SimConfig sim;
+  ReplayConfig replay;
   std::vector<TargetConfig> targets;  // pattern file names resolved against the config's folder
   TrackerConfig tracker;
   GovernorConfig governor;
   PipelineConfig pipeline;
   OutputConfig output;
+  CanConfig can;
+  GpioConfig gpio;
   std::string path;            // the file it was read from (for messages)
 };
 

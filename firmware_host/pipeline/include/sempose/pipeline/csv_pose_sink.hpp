@@ -1,0 +1,70 @@
+// Poses as CSV (DESIGN.md §11: frame,t_ns,x_px,y_px,phi_deg,score,status[,target]).
+// publish() (RT) copies the pose into a preallocated single-producer ring; the non-RT thread
+// calls write_pending() to format and write them. A full ring drops and counts, never blocks.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "sempose/pipeline/pose_sink.hpp"
+#include "sempose/rt/result.hpp"
+
+namespace sempose::pipeline {
+
+class CsvPoseSink final : public PoseSink {
+ public:
+  // Setup: opens the file and writes the header. capacity: poses buffered (power of two).
+  CsvPoseSink(std::string path, std::size_t capacity, bool with_target_column);
+  ~CsvPoseSink() override;
+  rt::Status open();
+
+  PublishResult publish(const PoseRecord& pose, std::int64_t t_now_ns) noexcept override;
+  // Non-RT: writes everything published so far.
+  void write_pending();
+  void flush() override { write_pending(); }
+
+  std::uint64_t written() const noexcept { return written_; }
+  std::uint64_t dropped() const noexcept { return dropped_.load(std::memory_order_relaxed); }
+
+ private:
+  std::string path_;
+  std::size_t capacity_;
+  std::size_t mask_;
+  bool with_target_;
+  std::unique_ptr<PoseRecord[]> ring_;
+  alignas(64) std::atomic<std::size_t> head_{0};  // consumer (writer thread)
+  alignas(64) std::atomic<std::size_t> tail_{0};  // producer (output stage)
+  std::atomic<std::uint64_t> dropped_{0};
+  std::FILE* file_ = nullptr;
+  std::uint64_t written_ = 0;
+};
+
+// Fans one pose out to several sinks (e.g. CSV for validation + CAN). Commands come from
+// the first sink that has one.
+class TeePoseSink final : public PoseSink {
+ public:
+  TeePoseSink(PoseSink* a, PoseSink* b) noexcept : a_(a), b_(b) {}
+  PublishResult publish(const PoseRecord& pose, std::int64_t t_now_ns) noexcept override {
+    const PublishResult ra = a_->publish(pose, t_now_ns);
+    const PublishResult rb = b_->publish(pose, t_now_ns);
+    return ra == PublishResult::kSent ? rb : ra;
+  }
+  void service(const PipelineStatus& s, std::int64_t t) noexcept override {
+    a_->service(s, t);
+    b_->service(s, t);
+  }
+  bool next_command(Command& out) noexcept override { return a_->next_command(out) || b_->next_command(out); }
+  void flush() override {
+    a_->flush();
+    b_->flush();
+  }
+
+ private:
+  PoseSink* a_;
+  PoseSink* b_;
+};
+
+}  // namespace sempose::pipeline

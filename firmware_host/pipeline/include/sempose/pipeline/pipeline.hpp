@@ -1,0 +1,166 @@
+// The real-time pipeline (DESIGN.md §1): three stages on pinned SCHED_FIFO threads.
+//
+//   acquisition ──frame ring (slot indices)──▶ correlation ──pose ring──▶ output ──▶ PoseSink
+//        ▲   └◀──────── free ring (slot indices) ───┘  │                     │
+//        └──── per-target plan mailboxes (ROI + dwell) ┘   ◀── command ring ──┘
+//
+// - acquisition polls the ScanSource ISR-like and starts the next ROI scan the moment the
+//   last one is done, following the target schedule (A, B, A, B … or configured); it never
+//   waits for the tracker: with the frame ring full it keeps the newest finished frame aside
+//   and drops the older one (counted).
+// - correlation drains its ring to the newest frame (older ones are dropped and counted),
+//   runs that target's tracker, feeds the governor, and publishes the target's next ROI and
+//   dwell through a latest-value mailbox.
+// - output publishes poses to the sink, services it (heartbeats, bus state) and forwards its
+//   commands (pattern set, start, stop, re-acquire) to correlation through an SPSC ring. It
+//   may run on the correlation thread (output_on_correlation_thread).
+// Everything is allocated in the constructor; the loops are noexcept, lock-free and make no
+// heap calls, no blocking syscalls other than clock_nanosleep (sleep polling), no I/O.
+//
+// Virtual-time sources (tests): acquisition starts a scan only once correlation has taken
+// every frame (no drops; the run is a deterministic sequence of frames), and stage
+// timestamps are derived on the source's clock: seen = scan end, pose done = max(seen,
+// previous done) + compute time (virtual_compute_ns, or the measured one when 0).
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sempose/config/governor_config.hpp"
+#include "sempose/config/pipeline_config.hpp"
+#include "sempose/hal/frame.hpp"
+#include "sempose/hal/scan_source.hpp"
+#include "sempose/pipeline/pipeline_stats.hpp"
+#include "sempose/pipeline/pose_sink.hpp"
+#include "sempose/pipeline/scan_speed_governor.hpp"
+#include "sempose/rt/mailbox.hpp"
+#include "sempose/rt/result.hpp"
+#include "sempose/rt/rt_thread.hpp"
+#include "sempose/rt/spsc_ring.hpp"
+
+namespace sempose::pose {
+class Tracker;
+}
+
+namespace sempose::pipeline {
+
+// What acquisition scans next for one target (latest value, from correlation). A trivial
+// type (no member initializers): the mailbox copies it as raw words.
+struct ScanPlan {
+  std::int32_t x, y, w, h;  // the ROI
+  std::uint32_t dwell_ns;
+  std::uint32_t enabled;    // 0 after a stop command
+};
+
+// PipelineStatus's contents as a trivial type for the status mailbox.
+struct StatusWords {
+  std::uint32_t dwell_ns;
+  std::uint8_t state;
+  std::uint8_t pattern_set;
+  std::uint8_t running;
+};
+
+class Pipeline {
+ public:
+  static constexpr std::size_t kFrameRingCapacity = 16;
+  static constexpr std::size_t kFreeRingCapacity = 64;
+  static constexpr std::size_t kPoseRingCapacity = 256;
+  static constexpr std::size_t kCommandRingCapacity = 16;
+  static constexpr std::size_t kMaxSchedule = 16;
+
+  // Setup (allocates the frame pool and histograms). trackers[i] tracks target i; sink must
+  // outlive the pipeline. Throws std::invalid_argument with a message on impossible settings.
+  Pipeline(const config::PipelineConfig& pipeline, const config::GovernorConfig& governor,
+           hal::ScanSource& source, std::vector<pose::Tracker*> trackers, PoseSink& sink);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  // Starts the stage threads. strict: refuse without SCHED_FIFO/affinity (else warn and run).
+  rt::Status start(bool strict);
+  // Stops scanning; the stages finish the frames in flight, then exit. Async-signal-safe.
+  void request_stop() noexcept { stop_requested_.store(true, std::memory_order_release); }
+  // Stop by itself after this many frames were scanned (tests, benchmarks); 0: never.
+  void stop_after_frames(std::uint64_t n) noexcept { stop_after_frames_ = n; }
+  // True once every stage has exited (after a stop request or the end of a finite source).
+  bool finished() const noexcept { return output_done_.load(std::memory_order_acquire); }
+  bool source_ended() const noexcept { return source_ended_.load(std::memory_order_acquire); }
+  void join();
+
+  const PipelineCounters& counters() const noexcept { return counters_; }
+  const PipelineHistograms& histograms() const noexcept { return histograms_; }
+  // "acquisition: SCHED_FIFO 60 on CPU 1" etc., and the degradation warnings.
+  std::vector<std::string> placements() const;
+  std::vector<std::string> warnings() const;
+  std::size_t frame_pool_bytes() const noexcept;
+  int target_count() const noexcept { return static_cast<int>(trackers_.size()); }
+  std::uint64_t dropped_frames() const noexcept {
+    return counters_.dropped_acquisition.get() + counters_.dropped_correlation.get();
+  }
+
+ private:
+  static constexpr rt::SlotOwner kAcq = rt::stage_owner(0);
+  static constexpr rt::SlotOwner kCorr = rt::stage_owner(1);
+
+  void acquisition_loop() noexcept;
+  void correlation_loop() noexcept;
+  void output_loop() noexcept;
+  // One output cycle; returns true when it did any work.
+  bool output_step() noexcept;
+  void correlate(hal::FramePool::Index slot) noexcept;
+  void apply_command(const Command& c) noexcept;
+  void publish_plan(std::uint8_t target, bool enabled) noexcept;
+  void idle_wait(std::int64_t until_ns) const noexcept;
+
+  config::PipelineConfig config_;
+  hal::ScanSource& source_;
+  std::vector<pose::Tracker*> trackers_;
+  PoseSink& sink_;
+  ScanSpeedGovernor governor_;
+  std::uint32_t acquire_dwell_ns_;
+  bool virtual_time_;
+  bool spin_;
+  std::uint32_t frame_ring_depth_;
+  std::uint32_t pose_ring_depth_;
+  std::array<std::uint8_t, kMaxSchedule> schedule_{};
+  std::size_t schedule_len_ = 0;
+
+  hal::FramePool pool_;
+  rt::SpscRing<hal::FramePool::Index, kFrameRingCapacity> frames_;      // acquisition -> correlation
+  rt::SpscRing<hal::FramePool::Index, kFreeRingCapacity> free_slots_;   // correlation -> acquisition
+  rt::SpscRing<PoseRecord, kPoseRingCapacity> poses_;                   // correlation -> output
+  rt::SpscRing<Command, kCommandRingCapacity> commands_;                // output -> correlation
+  std::array<rt::Mailbox<ScanPlan>, hal::kMaxTargets> plans_;
+
+  // Correlation-owned state.
+  bool running_ = true;  // false after a stop command
+  std::array<std::uint32_t, hal::kMaxTargets> pose_seq_{};
+  std::int64_t prev_pose_done_ns_ = 0;
+  bool prev_pose_was_search_ = true;
+  std::array<pose::TrackState, hal::kMaxTargets> last_state_{};
+  rt::Mailbox<StatusWords> status_;  // correlation -> output (heartbeat contents)
+  std::int64_t last_virtual_now_ns_ = 0;  // output-owned: the virtual "now" for service()
+
+  PipelineCounters counters_;
+  PipelineHistograms histograms_;
+
+  std::atomic<bool> stop_requested_{false};
+  std::atomic<bool> source_ended_{false};
+  std::atomic<bool> acquisition_done_{false};
+  std::atomic<bool> correlation_done_{false};
+  std::atomic<bool> output_done_{false};
+  std::atomic<std::uint64_t> frames_handed_{0};    // acquisition -> correlation (virtual pacing)
+  std::atomic<std::uint64_t> frames_taken_{0};
+  std::atomic<std::int64_t> next_frame_expected_ns_{0};  // for the correlation's idle sleep
+  std::uint64_t stop_after_frames_ = 0;
+
+  rt::RtThread acquisition_thread_;
+  rt::RtThread correlation_thread_;
+  rt::RtThread output_thread_;
+};
+
+}  // namespace sempose::pipeline
