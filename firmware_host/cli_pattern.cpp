@@ -1,9 +1,133 @@
-// Placeholder until the issue that builds `sempose pattern` lands.
+// `sempose pattern --frames DIR --center X,Y [--size 128] [--average 10] --out P.pgm`: a
+// pattern as the paper made it: the mean of the first N recorded frames, cropped so that the
+// pattern's centre pixel ((size-1)/2, (size-1)/2) lies at (X, Y) (DESIGN.md §2). A crop that
+// falls between pixels is bilinearly interpolated.
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <string>
+#include <vector>
 
 #include "cli.hpp"
+#include "sempose/hal/pgm.hpp"
+#include "sempose/hal/replay_source.hpp"
 
-int sempose::cli::pattern(int, char**) {
-  std::fprintf(stderr, "sempose pattern: not built yet\n");
-  return 3;
+namespace {
+
+int usage(std::FILE* out) {
+  std::fprintf(out,
+               "usage: sempose pattern --frames DIR --center X,Y [--size 128] [--average 10] --out P.pgm\n"
+               "  averages the first N frames of DIR (sorted *.pgm) and crops size x size around (X, Y)\n");
+  return out == stdout ? 0 : 2;
+}
+
+bool parse_int(const std::string& s, long& v, long lo, long hi) {
+  char* end = nullptr;
+  v = std::strtol(s.c_str(), &end, 10);
+  return !s.empty() && *end == '\0' && v >= lo && v <= hi;
+}
+
+}  // namespace
+
+int sempose::cli::pattern(int argc, char** argv) {
+  std::string dir, out, center;
+  long size = 128, average = 10;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") return usage(stdout);
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "sempose pattern: %s needs a value\n", a.c_str());
+      return usage(stderr);
+    }
+    const std::string v = argv[++i];
+    if (a == "--frames") dir = v;
+    else if (a == "--out") out = v;
+    else if (a == "--center") center = v;
+    else if (a == "--size") {
+      if (!parse_int(v, size, 4, 4096)) {
+        std::fprintf(stderr, "sempose pattern: --size '%s' is not a whole number in [4, 4096]\n", v.c_str());
+        return 2;
+      }
+    } else if (a == "--average") {
+      if (!parse_int(v, average, 1, 100000)) {
+        std::fprintf(stderr, "sempose pattern: --average '%s' is not a whole number in [1, 100000]\n", v.c_str());
+        return 2;
+      }
+    } else {
+      std::fprintf(stderr, "sempose pattern: unknown option '%s'\n", a.c_str());
+      return usage(stderr);
+    }
+  }
+  if (dir.empty() || out.empty() || center.empty()) {
+    std::fprintf(stderr, "sempose pattern: --frames, --center and --out are required\n");
+    return usage(stderr);
+  }
+  double cx = 0, cy = 0;
+  {
+    const auto comma = center.find(',');
+    char* e1 = nullptr;
+    char* e2 = nullptr;
+    const std::string xs = center.substr(0, comma), ys = comma == std::string::npos ? "" : center.substr(comma + 1);
+    cx = std::strtod(xs.c_str(), &e1);
+    cy = std::strtod(ys.c_str(), &e2);
+    if (comma == std::string::npos || xs.empty() || ys.empty() || *e1 != '\0' || *e2 != '\0' || !std::isfinite(cx) ||
+        !std::isfinite(cy)) {
+      std::fprintf(stderr, "sempose pattern: --center '%s' is not X,Y (pixels, e.g. 512,384)\n", center.c_str());
+      return 2;
+    }
+  }
+  try {
+    const std::vector<std::string> names = hal::list_pgm_frames(dir);
+    const std::size_t n = std::min<std::size_t>(names.size(), static_cast<std::size_t>(average));
+    if (n < static_cast<std::size_t>(average)) {
+      std::fprintf(stderr, "sempose pattern: warning: %s has %zu frames; averaging %zu, not %ld\n", dir.c_str(),
+                   names.size(), n, average);
+    }
+    hal::Image first = hal::read_pgm(names[0]);
+    const int w = first.width, h = first.height;
+    const double half = (size - 1) / 2.0;
+    const double x0 = cx - half, y0 = cy - half;
+    if (x0 < 0 || y0 < 0 || x0 + size - 1 > w - 1 || y0 + size - 1 > h - 1) {
+      std::fprintf(stderr,
+                   "sempose pattern: centre (%g, %g) is too close to the edge of the %dx%d frames for a %ld px "
+                   "pattern (allowed x in [%g, %g], y in [%g, %g])\n",
+                   cx, cy, w, h, size, half, w - 1 - half, half, h - 1 - half);
+      return 2;
+    }
+    std::vector<double> mean(static_cast<std::size_t>(w) * h, 0.0);
+    for (std::size_t f = 0; f < n; ++f) {
+      const hal::Image img = f == 0 ? first : hal::read_pgm(names[f]);
+      if (img.width != w || img.height != h) {
+        std::fprintf(stderr, "sempose pattern: %s: size %dx%d differs from the first frame's %dx%d\n",
+                     names[f].c_str(), img.width, img.height, w, h);
+        return 1;
+      }
+      for (std::size_t i = 0; i < mean.size(); ++i) mean[i] += img.pixels[i];
+    }
+    for (auto& m : mean) m /= static_cast<double>(n);
+    hal::Image pat;
+    pat.width = pat.height = static_cast<std::int32_t>(size);
+    pat.bits = first.bits;
+    pat.pixels.resize(static_cast<std::size_t>(size) * size);
+    const double maxv = first.bits > 8 ? 65535.0 : 255.0;
+    for (long y = 0; y < size; ++y) {
+      for (long x = 0; x < size; ++x) {
+        const double fx = x0 + x, fy = y0 + y;
+        const int ix = std::min(static_cast<int>(fx), w - 2), iy = std::min(static_cast<int>(fy), h - 2);
+        const double ax = fx - ix, ay = fy - iy;
+        auto at = [&](int px, int py) { return mean[static_cast<std::size_t>(py) * w + px]; };
+        const double v = (at(ix, iy) * (1 - ax) + at(ix + 1, iy) * ax) * (1 - ay) +
+                         (at(ix, iy + 1) * (1 - ax) + at(ix + 1, iy + 1) * ax) * ay;
+        pat.pixels[static_cast<std::size_t>(y) * size + x] = static_cast<std::uint16_t>(std::lround(std::min(maxv, v)));
+      }
+    }
+    hal::write_pgm(out, pat);
+    std::printf("sempose pattern: %s: %ldx%ld around (%g, %g), mean of %zu frames\n", out.c_str(), size, size, cx,
+                cy, n);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sempose pattern: %s\n", e.what());
+    return 1;
+  }
+  return 0;
 }

@@ -1,9 +1,179 @@
-// Placeholder until the issue that builds `sempose sim` lands.
+// `sempose sim --out DIR [--frames N] [--config FILE] [--seed S] [--dwell NS]`: records a
+// simulated sequence in the replay format (DESIGN.md §11): full-field frames
+// frame_000000.pgm..., frames.csv (frame,t_ns = scan start) and ground_truth.csv
+// (frame,x_px,y_px,phi_deg[,target], the pose at mid-scan in the §2 conventions).
+// Runs on the virtual clock: as fast as the CPU allows and reproducible from the seed.
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <string>
+#include <vector>
 
 #include "cli.hpp"
+#include "sempose/config/reader.hpp"
+#include "sempose/config/scan_config.hpp"
+#include "sempose/config/sim_config.hpp"
+#include "sempose/hal/pgm.hpp"
+#include "sempose/hal/sim_source.hpp"
 
-int sempose::cli::sim(int, char**) {
-  std::fprintf(stderr, "sempose sim: not built yet\n");
-  return 3;
+namespace {
+
+int usage(std::FILE* out) {
+  std::fprintf(out,
+               "usage: sempose sim --out DIR [--frames N] [--config FILE] [--seed S] [--dwell NS]\n"
+               "  records N (default 100) full-field simulated frames, frames.csv and ground_truth.csv\n"
+               "  --config: a YAML file; its scan: and sim: sections are used\n"
+               "  --dwell:  pixel dwell in ns (default 250)\n");
+  return out == stdout ? 0 : 2;
+}
+
+bool parse_u64(const char* s, unsigned long long& v) {
+  char* end = nullptr;
+  errno = 0;
+  v = std::strtoull(s, &end, 10);
+  return s[0] != '-' && end != s && *end == '\0' && errno == 0;
+}
+
+// Reads only the scan: and sim: sections of the file (the other sections belong to other
+// parts of sempose and are validated by `sempose run`).
+bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& scan, sempose::config::SimConfig& sim,
+                       std::string& error) {
+  using namespace sempose::config;
+  Errors errors(path);
+  YAML::Node root = load_file(path, errors);
+  if (errors.empty()) {
+    YAML::Node only(YAML::NodeType::Map);
+    if (root["scan"]) only["scan"] = root["scan"];
+    if (root["sim"]) only["sim"] = root["sim"];
+    Section top(only, "", errors);
+    {
+      Section s = top.child("scan");
+      read_scan(s, scan);
+    }
+    {
+      Section s = top.child("sim");
+      read_sim(s, sim);
+    }
+  }
+  error = errors.joined();
+  return errors.empty();
+}
+
+}  // namespace
+
+int sempose::cli::sim(int argc, char** argv) {
+  std::string out_dir, config_path;
+  unsigned long long frames = 100, seed = 0, dwell = 250;
+  bool seed_given = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* name) -> const char* {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "sempose sim: %s needs a value\n", name);
+        return nullptr;
+      }
+      return argv[++i];
+    };
+    const char* v = nullptr;
+    if (a == "--help" || a == "-h") return usage(stdout);
+    if (a == "--out") {
+      if (!(v = value("--out"))) return 2;
+      out_dir = v;
+    } else if (a == "--config") {
+      if (!(v = value("--config"))) return 2;
+      config_path = v;
+    } else if (a == "--frames" || a == "--seed" || a == "--dwell") {
+      if (!(v = value(a.c_str()))) return 2;
+      unsigned long long n = 0;
+      if (!parse_u64(v, n) || (a == "--frames" && (n < 1 || n > 1'000'000)) || (a == "--dwell" && (n < 1 || n > 100'000'000))) {
+        std::fprintf(stderr, "sempose sim: %s '%s' is not a valid number%s\n", a.c_str(), v,
+                     a == "--frames" ? " (1..1000000)" : a == "--dwell" ? " (ns, 1..100000000)" : "");
+        return 2;
+      }
+      (a == "--frames" ? frames : a == "--seed" ? seed : dwell) = n;
+      if (a == "--seed") seed_given = true;
+    } else {
+      std::fprintf(stderr, "sempose sim: unknown option '%s'\n", a.c_str());
+      return usage(stderr);
+    }
+  }
+  if (out_dir.empty()) {
+    std::fprintf(stderr, "sempose sim: --out DIR is required\n");
+    return usage(stderr);
+  }
+  config::ScanLimits scan;
+  config::SimConfig sim_cfg;
+  if (!config_path.empty()) {
+    std::string error;
+    if (!load_sim_sections(config_path, scan, sim_cfg, error)) {
+      std::fprintf(stderr, "sempose sim: invalid configuration:\n%s", error.c_str());
+      return 2;
+    }
+  }
+  if (seed_given) sim_cfg.seed = seed;
+  sim_cfg.clock = "virtual";
+  try {
+    std::filesystem::create_directories(out_dir);
+    hal::SimSource source(scan, sim_cfg);
+    const hal::Roi field{0, 0, scan.field_w, scan.field_h};
+    hal::FramePool pool(1, static_cast<std::size_t>(scan.field_w) * scan.field_h);
+    hal::FrameSlot& slot = pool[0];
+    std::FILE* frames_csv = std::fopen((out_dir + "/frames.csv").c_str(), "w");
+    std::FILE* truth_csv = std::fopen((out_dir + "/ground_truth.csv").c_str(), "w");
+    if (!frames_csv || !truth_csv) {
+      std::fprintf(stderr, "sempose sim: %s: cannot create frames.csv / ground_truth.csv\n", out_dir.c_str());
+      if (frames_csv) std::fclose(frames_csv);
+      if (truth_csv) std::fclose(truth_csv);
+      return 1;
+    }
+    int enabled = 0;
+    for (const auto& t : sim_cfg.targets) enabled += t.enabled ? 1 : 0;
+    const bool several = source.target_count() > 1 && enabled > 1;
+    std::fprintf(frames_csv, "frame,t_ns\n");
+    std::fprintf(truth_csv, several ? "frame,x_px,y_px,phi_deg,target\n" : "frame,x_px,y_px,phi_deg\n");
+    hal::Image img;
+    img.width = scan.field_w;
+    img.height = scan.field_h;
+    img.bits = scan.bits;
+    img.pixels.resize(static_cast<std::size_t>(scan.field_w) * scan.field_h);
+    for (unsigned long long f = 0; f < frames; ++f) {
+      const auto r = source.start({field, static_cast<std::uint32_t>(dwell), 0}, slot);
+      if (r != hal::StartResult::kStarted) {
+        std::fprintf(stderr, "sempose sim: dwell %llu ns is outside the scan limits [%u, %u] ns\n", dwell,
+                     scan.min_dwell_ns, scan.max_dwell_ns);
+        std::fclose(frames_csv);
+        std::fclose(truth_csv);
+        return 2;
+      }
+      while (source.poll() != hal::PollResult::kDone) {
+      }
+      std::copy(slot.pixels, slot.pixels + img.pixels.size(), img.pixels.begin());
+      char name[64];
+      std::snprintf(name, sizeof name, "/frame_%06llu.pgm", f);
+      hal::write_pgm(out_dir + name, img);
+      std::fprintf(frames_csv, "%llu,%lld\n", f, static_cast<long long>(slot.meta.t_scan_start_ns));
+      for (int t = 0; t < slot.meta.truth_count; ++t) {
+        const hal::TargetTruth& tr = slot.meta.truth[t];
+        if (!sim_cfg.targets[static_cast<std::size_t>(t)].enabled || !tr.present) continue;
+        if (several) {
+          std::fprintf(truth_csv, "%llu,%.4f,%.4f,%.4f,%d\n", f, tr.x_px, tr.y_px, tr.phi_deg, t);
+        } else {
+          std::fprintf(truth_csv, "%llu,%.4f,%.4f,%.4f\n", f, tr.x_px, tr.y_px, tr.phi_deg);
+        }
+      }
+    }
+    const bool ok = std::fclose(frames_csv) == 0 && std::fclose(truth_csv) == 0;
+    if (!ok) {
+      std::fprintf(stderr, "sempose sim: %s: writing the CSV files failed\n", out_dir.c_str());
+      return 1;
+    }
+    std::printf("sempose sim: wrote %llu frames (%dx%d, %u-bit, dwell %llu ns) to %s\n", frames, scan.field_w,
+                scan.field_h, static_cast<unsigned>(scan.bits), dwell, out_dir.c_str());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sempose sim: %s\n", e.what());
+    return 1;
+  }
+  return 0;
 }

@@ -5,19 +5,19 @@
 
 namespace sempose::config {
 
-std::vector<TargetConfig> SimConfig::default_targets() {
-  std::vector<TargetConfig> t(2);
+std::vector<SimTargetConfig> SimConfig::default_targets() {
+  std::vector<SimTargetConfig> t(2);
   // The needle tip of the real SEM image: its crop centre sits on the needle body just
   // behind the tip; the threshold mask keeps the bright needle and drops the trench.
-  TargetConfig& needle = t[0];
+  SimTargetConfig& needle = t[0];
   needle.texture.source = "image";
   needle.texture.path = "../shared/data/sem/needle_contact_eb.pgm";
-  needle.texture.crop_x = 420;
-  needle.texture.crop_y = 380;
-  needle.texture.crop_w = 260;
-  needle.texture.crop_h = 260;
+  needle.texture.crop_x = 400;
+  needle.texture.crop_y = 400;
+  needle.texture.crop_w = 280;
+  needle.texture.crop_h = 250;
   needle.texture.mask = "threshold";
-  needle.texture.mask_level = 0.62;
+  needle.texture.mask_level = 0.5;
   needle.x_px = 512;
   needle.y_px = 384;
   needle.trajectory.kind = "sine";
@@ -26,7 +26,7 @@ std::vector<TargetConfig> SimConfig::default_targets() {
   needle.trajectory.amplitude_phi_deg = 10;
   needle.trajectory.period_s = 10;
   // A two-jaw gripper, off by default (enable it for two-target runs).
-  TargetConfig& gripper = t[1];
+  SimTargetConfig& gripper = t[1];
   gripper.enabled = false;
   gripper.texture.source = "gripper";
   gripper.width_px = 160;
@@ -67,7 +67,7 @@ void read_trajectory(Section& s, TrajectoryConfig& t) {
   s.opt("margin_px", t.margin_px, 0.0, 8192.0);
 }
 
-void read_target(Section& s, TargetConfig& t) {
+void read_target(Section& s, SimTargetConfig& t) {
   s.opt("enabled", t.enabled);
   Section tex = s.child("texture");
   if (tex.has("path") && !tex.has("source")) t.texture.source = "image";
@@ -142,7 +142,7 @@ void read_sim(Section& s, SimConfig& c) {
     if (list.size() > 4) s.error("targets", std::to_string(list.size()) + " targets; at most 4 are allowed");
     c.targets.clear();
     for (Section& ts : list) {
-      TargetConfig t;  // a listed target starts from a static, enabled, untextured default
+      SimTargetConfig t;  // a listed target starts from a static, enabled, untextured default
       t.texture.source = "lamella";
       read_target(ts, t);
       c.targets.push_back(t);

@@ -168,7 +168,7 @@ void procedural(const std::string& kind, std::int32_t w, std::int32_t h, std::ui
   }
 }
 
-SimLayer build_layer(const config::TargetConfig& t, std::size_t index, const config::SimConfig& cfg) {
+SimLayer build_layer(const config::SimTargetConfig& t, std::size_t index, const config::SimConfig& cfg) {
   const std::string what = "sim.targets[" + std::to_string(index) + "].texture";
   FloatImage tex, alpha;
   if (t.texture.source == "image") {

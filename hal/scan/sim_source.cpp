@@ -158,8 +158,8 @@ void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_st
         // Detector cascade: Poisson electrons, each with a Gamma(k, 1/k) gain (mean 1):
         // their sum is Gamma(n·k)/k. Then Gaussian read noise.
         const std::uint32_t n = rng_.poisson(mean_e);
-        e = n > 0 ? rng_.gamma(n * k) / k : 0.0;
-        if (cfg.read_noise_e > 0) e += cfg.read_noise_e * rng_.normal();
+        e = n > 0 ? rng_.fast_gamma(n * k) / k : 0.0;
+        if (cfg.read_noise_e > 0) e += cfg.read_noise_e * rng_.fast_normal();
       } else {
         e = mean_e;
       }
@@ -200,7 +200,7 @@ Image render_sim_pattern(const config::SimConfig& cfg_in, const ScanLimits& limi
   cfg.drift.clear();
   cfg.brightness_drift = 0;
   for (std::size_t i = 0; i < cfg.targets.size(); ++i) cfg.targets[i].enabled = static_cast<int>(i) == target_index;
-  config::TargetConfig& t = cfg.targets[static_cast<std::size_t>(target_index)];
+  config::SimTargetConfig& t = cfg.targets[static_cast<std::size_t>(target_index)];
   const double half = (size_px - 1) / 2.0;
   const auto ox = static_cast<std::int32_t>(std::clamp(std::lround(t.x_px - half), 0L, static_cast<long>(limits.field_w - size_px)));
   const auto oy = static_cast<std::int32_t>(std::clamp(std::lround(t.y_px - half), 0L, static_cast<long>(limits.field_h - size_px)));
