@@ -18,7 +18,7 @@ struct CanConfig {
   std::uint32_t base_id = 0x100;            // first id of the block (standard 11-bit ids)
   std::int32_t command_id = -1;             // -1 = base_id + 0x50
   double heartbeat_hz = 10.0;
-  std::string fd = "auto";                  // "auto" (use FD if MTU is 72) | "off" | "on" (require)
+  std::string fd = "off";                   // "off" (classic) | "auto" (FD if the MTU is 72) | "on" (require FD)
   std::uint32_t bitrate = 0;                // informational (set with `ip link`); 0 = not stated
   std::int32_t sndbuf_bytes = 16384;        // SO_SNDBUF; small so a full queue answers EAGAIN
   std::int32_t max_commands_per_cycle = 8;  // bound on command frames read per output cycle

@@ -17,7 +17,7 @@ enum class CanFdMode : std::uint8_t { kAuto = 0, kOff, kOn };
 
 struct SocketCanOptions {
   std::string interface;        // e.g. "can0", "vcan0"
-  CanFdMode fd = CanFdMode::kAuto;
+  CanFdMode fd = CanFdMode::kOff;  // classic CAN unless asked: kAuto uses FD when the MTU is 72
   int sndbuf_bytes = 16384;     // 0 = kernel default; the kernel enforces its own minimum
   int rx_id = -1;               // receive only this standard id (the command id); -1 = all
   // A passive bus (ACK errors: nobody listening) is reported active again after this long

@@ -116,7 +116,9 @@ inline std::int32_t phi_to_mdeg(double phi_deg) noexcept {
   if (!std::isfinite(phi_deg)) return 0;
   double w = std::remainder(phi_deg, 360.0);  // [-180, 180]
   if (w <= -180.0) w += 360.0;
-  return static_cast<std::int32_t>(saturate_round(w * 1000.0, -kPhiMaxMdeg, kPhiMaxMdeg));
+  const auto mdeg = saturate_round(w * 1000.0, -kPhiMaxMdeg, kPhiMaxMdeg);
+  // -179.9996° rounds to -180.000°, which the half-open range (-180, 180] writes as +180.000°.
+  return static_cast<std::int32_t>(mdeg == -kPhiMaxMdeg ? kPhiMaxMdeg : mdeg);
 }
 inline std::int32_t nm_to_wire(double nm, unsigned bits) noexcept {
   return static_cast<std::int32_t>(saturate_round(nm, signed_min(bits), signed_max(bits)));
