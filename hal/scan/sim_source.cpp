@@ -106,7 +106,9 @@ void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_st
   const double maxv = limits_.max_value();
   const double counts_per_e = cfg.output_white * maxv / n_white;
   const double offset_counts = cfg.output_offset * maxv + 0.5;  // + 0.5: round to nearest
-  const double k = cfg.detector_gain_shape;
+  const double k = cfg.detector_gain_shape, inv_k = 1.0 / k;
+  const bool noise = cfg.noise;
+  const double read_noise = cfg.read_noise_e;
   const double line_ns = static_cast<double>(roi.w) * dwell_ns + limits_.line_flyback_ns;
   const FloatImage& bg = scene_.background();
   const int lag_n = static_cast<int>(lag_px_.size());
@@ -154,12 +156,12 @@ void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_st
       }
       const double mean_e = std::max(0.0, b * gain) * n_white;
       double e;
-      if (cfg.noise) {
+      if (noise) {
         // Detector cascade: Poisson electrons, each with a Gamma(k, 1/k) gain (mean 1):
         // their sum is Gamma(n·k)/k. Then Gaussian read noise.
         const std::uint32_t n = rng_.poisson(mean_e);
-        e = n > 0 ? rng_.fast_gamma(n * k) / k : 0.0;
-        if (cfg.read_noise_e > 0) e += cfg.read_noise_e * rng_.fast_normal();
+        e = n > 0 ? rng_.fast_gamma(n * k) * inv_k : 0.0;
+        if (read_noise > 0) e += read_noise * rng_.fast_normal();
       } else {
         e = mean_e;
       }

@@ -16,7 +16,9 @@ namespace sempose::hal {
 struct NormalTable {
   static constexpr int kSize = 4096;
   std::array<float, kSize + 1> q{};
+  std::array<double, 256> inv{};  // 1/k for the Poisson recursion (no division per step)
   NormalTable() noexcept {
+    for (std::size_t k = 1; k < inv.size(); ++k) inv[k] = 1.0 / static_cast<double>(k);
     for (int i = 0; i <= kSize; ++i) q[static_cast<std::size_t>(i)] = static_cast<float>(inverse_cdf((i + 0.5) / (kSize + 1)));
   }
   static double inverse_cdf(double p) noexcept {
@@ -117,7 +119,7 @@ class SimRng {
       std::uint32_t k = 0;
       while (u > cdf && k < 200) {
         ++k;
-        p *= mean / k;
+        p *= mean * table_->inv[k];
         cdf += p;
       }
       return k;
