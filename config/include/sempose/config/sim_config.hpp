@@ -39,7 +39,7 @@ struct TextureConfig {
   double mask_level = 0.6;  // threshold mask: brightness 0..1 on the smoothed texture
 };
 
-struct TargetConfig {
+struct SimTargetConfig {
   bool enabled = true;
   TextureConfig texture;
   std::int32_t width_px = 0, height_px = 0;  // size on the field; 0: the crop's size
@@ -52,7 +52,7 @@ struct DriftTerm {  // one sinusoid of the slow image drift
   double amplitude_px = 0, period_s = 10, direction_deg = 0, phase_deg = 0;
 };
 
-struct BackgroundConfig {
+struct SimBackgroundConfig {
   std::string source = "procedural";  // procedural | image
   std::string path;                   // image: PGM, cropped then resampled to the field
   std::int32_t crop_x = 0, crop_y = 0, crop_w = 0, crop_h = 0;
@@ -78,10 +78,10 @@ struct SimConfig {
   std::vector<DriftTerm> drift{{0.4, 23.0, 30.0, 0.0}, {0.25, 7.0, 120.0, 90.0}};
   double brightness_drift = 0.03;        // relative amplitude (charging)
   double brightness_drift_period_s = 40.0;
-  BackgroundConfig background;
-  std::vector<TargetConfig> targets = default_targets();
+  SimBackgroundConfig background;
+  std::vector<SimTargetConfig> targets = default_targets();
 
-  static std::vector<TargetConfig> default_targets();
+  static std::vector<SimTargetConfig> default_targets();
   double electrons_per_pixel(std::uint32_t dwell_ns) const noexcept {
     return 6.24 * beam_current_pa * (dwell_ns * 1e-3) * yield;
   }
