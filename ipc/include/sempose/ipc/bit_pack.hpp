@@ -9,20 +9,30 @@
 namespace sempose::ipc {
 
 // Writes the low `bits` bits of value at bit `start` (bit 0 = LSB of byte 0, DBC Intel order).
+// Byte-wise (at most 9 steps for a 64-bit field), not bit-wise: this runs for every frame.
 constexpr void put_bits(std::uint8_t* data, unsigned start, unsigned bits, std::uint64_t value) noexcept {
-  for (unsigned i = 0; i < bits; ++i) {
-    const unsigned pos = start + i;
-    const auto mask = static_cast<std::uint8_t>(1u << (pos % 8));
-    if ((value >> i) & 1u) data[pos / 8] = static_cast<std::uint8_t>(data[pos / 8] | mask);
-    else data[pos / 8] = static_cast<std::uint8_t>(data[pos / 8] & ~mask);
+  unsigned done = 0;
+  while (done < bits) {
+    const unsigned pos = start + done;
+    const unsigned off = pos % 8;
+    const unsigned n = (8 - off) < (bits - done) ? (8 - off) : (bits - done);
+    const auto mask = static_cast<std::uint8_t>(((1u << n) - 1u) << off);
+    const auto chunk = static_cast<std::uint8_t>(((value >> done) << off) & mask);
+    data[pos / 8] = static_cast<std::uint8_t>((data[pos / 8] & ~mask) | chunk);
+    done += n;
   }
 }
 
 constexpr std::uint64_t get_bits(const std::uint8_t* data, unsigned start, unsigned bits) noexcept {
   std::uint64_t v = 0;
-  for (unsigned i = 0; i < bits; ++i) {
-    const unsigned pos = start + i;
-    if ((data[pos / 8] >> (pos % 8)) & 1u) v |= std::uint64_t{1} << i;
+  unsigned done = 0;
+  while (done < bits) {
+    const unsigned pos = start + done;
+    const unsigned off = pos % 8;
+    const unsigned n = (8 - off) < (bits - done) ? (8 - off) : (bits - done);
+    const std::uint64_t chunk = (static_cast<unsigned>(data[pos / 8]) >> off) & ((1u << n) - 1u);
+    v |= chunk << done;
+    done += n;
   }
   return v;
 }
