@@ -11,6 +11,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("roi_size_px", c.roi_size_px, 8, 1024);
   s.opt("angle_step_deg", c.angle_step_deg, 0.25, 45.0);
   s.opt("circular_mask", c.circular_mask);
+  s.opt("prefilter_passes", c.prefilter_passes, 0, 3);
   s.opt("max_angle_steps_per_frame", c.max_angle_steps_per_frame, 1, 180);
   s.opt("recover_sweep_deg", c.recover_sweep_deg, 0.0, 180.0);
   s.opt("recover_step_deg", c.recover_step_deg, 0.25, 90.0);

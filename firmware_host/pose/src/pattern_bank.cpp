@@ -1,5 +1,7 @@
 #include "sempose/pose/pattern_bank.hpp"
 
+#include "sempose/pose/prefilter.hpp"
+
 #include <fftw3.h>
 
 #include <algorithm>
@@ -64,7 +66,7 @@ void downsample_pattern(const float* src, int n, int factor, float* out) noexcep
   }
 }
 
-bool PatternBank::build(const hal::Image& pattern, double step_deg, const PatternMask& fine_mask,
+bool PatternBank::build(const hal::Image& pattern, int prefilter_passes, double step_deg, const PatternMask& fine_mask,
                         ZnccCorrelator& fine, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
                         ZnccCorrelator& coarse, std::string& why) {
   size_ = pattern.width;
@@ -78,6 +80,9 @@ bool PatternBank::build(const hal::Image& pattern, double step_deg, const Patter
 
   std::vector<float> src(static_cast<std::size_t>(n) * n), raw(src.size()), small(static_cast<std::size_t>(m) * m);
   for (std::size_t i = 0; i < src.size(); ++i) src[i] = static_cast<float>(pattern.pixels[i]);
+  // The frame is low-passed the same way (Prefilter); filtering before rotating is the same
+  // as after for this near-isotropic kernel and keeps one interpolation for all angles.
+  prefilter_pattern(src.data(), n, prefilter_passes);
   spatial_.assign(static_cast<std::size_t>(angles_) * n * n, 0.0f);
   spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len_ * angles_)));
   coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)));

@@ -8,6 +8,8 @@
 #include <mutex>
 #include <new>
 
+#include "sempose/rt/alloc_counter.hpp"
+
 namespace sempose::pose {
 
 namespace {
@@ -15,6 +17,60 @@ namespace {
 std::mutex& planner_mutex() {
   static std::mutex m;
   return m;
+}
+
+// Hot loops, compiled for AVX-512, AVX2 and the baseline and picked at load time (ifunc),
+// so one binary runs everywhere and uses the wide vectors where the CPU has them.
+#define SEMPOSE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+
+SEMPOSE_CLONES void add_band_sums(const std::int64_t* __restrict t1, const std::int64_t* __restrict u1,
+                                  const std::int64_t* __restrict t2, const std::int64_t* __restrict u2, int span,
+                                  int n, std::int64_t* __restrict w1, std::int64_t* __restrict w2) noexcept {
+  for (int ux = 0; ux < n; ++ux) {
+    w1[ux] += u1[ux + span] - u1[ux] - t1[ux + span] + t1[ux];
+    w2[ux] += u2[ux + span] - u2[ux] - t2[ux + span] + t2[ux];
+  }
+}
+
+SEMPOSE_CLONES void add_rows(std::int64_t* __restrict a1, const std::int64_t* __restrict b1,
+                             std::int64_t* __restrict a2, const std::int64_t* __restrict b2, int n) noexcept {
+  for (int x = 0; x < n; ++x) {
+    a1[x] += b1[x];
+    a2[x] += b2[x];
+  }
+}
+
+SEMPOSE_CLONES void inverse_sigma(const std::int64_t* __restrict w1, const std::int64_t* __restrict w2, int n,
+                                  double count, double sqrt_count, double flat_limit,
+                                  float* __restrict inv) noexcept {
+  for (int ux = 0; ux < n; ++ux) {
+    // n·Σf² − (Σf)² in double: its rounding (~1e-16 relative) is far below flat_limit.
+    const double s1 = static_cast<double>(w1[ux]);
+    const double d = count * static_cast<double>(w2[ux]) - s1 * s1;
+    inv[ux] = d > flat_limit ? static_cast<float>(sqrt_count / std::sqrt(d)) : 0.0f;
+  }
+}
+
+SEMPOSE_CLONES void multiply_spectra(const float* __restrict a, const float* __restrict b, float* __restrict p,
+                                     std::size_t len) noexcept {
+  // Hand-written complex product: std::complex operator* calls __mulsc3 (NaN handling).
+  for (std::size_t i = 0; i < len; ++i) {
+    const float ar = a[2 * i], ai = a[2 * i + 1], br = b[2 * i], bi = b[2 * i + 1];
+    p[2 * i] = ar * br - ai * bi;
+    p[2 * i + 1] = ar * bi + ai * br;
+  }
+}
+
+SEMPOSE_CLONES void scale_clamp(const float* __restrict c, const float* __restrict inv, float* __restrict o,
+                                int n) noexcept {
+  for (int ux = 0; ux < n; ++ux) o[ux] = std::clamp(c[ux] * inv[ux], -1.0f, 1.0f);
+}
+
+SEMPOSE_CLONES float dot(const float* __restrict t, const float* __restrict f, int n) noexcept {
+  float acc = 0.0f;
+#pragma omp simd reduction(+ : acc)
+  for (int x = 0; x < n; ++x) acc += t[x] * f[x];
+  return acc;
 }
 }  // namespace
 
@@ -99,12 +155,33 @@ ZnccCorrelator::ZnccCorrelator(int fft_w, int fft_h, const PatternMask& mask)
   image_spec_ = static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len()));
   product_ = static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len()));
   if (!image_ || !corr_ || !image_spec_ || !product_) throw std::bad_alloc();
-  {
+  // Some FFTW plans (buffered or indirect solvers) malloc scratch inside fftwf_execute for
+  // large sizes. Make a plan, run it once with the heap counter armed, and re-plan without
+  // those solvers until the execution is allocation-free (checked here, at setup, so the
+  // loop's zero-allocation guarantee does not depend on what the planner happened to pick).
+  static constexpr unsigned kFlagSets[] = {FFTW_MEASURE, FFTW_MEASURE | FFTW_NO_BUFFERING,
+                                           FFTW_MEASURE | FFTW_NO_BUFFERING | FFTW_NO_INDIRECT_OP,
+                                           FFTW_ESTIMATE | FFTW_NO_BUFFERING | FFTW_NO_INDIRECT_OP};
+  std::memset(image_, 0, sizeof(float) * real_len);
+  std::memset(static_cast<void*>(product_), 0, sizeof(Complex) * spectrum_len());
+  for (unsigned flags : kFlagSets) {
     std::lock_guard<std::mutex> lock(planner_mutex());
-    plan_forward_ = fftwf_plan_dft_r2c_2d(fft_h_, fft_w_, image_, reinterpret_cast<fftwf_complex*>(image_spec_),
-                                          FFTW_MEASURE);
-    plan_inverse_ = fftwf_plan_dft_c2r_2d(fft_h_, fft_w_, reinterpret_cast<fftwf_complex*>(product_), corr_,
-                                          FFTW_MEASURE);
+    if (plan_forward_) fftwf_destroy_plan(static_cast<fftwf_plan>(plan_forward_));
+    if (plan_inverse_) fftwf_destroy_plan(static_cast<fftwf_plan>(plan_inverse_));
+    plan_forward_ = fftwf_plan_dft_r2c_2d(fft_h_, fft_w_, image_, reinterpret_cast<fftwf_complex*>(image_spec_), flags);
+    plan_inverse_ = fftwf_plan_dft_c2r_2d(fft_h_, fft_w_, reinterpret_cast<fftwf_complex*>(product_), corr_, flags);
+    std::memset(image_, 0, sizeof(float) * real_len);
+    std::memset(static_cast<void*>(product_), 0, sizeof(Complex) * spectrum_len());
+    std::uint64_t allocs = 0;
+    {
+      rt::alloc::ScopedArm arm;
+      const std::uint64_t before = rt::alloc::this_thread_allocations();
+      fftwf_execute(static_cast<fftwf_plan>(plan_forward_));
+      fftwf_execute(static_cast<fftwf_plan>(plan_inverse_));
+      allocs = rt::alloc::this_thread_allocations() - before;
+    }
+    execute_allocates_ = allocs != 0;
+    if (!execute_allocates_) break;
   }
   std::memset(image_, 0, sizeof(float) * real_len);
   std::memset(corr_, 0, sizeof(float) * real_len);
@@ -180,9 +257,10 @@ bool ZnccCorrelator::load_impl(const T* px, int w, int h, std::ptrdiff_t stride)
       const std::int64_t v = row[x];
       r1 += v;
       r2 += v * v;
-      a1[x + 1] = b1[x + 1] + r1;
-      a2[x + 1] = b2[x + 1] + r2;
+      a1[x + 1] = r1;
+      a2[x + 1] = r2;
     }
+    add_rows(a1 + 1, b1 + 1, a2 + 1, b2 + 1, w);
   }
   const std::int64_t total1 = s1[h * sw + w];
   const std::int64_t total2 = s2[h * sw + w];
@@ -215,20 +293,10 @@ bool ZnccCorrelator::load_impl(const T* px, int w, int h, std::ptrdiff_t stride)
       const std::int64_t* u1 = s1 + (uy + b.y1 + 1) * sw + b.x0;
       const std::int64_t* t2 = s2 + (uy + b.y0) * sw + b.x0;
       const std::int64_t* u2 = s2 + (uy + b.y1 + 1) * sw + b.x0;
-      const int span = b.x1 - b.x0 + 1;
-      for (int ux = 0; ux < valid_w_; ++ux) {
-        w1[ux] += u1[ux + span] - u1[ux] - t1[ux + span] + t1[ux];
-        w2[ux] += u2[ux + span] - u2[ux] - t2[ux + span] + t2[ux];
-      }
+      add_band_sums(t1, u1, t2, u2, b.x1 - b.x0 + 1, valid_w_, w1, w2);
     }
-    float* inv = inv_sigma_.data() + static_cast<std::size_t>(uy) * valid_w_;
-    for (int ux = 0; ux < valid_w_; ++ux) {
-      // n·Σf² − (Σf)² in long double: exact for 16-bit pixels, and the coarse level's box
-      // sums stay far inside its 64-bit mantissa.
-      const double d = static_cast<double>(static_cast<long double>(count) * w2[ux] -
-                                           static_cast<long double>(w1[ux]) * w1[ux]);
-      inv[ux] = d > flat_limit ? static_cast<float>(sqrt_count / std::sqrt(d)) : 0.0f;
-    }
+    inverse_sigma(w1, w2, valid_w_, static_cast<double>(count), sqrt_count, flat_limit,
+                  inv_sigma_.data() + static_cast<std::size_t>(uy) * valid_w_);
   }
   fftwf_execute_dft_r2c(static_cast<fftwf_plan>(plan_forward_), image_,
                         reinterpret_cast<fftwf_complex*>(image_spec_));
@@ -236,22 +304,13 @@ bool ZnccCorrelator::load_impl(const T* px, int w, int h, std::ptrdiff_t stride)
 }
 
 void ZnccCorrelator::correlate(const Complex* spectrum, float* out) noexcept {
-  // Hand-written complex product: std::complex operator* calls __mulsc3 (NaN handling).
-  const float* a = reinterpret_cast<const float*>(image_spec_);
-  const float* b = reinterpret_cast<const float*>(spectrum);
-  float* p = reinterpret_cast<float*>(product_);
-  const std::size_t len = spectrum_len();
-  for (std::size_t i = 0; i < len; ++i) {
-    const float ar = a[2 * i], ai = a[2 * i + 1], br = b[2 * i], bi = b[2 * i + 1];
-    p[2 * i] = ar * br - ai * bi;
-    p[2 * i + 1] = ar * bi + ai * br;
-  }
+  multiply_spectra(reinterpret_cast<const float*>(image_spec_), reinterpret_cast<const float*>(spectrum),
+                   reinterpret_cast<float*>(product_), spectrum_len());
   fftwf_execute_dft_c2r(static_cast<fftwf_plan>(plan_inverse_), reinterpret_cast<fftwf_complex*>(product_), corr_);
   for (int uy = 0; uy < valid_h_; ++uy) {
     const float* c = corr_ + static_cast<std::size_t>(uy) * fft_w_;
     const float* inv = inv_sigma_.data() + static_cast<std::size_t>(uy) * valid_w_;
-    float* o = out + static_cast<std::size_t>(uy) * valid_w_;
-    for (int ux = 0; ux < valid_w_; ++ux) o[ux] = std::clamp(c[ux] * inv[ux], -1.0f, 1.0f);
+    scale_clamp(c, inv, out + static_cast<std::size_t>(uy) * valid_w_, valid_w_);
   }
 }
 
@@ -265,10 +324,7 @@ float ZnccCorrelator::score_at(const float* pattern, int ux, int uy) const noexc
     for (int y = b.y0; y <= b.y1; ++y) {
       const float* t = pattern + y * n;
       const float* f = image_ + static_cast<std::size_t>(uy + y) * fft_w_ + ux;
-      float row = 0.0f;
-#pragma omp simd reduction(+ : row)
-      for (int x = b.x0; x <= b.x1; ++x) row += t[x] * f[x];
-      acc += row;
+      acc += dot(t + b.x0, f + b.x0, b.x1 - b.x0 + 1);
     }
   }
   return std::clamp(acc * inv, -1.0f, 1.0f);

@@ -16,6 +16,9 @@ struct TrackerConfig {
   std::int32_t roi_size_px = 192;      // square tracking ROI side (>= pattern_size_px)
   double angle_step_deg = 1.0;         // pattern bank step: 360/step rotated copies
   bool circular_mask = true;           // mask the pattern to its inscribed circle (corners don't bias)
+  // 5-tap binomial low-pass passes on frame and pattern before correlating (matched filter
+  // against shot noise at a few electrons per pixel); 0 = raw pixels.
+  std::int32_t prefilter_passes = 1;
   // Orientation walk (paper): correlate j and j±1, move to the best, until the centre wins.
   std::int32_t max_angle_steps_per_frame = 8;
   // In-ROI recovery when the walk hits its bound or the score collapses: FFT correlations
@@ -24,7 +27,7 @@ struct TrackerConfig {
   double recover_step_deg = 5.0;
   // Loss detection.
   double score_threshold = 0.25;  // ZNCC peak below this = weak frame
-  double psr_threshold = 4.0;     // peak-to-sidelobe ratio below this = weak frame (0 = off)
+  double psr_threshold = 0.0;     // peak-to-sidelobe ratio below this = weak frame (0 = off)
   std::int32_t lost_after_frames = 1;  // K consecutive weak frames -> LOST, full-field search
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;

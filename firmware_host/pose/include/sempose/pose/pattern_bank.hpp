@@ -31,7 +31,7 @@ class PatternBank {
  public:
   using Complex = ZnccCorrelator::Complex;
   // Returns false (and why) when the pattern is flat under the mask at some angle.
-  bool build(const hal::Image& pattern, double angle_step_deg, const PatternMask& fine_mask,
+  bool build(const hal::Image& pattern, int prefilter_passes, double angle_step_deg, const PatternMask& fine_mask,
              ZnccCorrelator& fine, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
              ZnccCorrelator& coarse, std::string& why);
 

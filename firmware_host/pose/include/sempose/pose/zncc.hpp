@@ -25,7 +25,7 @@ struct MaskBand {
 // The pattern's support: its inscribed circle as a stack of bands (or the full square).
 class PatternMask {
  public:
-  PatternMask(int size_px, bool circular, int bands_per_half = 16);
+  PatternMask(int size_px, bool circular, int bands_per_half = 8);
   int size_px() const noexcept { return size_; }
   std::int64_t count() const noexcept { return count_; }
   const std::vector<MaskBand>& bands() const noexcept { return bands_; }
@@ -56,6 +56,8 @@ class ZnccCorrelator {
   int pattern_px() const noexcept { return mask_.size_px(); }
   std::size_t spectrum_len() const noexcept { return static_cast<std::size_t>(fft_h_) * (fft_w_ / 2 + 1); }
   std::size_t buffer_bytes() const noexcept;
+  // True when no FFTW plan could be found whose execution is allocation-free (setup reports it).
+  bool execute_allocates() const noexcept { return execute_allocates_; }
 
   // Setup: conj(FFT(pattern zero-padded)) / (fft_w·fft_h) into out[spectrum_len()].
   // pattern: P×P, already normalize_pattern()ed.
@@ -89,6 +91,7 @@ class ZnccCorrelator {
   float* corr_ = nullptr;       // c2r output
   void* plan_forward_ = nullptr;
   void* plan_inverse_ = nullptr;
+  bool execute_allocates_ = false;
   std::vector<std::int64_t> sat1_, sat2_;  // (h+1)×(w+1) summed-area tables of f and f²
   std::vector<std::int64_t> row1_, row2_;  // per-row window sums scratch (valid_w)
   std::vector<float> inv_sigma_;           // sqrt(n)/sqrt(n·Σf² − (Σf)²) per displacement, 0 if flat

@@ -1,0 +1,80 @@
+#include "sempose/pose/prefilter.hpp"
+
+#include <algorithm>
+
+namespace sempose::pose {
+
+Prefilter::Prefilter(int passes, int max_w, int max_h)
+    : passes_(passes),
+      max_w_(max_w),
+      max_h_(max_h),
+      a_(static_cast<std::size_t>(max_w) * max_h),
+      b_(static_cast<std::size_t>(max_w) * max_h),
+      row_(static_cast<std::size_t>(max_w) + 4) {}
+
+int Prefilter::shift_for_bits(int bits) const noexcept { return std::max(0, bits + 8 * passes_ - 20); }
+
+namespace {
+#define SEMPOSE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+template <typename T>
+void horizontal(const T* src, int w, std::int64_t* row, std::int64_t* out) noexcept {
+  for (int x = 0; x < w; ++x) row[x + 2] = src[x];
+  row[0] = row[1] = row[2];
+  row[w + 2] = row[w + 3] = row[w + 1];
+  for (int x = 0; x < w; ++x) out[x] = row[x] + 4 * row[x + 1] + 6 * row[x + 2] + 4 * row[x + 3] + row[x + 4];
+}
+SEMPOSE_CLONES void vertical(const std::int64_t* in, int w, int h, std::int64_t* out) noexcept {
+  for (int y = 0; y < h; ++y) {
+    const std::int64_t* r[5];
+    for (int k = 0; k < 5; ++k) r[k] = in + static_cast<std::size_t>(std::clamp(y + k - 2, 0, h - 1)) * w;
+    std::int64_t* o = out + static_cast<std::size_t>(y) * w;
+    for (int x = 0; x < w; ++x) o[x] = r[0][x] + 4 * r[1][x] + 6 * r[2][x] + 4 * r[3][x] + r[4][x];
+  }
+}
+}  // namespace
+
+void Prefilter::apply(const std::uint16_t* src, int w, int h, std::ptrdiff_t stride, int bits,
+                      std::int32_t* out) noexcept {
+  w = std::min(w, max_w_);
+  h = std::min(h, max_h_);
+  const int shift = shift_for_bits(bits);
+  if (passes_ == 0) {
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) out[y * w + x] = src[y * stride + x];
+    return;
+  }
+  // Pass 1 reads the source; further passes work in int64 scratch (no overflow for 16-bit).
+  for (int y = 0; y < h; ++y) horizontal(src + y * stride, w, row_.data(), b_.data() + static_cast<std::size_t>(y) * w);
+  vertical(b_.data(), w, h, a_.data());
+  for (int p = 1; p < passes_; ++p) {
+    for (int y = 0; y < h; ++y) {
+      horizontal(a_.data() + static_cast<std::size_t>(y) * w, w, row_.data(), b_.data() + static_cast<std::size_t>(y) * w);
+    }
+    vertical(b_.data(), w, h, a_.data());
+  }
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<std::int32_t>(a_[i] >> shift);
+}
+
+void prefilter_pattern(float* p, int n, int passes) {
+  std::vector<double> a(static_cast<std::size_t>(n) * n), b(a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) a[i] = p[i];
+  static constexpr double k[5] = {1 / 16.0, 4 / 16.0, 6 / 16.0, 4 / 16.0, 1 / 16.0};
+  for (int pass = 0; pass < passes; ++pass) {
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        double s = 0;
+        for (int i = 0; i < 5; ++i) s += k[i] * a[y * n + std::clamp(x + i - 2, 0, n - 1)];
+        b[y * n + x] = s;
+      }
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        double s = 0;
+        for (int i = 0; i < 5; ++i) s += k[i] * b[std::clamp(y + i - 2, 0, n - 1) * n + x];
+        a[y * n + x] = s;
+      }
+  }
+  for (std::size_t i = 0; i < a.size(); ++i) p[i] = static_cast<float>(a[i]);
+}
+
+}  // namespace sempose::pose
