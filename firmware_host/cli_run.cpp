@@ -1,9 +1,336 @@
-// Placeholder until the issue that builds `sempose run` lands.
+// `sempose run`: the controller. Loads and validates the config (exit 2 on errors), builds
+// the scan source, trackers, sinks and pipeline, locks memory, holds /dev/cpu_dma_latency,
+// runs the RT stages until SIGINT/SIGTERM or --duration, drains, dumps histograms and prints
+// a summary whose LAST line is machine-readable. SIGUSR1 dumps histograms while running.
+//
+// Signals are blocked in every thread (the mask is inherited by the RT threads) and taken
+// with sigtimedwait on this non-RT thread, so no handler ever runs on an RT thread.
+#include <pthread.h>
+#include <sched.h>
+#include <signal.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
 
 #include "cli.hpp"
+#include "sempose/can_output/factory.hpp"
+#include "sempose/can_output/gpio_pose_sink.hpp"
+#include "sempose/config/app_config.hpp"
+#include "sempose/hal/gpio_synced_source.hpp"
+#include "sempose/hal/source_factory.hpp"
+#include "sempose/pipeline/csv_pose_sink.hpp"
+#include "sempose/pipeline/pipeline.hpp"
+#include "sempose/pipeline/tracker_setup.hpp"
+#include "sempose/pose/tracker.hpp"
+#include "sempose/rt/alloc_counter.hpp"
+#include "sempose/rt/clock.hpp"
+#include "sempose/rt/latency_histogram.hpp"
+#include "sempose/rt/memory_lock.hpp"
 
-int sempose::cli::run(int, char**) {
-  std::fprintf(stderr, "sempose run: not built yet\n");
-  return 3;
+namespace {
+
+using namespace sempose;
+
+struct Options {
+  std::string config;
+  double duration_s = 0;  // 0: until a signal
+  bool strict_rt = false;
+  std::string hist_dir;
+  std::string can_log;
+};
+
+int usage(std::FILE* out) {
+  std::fprintf(out,
+               "usage: sempose run --config FILE [--duration S] [--strict-rt] [--hist-dir DIR] [--can-log FILE]\n"
+               "  --config FILE    application config (YAML; see config/default.yaml)\n"
+               "  --duration S     stop after S seconds (default: run until SIGINT/SIGTERM)\n"
+               "  --strict-rt      refuse to start without SCHED_FIFO, affinity and locked memory\n"
+               "  --hist-dir DIR   write latency histograms (cyclictest layout + JSON) to DIR at exit and on SIGUSR1\n"
+               "  --can-log FILE   send the CAN frames to a candump log FILE instead of the configured bus\n");
+  return out == stdout ? 0 : 2;
+}
+
+bool parse(int argc, char** argv, Options& o) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](std::string& out) {
+      if (i + 1 >= argc) return false;
+      out = argv[++i];
+      return true;
+    };
+    std::string v;
+    if (a == "--config") {
+      if (!value(o.config)) return false;
+    } else if (a == "--duration") {
+      if (!value(v)) return false;
+      char* end = nullptr;
+      o.duration_s = std::strtod(v.c_str(), &end);
+      if (end == v.c_str() || *end != '\0' || o.duration_s < 0) {
+        std::fprintf(stderr, "sempose run: --duration: '%s' is not a number of seconds >= 0\n", v.c_str());
+        return false;
+      }
+    } else if (a == "--strict-rt") {
+      o.strict_rt = true;
+    } else if (a == "--hist-dir") {
+      if (!value(o.hist_dir)) return false;
+    } else if (a == "--can-log") {
+      if (!value(o.can_log)) return false;
+    } else {
+      std::fprintf(stderr, "sempose run: unknown option '%s'\n", a.c_str());
+      return false;
+    }
+  }
+  return !o.config.empty();
+}
+
+void dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
+  if (dir.empty()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  const auto series = p.histograms().snapshot();
+  std::ofstream txt(dir + "/latency_hist.txt");
+  rt::write_cyclictest_histogram(txt, series);
+  std::ofstream json(dir + "/latency_hist.json");
+  rt::write_histogram_json(json, series);
+  if (!txt || !json) std::fprintf(stderr, "sempose run: cannot write histograms to %s\n", dir.c_str());
+}
+
+void pin_non_rt_thread(int cpu) {
+  if (cpu < 0) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(cpu, &set);
+  pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+}
+
+}  // namespace
+
+int sempose::cli::run(int argc, char** argv) {
+  Options opt;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) return usage(stdout);
+  }
+  if (!parse(argc, argv, opt)) return usage(stderr);
+
+  config::AppConfig cfg;
+  std::string errors;
+  if (!config::load_app_config(opt.config, cfg, errors)) {
+    std::fprintf(stderr, "sempose run: invalid config:\n%s", errors.c_str());
+    return 2;
+  }
+  const bool strict = opt.strict_rt || cfg.pipeline.strict_rt;
+  const std::string hist_dir = opt.hist_dir.empty() ? cfg.output.hist_dir : opt.hist_dir;
+
+  // Signals: blocked everywhere (threads inherit the mask), taken here with sigtimedwait.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGUSR1);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  // ---- setup: everything that allocates
+  rt::Status st;
+  std::unique_ptr<hal::ScanSource> source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st);
+  if (!source) {
+    std::fprintf(stderr, "sempose run: scan source: %s\n", st.message.c_str());
+    return 2;
+  }
+  hal::ScanSource* scan = source.get();
+  std::unique_ptr<hal::GpioFrameSync> frame_sync;
+  std::unique_ptr<hal::GpioSyncedSource> synced;
+  st = can_output::make_frame_sync(cfg.gpio, frame_sync);
+  if (!st) {
+    std::fprintf(stderr, "sempose run: gpio: %s\n", st.message.c_str());
+    return 2;
+  }
+  if (frame_sync) {
+    synced = std::make_unique<hal::GpioSyncedSource>(*source, *frame_sync,
+                                                     static_cast<std::int64_t>(cfg.gpio.frame_sync_timeout_us) * 1000);
+    scan = synced.get();
+  }
+
+  pipeline::TrackerSetup trackers;
+  st = pipeline::make_trackers(cfg, scan->limits(), trackers);
+  if (!st) {
+    std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+    return 2;
+  }
+
+  can_output::CanOutput can;
+  st = can_output::make_can_output(cfg.can, opt.can_log, can);
+  if (!st) {
+    std::fprintf(stderr, "sempose run: can: %s\n", st.message.c_str());
+    return 2;
+  }
+  std::unique_ptr<hal::GpioOutputs> gpio_out;
+  st = can_output::make_gpio_outputs(cfg.gpio, gpio_out);
+  if (!st) {
+    std::fprintf(stderr, "sempose run: gpio: %s\n", st.message.c_str());
+    return 2;
+  }
+  std::unique_ptr<pipeline::CsvPoseSink> csv;
+  if (!cfg.output.poses_csv.empty()) {
+    csv = std::make_unique<pipeline::CsvPoseSink>(cfg.output.poses_csv, cfg.output.csv_buffer_poses,
+                                                  trackers.trackers.size() > 1);
+    st = csv->open();
+    if (!st) {
+      std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+      return 2;
+    }
+  }
+  pipeline::PoseSink* sink = can.sink.get();
+  std::unique_ptr<pipeline::TeePoseSink> tee;
+  if (csv) {
+    tee = std::make_unique<pipeline::TeePoseSink>(can.sink.get(), csv.get());
+    sink = tee.get();
+  }
+  std::unique_ptr<can_output::GpioPoseSink> gpio_sink;
+  if (gpio_out) {
+    gpio_sink = std::make_unique<can_output::GpioPoseSink>(*sink, *gpio_out);
+    sink = gpio_sink.get();
+  }
+
+  std::vector<pose::Tracker*> raw;
+  for (auto& t : trackers.trackers) raw.push_back(t.get());
+  std::unique_ptr<pipeline::Pipeline> pipe;
+  try {
+    pipe = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *scan, raw, *sink);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sempose run: %s\n", e.what());
+    return 2;
+  }
+
+  std::printf("sempose run: config %s, source %s%s%s, %zu target(s)\n", opt.config.c_str(), cfg.source.c_str(),
+              scan->is_virtual_time() ? " (virtual time)" : "", frame_sync ? " + GPIO frame sync" : "",
+              trackers.trackers.size());
+  for (std::size_t i = 0; i < trackers.names.size(); ++i) {
+    std::printf("  target %zu %s: pattern %s\n", i, trackers.names[i].c_str(), trackers.pattern_origins[i].c_str());
+  }
+  std::printf("memory: pattern banks + spectra %.1f MiB, frame pool %.1f MiB\n", trackers.memory_bytes / 1048576.0,
+              pipe->frame_pool_bytes() / 1048576.0);
+  std::printf("output: %s%s%s\n", can.description.c_str(), csv ? ", CSV " : "", csv ? cfg.output.poses_csv.c_str() : "");
+
+  // ---- RT memory and latency setup, then start
+  pin_non_rt_thread(cfg.pipeline.non_rt_cpu);
+  if (cfg.pipeline.lock_memory) {
+    st = rt::lock_process_memory(strict);
+    if (!st) {
+      std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+      return 3;
+    }
+    if (!st.message.empty()) std::printf("warning: %s\n", st.message.c_str());
+  }
+  rt::CpuDmaLatencyHold dma;
+  if (cfg.pipeline.hold_dma_latency) {
+    st = dma.acquire(strict);
+    if (!st) {
+      std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+      return 3;
+    }
+    if (!st.message.empty()) std::printf("warning: %s\n", st.message.c_str());
+  }
+  // rt_allocs: heap calls on armed (RT) threads from here on; setup may allocate freely.
+  const std::uint64_t allocs_at_start = rt::alloc::allocations();
+  st = pipe->start(strict);
+  if (!st) {
+    std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+    return 3;
+  }
+  for (const auto& p : pipe->placements()) std::printf("thread %s\n", p.c_str());
+  for (const auto& w : pipe->warnings()) std::printf("warning: %s\n", w.c_str());
+  std::fflush(stdout);
+
+  // ---- non-RT loop: signals, periodic flush and status
+  const std::int64_t t0 = rt::now_ns();
+  const std::int64_t period_ns = static_cast<std::int64_t>(cfg.pipeline.stats_period_ms) * rt::kNsPerMs;
+  std::int64_t next_status = t0 + period_ns;
+  const auto& c = pipe->counters();
+  int stop_signal = 0;
+  while (!pipe->finished()) {
+    const std::int64_t now = rt::now_ns();
+    if (opt.duration_s > 0 && now - t0 >= static_cast<std::int64_t>(opt.duration_s * 1e9)) break;
+    const timespec wait = rt::to_timespec(std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, next_status - now)));
+    const int sig = sigtimedwait(&signals, nullptr, &wait);
+    if (sig == SIGINT || sig == SIGTERM) {
+      stop_signal = sig;
+      break;
+    }
+    if (sig == SIGUSR1) {
+      dump_histograms(hist_dir, *pipe);
+      std::printf("histograms written to %s\n", hist_dir.empty() ? "(no --hist-dir)" : hist_dir.c_str());
+    }
+    if (rt::now_ns() >= next_status) {
+      next_status += period_ns;
+      if (csv) csv->write_pending();
+      if (can.sink) can.sink->flush();
+      if (cfg.output.print_status) {
+        const auto e2e = pipe->histograms().end_to_end.snapshot();
+        std::printf("t=%.1fs frames=%llu poses=%llu dropped=%llu overruns=%llu dwell_ns=[%llu,%llu] e2e_us_p99=%.0f\n",
+                    (rt::now_ns() - t0) * 1e-9, static_cast<unsigned long long>(c.frames_scanned.get()),
+                    static_cast<unsigned long long>(c.sent.get()),
+                    static_cast<unsigned long long>(pipe->dropped_frames()),
+                    static_cast<unsigned long long>(c.overruns.get()),
+                    static_cast<unsigned long long>(c.dwell_min_ns.get()),
+                    static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99));
+        std::fflush(stdout);
+      }
+    }
+  }
+  const double run_s = (rt::now_ns() - t0) * 1e-9;
+  pipe->request_stop();
+  pipe->join();
+  sink->flush();
+  if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
+  if (pipe->source_ended()) std::printf("the source ended\n");
+  dump_histograms(hist_dir, *pipe);
+
+  // ---- summary
+  const auto series = pipe->histograms().snapshot();
+  const rt::HistogramSnapshot* e2e = nullptr;
+  for (const auto& s : series) {
+    if (s.name == "end_to_end") e2e = &s;
+    std::printf("latency %-10s n=%llu min=%.1fus p50=%.0fus p99=%.0fus p99.9=%.0fus max=%.1fus\n", s.name.c_str(),
+                static_cast<unsigned long long>(s.count), s.min_ns / 1e3, s.percentile_us(0.5), s.percentile_us(0.99),
+                s.percentile_us(0.999), s.max_ns / 1e3);
+  }
+  std::uint64_t poses = 0;
+  std::uint64_t tracked = 0;
+  for (int t = 0; t < pipe->target_count(); ++t) {
+    const auto& tc = c.targets[static_cast<std::size_t>(t)];
+    poses += tc.poses.get();
+    tracked += tc.tracked.get();
+    std::printf("target %d %s: poses=%llu poses_per_s=%.1f tracked_share=%.3f start_searches=%llu\n", t,
+                trackers.names[static_cast<std::size_t>(t)].c_str(), static_cast<unsigned long long>(tc.poses.get()),
+                tc.poses.get() / run_s, tc.poses.get() ? double(tc.tracked.get()) / tc.poses.get() : 0.0,
+                static_cast<unsigned long long>(tc.searches.get()));
+  }
+  if (hist_dir.empty()) {
+    std::printf("histograms: not written (no --hist-dir / output.hist_dir)\n");
+  } else {
+    std::printf("histograms: %s/latency_hist.txt (cyclictest layout), %s/latency_hist.json\n", hist_dir.c_str(),
+                hist_dir.c_str());
+  }
+  const auto& cc = can.sink->counters();
+  std::printf(
+      "summary: poses=%llu poses_per_s=%.1f tracked_share=%.3f dropped=%llu overruns=%llu rt_allocs=%llu "
+      "e2e_us_p50=%.0f e2e_us_p99=%.0f e2e_us_p999=%.0f e2e_us_max=%.1f dwell_ns_min=%llu dwell_ns_max=%llu "
+      "frames=%llu scan_errors=%llu can_sent=%llu can_dropped=%llu can_bad_commands=%llu commands=%llu "
+      "duration_s=%.2f\n",
+      static_cast<unsigned long long>(poses), poses / run_s, poses ? double(tracked) / poses : 0.0,
+      static_cast<unsigned long long>(pipe->dropped_frames()), static_cast<unsigned long long>(c.overruns.get()),
+      static_cast<unsigned long long>(rt::alloc::allocations() - allocs_at_start), e2e ? e2e->percentile_us(0.5) : 0.0,
+      e2e ? e2e->percentile_us(0.99) : 0.0, e2e ? e2e->percentile_us(0.999) : 0.0, e2e ? e2e->max_ns / 1e3 : 0.0,
+      static_cast<unsigned long long>(c.dwell_min_ns.get()), static_cast<unsigned long long>(c.dwell_max_ns.get()),
+      static_cast<unsigned long long>(c.frames_scanned.get()), static_cast<unsigned long long>(c.scan_errors.get()),
+      static_cast<unsigned long long>(cc.poses_sent.load()), static_cast<unsigned long long>(cc.poses_dropped.load()),
+      static_cast<unsigned long long>(cc.bad_commands.load()), static_cast<unsigned long long>(c.commands.get()),
+      run_s);
+  return 0;
 }

@@ -392,6 +392,12 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   p.nm_per_px = tracker.nm_per_px();
   p.t_scan_end_ns = m.t_scan_end_ns;
   p.t_pose_done_ns = m.t_pose_done_ns;
+  if (target < m.truth_count && m.truth[target].present) {
+    p.truth_present = true;
+    p.truth_x_px = m.truth[target].x_px;
+    p.truth_y_px = m.truth[target].y_px;
+    p.truth_phi_deg = m.truth[target].phi_deg;
+  }
   if (poses_.size() >= pose_ring_depth_ || !poses_.try_push(p)) counters_.poses_ring_full.add();
 }
 

@@ -27,6 +27,11 @@ struct PoseRecord {
   double nm_per_px = 1;             // scale of the active magnification step
   std::int64_t t_scan_end_ns = 0;
   std::int64_t t_pose_done_ns = 0;
+  // Simulated sources only: where the target really was (validation, never on the wire).
+  bool truth_present = false;
+  double truth_x_px = 0;
+  double truth_y_px = 0;
+  double truth_phi_deg = 0;
 };
 
 // Pipeline state for the heartbeat/status frame.

@@ -1,0 +1,75 @@
+#include "sempose/pipeline/tracker_setup.hpp"
+
+#include <algorithm>
+#include <exception>
+
+#include "sempose/hal/pgm.hpp"
+#include "sempose/hal/sim_source.hpp"
+#include "sempose/pose/tracker.hpp"
+
+namespace sempose::pipeline {
+
+TrackerSetup::TrackerSetup() = default;
+TrackerSetup::~TrackerSetup() = default;
+TrackerSetup::TrackerSetup(TrackerSetup&&) noexcept = default;
+TrackerSetup& TrackerSetup::operator=(TrackerSetup&&) noexcept = default;
+
+namespace {
+// The simulator's pattern: recorded at a slow dwell, averaged over 10 scans (as in the paper).
+constexpr int kPatternFrames = 10;
+constexpr double kSimNmPerPx = 40.0;  // the paper's scale (~40 nm per pixel)
+}  // namespace
+
+rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& limits, TrackerSetup& out) {
+  std::vector<std::vector<pose::PatternSet>> per_target;
+  if (!cfg.targets.empty()) {
+    for (const auto& t : cfg.targets) {
+      std::vector<pose::PatternSet> sets;
+      std::string origins;
+      for (const auto& ps : t.pattern_sets) {
+        pose::PatternSet set;
+        std::string error;
+        if (!hal::try_read_pgm(ps.file, set.image, error)) {
+          return rt::Status::failure(cfg.path + ": targets: " + t.name + ": pattern file '" + ps.file + "': " + error);
+        }
+        set.nm_per_px = ps.nm_per_px;
+        sets.push_back(std::move(set));
+        origins += (origins.empty() ? "" : ", ") + ps.file;
+      }
+      per_target.push_back(std::move(sets));
+      out.names.push_back(t.name);
+      out.pattern_origins.push_back(origins);
+    }
+  } else if (cfg.source == "sim") {
+    const std::uint32_t dwell = std::clamp<std::uint32_t>(2'000, limits.min_dwell_ns, limits.max_dwell_ns);
+    for (std::size_t i = 0; i < cfg.sim.targets.size(); ++i) {
+      if (!cfg.sim.targets[i].enabled) continue;
+      pose::PatternSet set;
+      try {
+        set.image = hal::render_sim_pattern(cfg.sim, limits, static_cast<int>(i), cfg.tracker.pattern_size_px,
+                                            kPatternFrames, dwell, cfg.sim.seed + 1000 + i);
+      } catch (const std::exception& e) {
+        return rt::Status::failure(cfg.path + ": sim.targets[" + std::to_string(i) + "]: cannot record its pattern: " +
+                                   e.what());
+      }
+      set.nm_per_px = kSimNmPerPx;
+      per_target.push_back({std::move(set)});
+      out.names.push_back("sim" + std::to_string(i));
+      out.pattern_origins.push_back("recorded from simulator target " + std::to_string(i));
+    }
+  }
+  if (per_target.empty()) {
+    return rt::Status::failure(cfg.path + ": targets: no target to track (add a targets: list with pattern files" +
+                               std::string(cfg.source == "sim" ? ", or enable a sim target)" : ")"));
+  }
+  for (std::size_t i = 0; i < per_target.size(); ++i) {
+    rt::Status st;
+    auto tracker = pose::Tracker::create(cfg.tracker, std::move(per_target[i]), limits, st);
+    if (!tracker) return rt::Status::failure("target " + out.names[i] + ": " + st.message);
+    out.memory_bytes += tracker->memory_bytes();
+    out.trackers.push_back(std::move(tracker));
+  }
+  return rt::Status::success();
+}
+
+}  // namespace sempose::pipeline

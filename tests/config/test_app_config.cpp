@@ -1,0 +1,82 @@
+// load_app_config: default.yaml loads cleanly; every kind of mistake is reported with the
+// file, line, key, value and allowed range; all problems at once, unknown sections included.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "sempose/config/app_config.hpp"
+
+namespace sempose::config {
+namespace {
+
+std::string write_yaml(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+TEST(AppConfig, DefaultYamlLoadsCleanly) {
+  AppConfig c;
+  std::string errors;
+  EXPECT_TRUE(load_app_config(std::string(SEMPOSE_SOURCE_DIR) + "/config/default.yaml", c, errors)) << errors;
+  EXPECT_EQ(errors, "");
+  EXPECT_EQ(c.source, "sim");
+  EXPECT_EQ(c.pipeline.polling, "sleep");
+}
+
+TEST(AppConfig, UnknownKeyAndSectionAreErrors) {
+  const auto path = write_yaml("unknown.yaml", "governor:\n  margn: 0.3\nfoo:\n  bar: 1\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find(path + ":2:3: governor.margn: unknown key"), std::string::npos) << e;
+  EXPECT_NE(e.find(path + ":3:1: foo: unknown key"), std::string::npos) << e;
+}
+
+TEST(AppConfig, OutOfRangeNamesKeyValueAndRange) {
+  const auto path = write_yaml("range.yaml", "pipeline:\n  frame_ring: 32\n  acquisition: {cpu: 0, priority: 120}\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find(path + ":2:15: pipeline.frame_ring: 32 is outside the allowed range [2, 16]"), std::string::npos) << e;
+  EXPECT_NE(e.find("pipeline.acquisition.priority: 120 is outside the allowed range [0, 99]"), std::string::npos) << e;
+}
+
+TEST(AppConfig, WrongTypeAndChoice) {
+  const auto path = write_yaml("type.yaml", "governor:\n  margin: lots\npipeline:\n  polling: busy\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find(path + ":2:11: governor.margin: 'lots' is not a number"), std::string::npos) << e;
+  EXPECT_NE(e.find(path + ":4:12: pipeline.polling: 'busy' is not one of: sleep, spin"), std::string::npos) << e;
+}
+
+TEST(AppConfig, MissingRequiredKey) {
+  const auto path = write_yaml("missing.yaml", "targets:\n  - name: a\n    pattern_sets:\n      - {nm_per_px: 40}\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find("targets[0].pattern_sets[0].file: required key is missing"), std::string::npos) << e;
+  EXPECT_NE(e.find(path + ":4:"), std::string::npos) << e;
+}
+
+TEST(AppConfig, CrossSectionChecks) {
+  const auto path = write_yaml("cross.yaml", "pipeline:\n  schedule: [0, 1]\n  frame_ring: 8\n  frame_pool_slots: 9\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find("pipeline.schedule: 0 is not a target index"), std::string::npos) << e;
+  EXPECT_NE(e.find("pipeline.frame_pool_slots: 9 is below frame_ring + 3 = 11"), std::string::npos) << e;
+}
+
+TEST(AppConfig, MissingFileIsAnError) {
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config("/nonexistent/sempose.yaml", c, e));
+  EXPECT_NE(e.find("/nonexistent/sempose.yaml: cannot open"), std::string::npos) << e;
+}
+
+}  // namespace
+}  // namespace sempose::config
