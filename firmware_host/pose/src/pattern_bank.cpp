@@ -67,14 +67,16 @@ void downsample_pattern(const float* src, int n, int factor, float* out) noexcep
 }
 
 bool PatternBank::build(const hal::Image& pattern, int prefilter_passes, double step_deg, const PatternMask& fine_mask,
-                        ZnccCorrelator& fine, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
+                        const PatternMask& half_mask, ZnccCorrelator& half, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
                         ZnccCorrelator& coarse, std::string& why) {
   size_ = pattern.width;
   const int n = size_;
   angles_ = static_cast<int>(std::lround(360.0 / step_deg));
   coarse_step_deg_ = coarse_step_deg;
   coarse_angles_ = std::max(1, static_cast<int>(std::lround(360.0 / coarse_step_deg)));
-  spectrum_len_ = fine.spectrum_len();
+  spectrum_len_ = half.spectrum_len();
+  const int h = half_mask.size_px();
+  std::vector<float> halved(static_cast<std::size_t>(h) * h);
   coarse_len_ = coarse.spectrum_len();
   const int m = coarse_mask.size_px();
 
@@ -90,12 +92,14 @@ bool PatternBank::build(const hal::Image& pattern, int prefilter_passes, double 
 
   for (int j = 0; j < angles_; ++j) {
     float* p = spatial_.data() + static_cast<std::size_t>(j) * n * n;
-    rotate_pattern(src.data(), n, j * step_deg, p);
-    if (!normalize_pattern(p, fine_mask)) {
+    rotate_pattern(src.data(), n, j * step_deg, raw.data());
+    std::copy(raw.begin(), raw.end(), p);
+    downsample_pattern(raw.data(), n, 2, halved.data());
+    if (!normalize_pattern(p, fine_mask) || !normalize_pattern(halved.data(), half_mask)) {
       why = "the pattern is flat (constant grey level) inside its mask";
       return false;
     }
-    fine.make_spectrum(p, spectra_.get() + static_cast<std::size_t>(j) * spectrum_len_);
+    half.make_spectrum(halved.data(), spectra_.get() + static_cast<std::size_t>(j) * spectrum_len_);
   }
   for (int k = 0; k < coarse_angles_; ++k) {
     rotate_pattern(src.data(), n, k * coarse_step_deg, raw.data());

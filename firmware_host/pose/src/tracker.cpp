@@ -106,13 +106,19 @@ struct Tracker::Impl {
   hal::ScanLimits limits;
   int P = 0, R = 0, N = 0, d = 8, Pc = 0, coarse_off = 0, n_angles = 360;
   double step = 1.0;
-  PatternMask fine_mask, coarse_mask;
-  std::unique_ptr<ZnccCorrelator> fine, coarse;
+  PatternMask fine_mask, half_mask, coarse_mask;
+  // half: the whole ROI, 2×2 binned, correlated via FFT (finds the peak for every displacement);
+  // the exact full-resolution ZNCC is then evaluated around it (local_score).
+  std::unique_ptr<ZnccCorrelator> half, coarse;
+  int Nh = 0;
+  std::vector<float> roi_img;          // prefiltered ROI minus its mean, full resolution (row stride roi_w)
+  std::vector<std::int32_t> binned;    // 2×2 sums of the prefiltered ROI
+  int roi_w = 0, roi_h = 0;
   std::unique_ptr<Prefilter> prefilter;
   std::vector<std::int32_t> filtered;  // prefiltered ROI (N×N)
   std::vector<PatternBank> banks;
   std::vector<double> nm_per_px;
-  std::vector<float> map_a, map_b;  // fine ZNCC maps: work and best-so-far
+  std::vector<float> map_a, map_b;  // half-resolution ZNCC maps: work and best-so-far
   float* map_work = nullptr;
   float* map_best = nullptr;
   std::vector<float> cmap;
@@ -140,6 +146,7 @@ struct Tracker::Impl {
   Impl(const config::TrackerConfig& c, int pattern_px)
       : cfg(c),
         fine_mask(pattern_px, c.circular_mask),
+        half_mask(pattern_px / 2, c.circular_mask),
         coarse_mask(pattern_px / c.search_downsample, c.circular_mask) {}
 
   int wrap_j(int j) const noexcept {
@@ -148,19 +155,66 @@ struct Tracker::Impl {
   }
   int angle_index(double deg) const noexcept { return wrap_j(static_cast<int>(std::lround(deg / step))); }
 
-  // Orientation walk (paper) at the integer peak, then sub-pixel and sub-degree fits.
-  Measurement refine(const PatternBank& bank, int j_map, const Peak& pk, int max_moves) noexcept {
+  // Exact full-resolution ZNCC of angle j's pattern at displacement (ux, uy) of the loaded ROI,
+  // window mean and variance under the mask computed in the same pass. -2 outside the ROI.
+  float local_score(int j_pattern, const PatternBank& bank, int ux, int uy) const noexcept {
+    if (ux < 0 || uy < 0 || ux > roi_w - P || uy > roi_h - P) return -2.0f;
+    const float* t = bank.pattern(j_pattern);
+    double tf = 0, sf = 0, sff = 0;
+    for (const MaskBand& b : fine_mask.bands()) {
+      for (int y = b.y0; y <= b.y1; ++y) {
+        const float* f = roi_img.data() + static_cast<std::size_t>(uy + y) * roi_w + ux;
+        const float* tr = t + y * P;
+        float a = 0, c = 0, e = 0;
+#pragma omp simd reduction(+ : a, c, e)
+        for (int x = b.x0; x <= b.x1; ++x) {
+          a += tr[x] * f[x];
+          c += f[x];
+          e += f[x] * f[x];
+        }
+        tf += a;
+        sf += c;
+        sff += e;
+      }
+    }
+    const double n = static_cast<double>(fine_mask.count());
+    const double var_sum = sff - sf * sf / n;
+    if (!(var_sum > 0.25 * n)) return 0.0f;  // flat window (std under half a filtered unit)
+    return static_cast<float>(std::clamp(tf / std::sqrt(var_sum), -1.0, 1.0));
+  }
+
+  // From the half-resolution peak: full-resolution hill-climb in position, the paper's
+  // orientation walk (j, j±1, move to the best until the centre wins, bounded), then
+  // sub-pixel (3×3) and sub-degree (3 angles) fits on exact full-resolution scores.
+  Measurement refine(const PatternBank& bank, int j, const Peak& pk, int max_moves) noexcept {
     Measurement m;
     m.valid = true;
     m.psr = pk.psr;
     m.psr_valid = pk.psr_valid;
-    int j = j_map;
-    int ux = pk.ux, uy = pk.uy;
-    float s0 = pk.score;
-    float sm = fine->score_at(bank.pattern(wrap_j(j - 1)), ux, uy);
-    float sp = fine->score_at(bank.pattern(wrap_j(j + 1)), ux, uy);
+    int ux = 2 * pk.ux, uy = 2 * pk.uy;
+    std::array<float, 9> nb{};
+    auto fill = [&](int jj) {
+      for (int k = 0; k < 9; ++k) nb[k] = local_score(wrap_j(jj), bank, ux + k % 3 - 1, uy + k / 3 - 1);
+      m.steps += 9;
+    };
+    // Position hill-climb at angle j (the binned peak is within a pixel or two).
+    auto climb = [&](int jj) {
+      for (int it = 0; it < 4; ++it) {
+        fill(jj);
+        const int best = static_cast<int>(std::max_element(nb.begin(), nb.end()) - nb.begin());
+        if (best == 4) return;
+        ux += best % 3 - 1;
+        uy += best / 3 - 1;
+      }
+      fill(jj);
+    };
+    climb(j);
+    float s0 = nb[4];
+    float sm = local_score(wrap_j(j - 1), bank, ux, uy);
+    float sp = local_score(wrap_j(j + 1), bank, ux, uy);
     m.steps += 2;
     int moves = 0;
+    const int j_start = j;
     while (!(s0 >= sm && s0 >= sp)) {
       if (moves >= max_moves) {
         m.unsettled = true;
@@ -170,43 +224,31 @@ struct Tracker::Impl {
         sm = s0;
         s0 = sp;
         ++j;
-        sp = fine->score_at(bank.pattern(wrap_j(j + 1)), ux, uy);
+        sp = local_score(wrap_j(j + 1), bank, ux, uy);
       } else {
         sp = s0;
         s0 = sm;
         --j;
-        sm = fine->score_at(bank.pattern(wrap_j(j - 1)), ux, uy);
+        sm = local_score(wrap_j(j - 1), bank, ux, uy);
       }
       ++m.steps;
       ++moves;
     }
-    j = wrap_j(j);
-    // 3×3 neighbourhood at the final angle: from the map when it is the map's angle (the
-    // map's global maximum is its centre), else by direct dot products (moving at most twice).
-    std::array<float, 9> nb{};
-    const int vw = fine->valid_w(), vh = fine->valid_h();
-    auto sample = [&](int x, int yy) -> float {
-      if (x < 0 || yy < 0 || x >= vw || yy >= vh) return -2.0f;
-      if (j == j_map) return map_best[static_cast<std::size_t>(yy) * vw + x];
-      return fine->score_at(bank.pattern(j), x, yy);
-    };
-    for (int iter = 0; iter < 3; ++iter) {
-      for (int k = 0; k < 9; ++k) nb[k] = (k == 4) ? s0 : sample(ux + k % 3 - 1, uy + k / 3 - 1);
-      if (j == j_map) break;
-      m.steps += 8;
-      const int best = static_cast<int>(std::max_element(nb.begin(), nb.end()) - nb.begin());
-      if (best == 4 || iter == 2) break;
-      ux += best % 3 - 1;
-      uy += best / 3 - 1;
-      s0 = nb[best];
-      sm = fine->score_at(bank.pattern(wrap_j(j - 1)), ux, uy);
-      sp = fine->score_at(bank.pattern(wrap_j(j + 1)), ux, uy);
-      m.steps += 2;
+    if (j != j_start) {
+      // The angle moved: the position's neighbourhood at the new angle.
+      const int ox = ux, oy = uy;
+      climb(j);
+      if (ux != ox || uy != oy) {
+        sm = local_score(wrap_j(j - 1), bank, ux, uy);
+        sp = local_score(wrap_j(j + 1), bank, ux, uy);
+        m.steps += 2;
+      }
+      s0 = nb[4];
     }
     m.dx = (nb[3] > -2.0f && nb[5] > -2.0f) ? fit3(nb[3], s0, nb[5], gaussian) : 0.0;
     m.dy = (nb[1] > -2.0f && nb[7] > -2.0f) ? fit3(nb[1], s0, nb[7], gaussian) : 0.0;
-    m.dj = fit3(sm, s0, sp, false);
-    m.j = j;
+    m.dj = (sm > -2.0f && sp > -2.0f) ? fit3(sm, s0, sp, false) : 0.0;
+    m.j = wrap_j(j);
     m.ux = ux;
     m.uy = uy;
     m.score = s0;
@@ -218,16 +260,16 @@ struct Tracker::Impl {
   Measurement sweep(const PatternBank& bank, int j_centre, double window_deg, double step_deg, int max_moves,
                     const Window& win = {}) noexcept {
     const int stride = std::max(1, static_cast<int>(std::lround(step_deg / step)));
-    const int half = static_cast<int>(std::floor(window_deg / step / stride + 1e-9));
+    const int half_count = static_cast<int>(std::floor(window_deg / step / stride + 1e-9));
     Peak best;
     best.score = -3.0f;
     int best_j = j_centre;
     int ffts = 0;
-    for (int i = -half; i <= half; ++i) {
+    for (int i = -half_count; i <= half_count; ++i) {
       const int j = wrap_j(j_centre + i * stride);
-      fine->correlate(bank.spectrum(j), map_work);
+      half->correlate(bank.spectrum(j), map_work);
       ++ffts;
-      const Peak pk = find_peak(map_work, fine->valid_w(), fine->valid_h(), win);
+      const Peak pk = find_peak(map_work, half->valid_w(), half->valid_h(), win);
       if (pk.score > best.score) {
         best = pk;
         best_j = j;
@@ -294,12 +336,12 @@ struct Tracker::Impl {
       const double cy = cd.uy * d - coarse_off + (P - 1) / 2.0;
       const int rx = std::clamp(static_cast<int>(std::lround(cx - (rw - 1) / 2.0)), 0, w - rw);
       const int ry = std::clamp(static_cast<int>(std::lround(cy - (rh - 1) / 2.0)), 0, h - rh);
-      if (!load_fine(px + static_cast<std::size_t>(ry) * w + rx, rw, rh, w, bits)) continue;
+      if (!load_roi(px + static_cast<std::size_t>(ry) * w + rx, rw, rh, w, bits)) continue;
       // The coarse position is good to about ±d/2 px: look for the fine peak only near it, so
       // that at low dose a chance peak elsewhere in the ROI cannot outscore the target.
       const int ex = static_cast<int>(std::lround(cx - (P - 1) / 2.0)) - rx;
       const int ey = static_cast<int>(std::lround(cy - (P - 1) / 2.0)) - ry;
-      const Window win{ex - d - 2, ey - d - 2, ex + d + 2, ey + d + 2};
+      const Window win{(ex - d - 2) / 2, (ey - d - 2) / 2, (ex + d + 3) / 2, (ey + d + 3) / 2};  // binned px
       Measurement m = sweep(bank, angle_index(bank.coarse_angle_deg(cd.k)), cfg.search_refine_window_deg,
                             cfg.search_refine_step_deg, max_moves, win);
       // Rank by coarse + fine score: the ×8 level averages 64 pixels per sample and is the
@@ -334,9 +376,27 @@ struct Tracker::Impl {
     for (int i = n_cands - 1; i > 0 && cands[i].score > cands[i - 1].score; --i) std::swap(cands[i], cands[i - 1]);
   }
 
-  bool load_fine(const hal::Pixel* px, int w, int h, std::ptrdiff_t stride, int bits) noexcept {
+  // Prefilter the ROI, keep it at full resolution (minus its mean, for local_score), bin it
+  // 2×2 and load the binned image into the half-resolution correlator (one forward FFT).
+  bool load_roi(const hal::Pixel* px, int w, int h, std::ptrdiff_t stride, int bits) noexcept {
+    w = std::min(w, N);
+    h = std::min(h, N);
+    roi_w = w;
+    roi_h = h;
     prefilter->apply(px, w, h, stride, bits, filtered.data());
-    return fine->load(filtered.data(), w, h, w);
+    const std::size_t n = static_cast<std::size_t>(w) * h;
+    double sum = 0;
+    for (std::size_t i = 0; i < n; ++i) sum += filtered[i];
+    const float mean = static_cast<float>(sum / static_cast<double>(n));
+    for (std::size_t i = 0; i < n; ++i) roi_img[i] = static_cast<float>(filtered[i]) - mean;
+    const int bw = w / 2, bh = h / 2;
+    for (int y = 0; y < bh; ++y) {
+      const std::int32_t* r0 = filtered.data() + static_cast<std::size_t>(2 * y) * w;
+      const std::int32_t* r1 = r0 + w;
+      std::int32_t* o = binned.data() + static_cast<std::size_t>(y) * bw;
+      for (int x = 0; x < bw; ++x) o[x] = (r0[2 * x] + r0[2 * x + 1] + r1[2 * x] + r1[2 * x + 1]) >> 2;
+    }
+    return half->load(binned.data(), bw, bh, bw);
   }
 
   bool weak(const Measurement& m) const noexcept {
@@ -437,7 +497,7 @@ PoseEstimate Tracker::Impl::update(const hal::FrameMeta& meta, const hal::Pixel*
   }
 
   // Tracking: one forward FFT for this ROI, the predicted angle, the walk.
-  if (w < P || h < P || !load_fine(px, w, h, w, meta.bits)) {
+  if (w < P || h < P || !load_roi(px, w, h, w, meta.bits)) {
     e.state = TrackState::kLost;
     e.reason_bits = static_cast<std::uint8_t>((w < P || h < P) ? kReasonOutOfField
                                                                                       : kReasonFlatFrame);
@@ -447,9 +507,9 @@ PoseEstimate Tracker::Impl::update(const hal::FrameMeta& meta, const hal::Pixel*
   }
   const int max_moves = cfg.max_angle_steps_per_frame;
   const int j_pred = angle_index(pred_phi);
-  fine->correlate(bank.spectrum(j_pred), map_work);
+  half->correlate(bank.spectrum(j_pred), map_work);
   std::swap(map_work, map_best);
-  Measurement m = refine(bank, j_pred, find_peak(map_best, fine->valid_w(), fine->valid_h()), max_moves);
+  Measurement m = refine(bank, j_pred, find_peak(map_best, half->valid_w(), half->valid_h()), max_moves);
   m.steps += 1;
   if ((weak(m) || m.unsettled) && cfg.recover_sweep_deg > 0) {
     // The walk hit its bound or the score collapsed: a bounded angle sweep in this ROI
@@ -540,7 +600,8 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   t.field_h = limits.field_h;
   t.coarse_cap_w = std::max(t.Pc, limits.field_w / t.d);
   t.coarse_cap_h = std::max(t.Pc, limits.field_h / t.d);
-  t.fine = std::make_unique<ZnccCorrelator>(t.N, t.N, t.fine_mask);
+  t.Nh = good_fft_size(t.N / 2);
+  t.half = std::make_unique<ZnccCorrelator>(t.Nh, t.Nh, t.half_mask);
   t.coarse = std::make_unique<ZnccCorrelator>(good_fft_size(t.coarse_cap_w), good_fft_size(t.coarse_cap_h),
                                               t.coarse_mask);
   t.prefilter = std::make_unique<Prefilter>(cfg.prefilter_passes, t.N, t.N);
@@ -548,12 +609,14 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   t.banks.resize(sets.size());
   for (std::size_t i = 0; i < sets.size(); ++i) {
     std::string why;
-    if (!t.banks[i].build(sets[i].image, cfg.prefilter_passes, t.step, t.fine_mask, *t.fine, cfg.search_angle_step_deg, t.d,
+    if (!t.banks[i].build(sets[i].image, cfg.prefilter_passes, t.step, t.fine_mask, t.half_mask, *t.half, cfg.search_angle_step_deg, t.d,
                           t.coarse_mask, *t.coarse, why))
       return fail("pattern set " + std::to_string(i) + ": " + why);
     t.nm_per_px.push_back(sets[i].nm_per_px);
   }
-  const std::size_t vmax = static_cast<std::size_t>(t.N) * t.N;
+  const std::size_t vmax = static_cast<std::size_t>(t.Nh) * t.Nh;
+  t.roi_img.assign(static_cast<std::size_t>(t.N) * t.N, 0.0f);
+  t.binned.assign(vmax, 0);
   t.map_a.assign(vmax, 0.0f);
   t.map_b.assign(vmax, 0.0f);
   t.map_work = t.map_a.data();
@@ -562,7 +625,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   t.coarse_img.assign(static_cast<std::size_t>(t.coarse_cap_w) * t.coarse_cap_h, 0);
   t.cands.assign(static_cast<std::size_t>(cfg.search_candidates), {0, 0, 0, 0.0f});
   status = rt::Status::success();
-  if (t.fine->execute_allocates() || t.coarse->execute_allocates()) {
+  if (t.half->execute_allocates() || t.coarse->execute_allocates()) {
     status.message = "tracker: warning: no allocation-free FFTW plan found for " + std::to_string(t.N) +
                      "x" + std::to_string(t.N) + " or the coarse size; the loop may call malloc";
   }
@@ -597,7 +660,8 @@ void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::m
 
 std::size_t Tracker::memory_bytes() const noexcept {
   const Impl& t = *impl_;
-  std::size_t b = t.fine->buffer_bytes() + t.coarse->buffer_bytes();
+  std::size_t b = t.half->buffer_bytes() + t.coarse->buffer_bytes();
+  b += t.roi_img.size() * sizeof(float) + t.binned.size() * sizeof(std::int32_t);
   for (const auto& bank : t.banks) b += bank.memory_bytes();
   b += (t.map_a.size() + t.map_b.size() + t.cmap.size()) * sizeof(float) + t.coarse_img.size() * 4;
   b += t.filtered.size() * 4 + static_cast<std::size_t>(t.N) * t.N * 16;  // prefilter scratch

@@ -1,7 +1,8 @@
 // The rotated pattern bank of one pattern set: every angle step's rotated copy (one
-// interpolation — bicubic, Keys a = −0.5 — for every angle including 0°), masked, zero-mean,
-// unit norm, with its spectrum at the tracking FFT size; plus the coarse copies (box
-// downsampled) and their spectra at the start-search FFT size. Setup only.
+// interpolation — bicubic, Keys a = −0.5 — for every angle including 0°), prefiltered,
+// masked, zero-mean, unit norm, kept at full resolution for the exact local ZNCC; the same
+// copy 2×2-binned with its spectrum at the half-resolution FFT size (where the whole ROI is
+// correlated); plus the coarse copies (box ×8) and their spectra for the start search.
 #pragma once
 
 #include <complex>
@@ -32,7 +33,7 @@ class PatternBank {
   using Complex = ZnccCorrelator::Complex;
   // Returns false (and why) when the pattern is flat under the mask at some angle.
   bool build(const hal::Image& pattern, int prefilter_passes, double angle_step_deg, const PatternMask& fine_mask,
-             ZnccCorrelator& fine, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
+             const PatternMask& half_mask, ZnccCorrelator& half, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
              ZnccCorrelator& coarse, std::string& why);
 
   int angles() const noexcept { return angles_; }
