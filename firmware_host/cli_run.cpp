@@ -296,9 +296,12 @@ int sempose::cli::run(int argc, char** argv) {
   const rt::HistogramSnapshot* e2e = nullptr;
   for (const auto& s : series) {
     if (s.name == "end_to_end") e2e = &s;
-    std::printf("latency %-10s n=%llu min=%.1fus p50=%.0fus p99=%.0fus p99.9=%.0fus max=%.1fus\n", s.name.c_str(),
-                static_cast<unsigned long long>(s.count), s.min_ns / 1e3, s.percentile_us(0.5), s.percentile_us(0.99),
-                s.percentile_us(0.999), s.max_ns / 1e3);
+    // dwell_ns is recorded with 1 ns per bucket (see pipeline_stats.hpp): its unit is ns.
+    const char* unit = s.name == "dwell_ns" ? "ns" : "us";
+    std::printf("%-7s %-10s n=%llu min=%.1f%s p50=%.0f%s p99=%.0f%s p99.9=%.0f%s max=%.1f%s\n",
+                s.name == "dwell_ns" ? "dwell" : "latency", s.name.c_str(),
+                static_cast<unsigned long long>(s.count), s.min_ns / 1e3, unit, s.percentile_us(0.5), unit,
+                s.percentile_us(0.99), unit, s.percentile_us(0.999), unit, s.max_ns / 1e3, unit);
   }
   std::uint64_t poses = 0;
   std::uint64_t tracked = 0;
