@@ -1,13 +1,14 @@
 #!/bin/bash
-# build_initramfs.sh ENV_FILE OUT_IMAGE GUEST_CFG_DIR [SEMPOSE_BINARY]
+# build_initramfs.sh ENV_FILE OUT_IMAGE GUEST_CFG_DIR [SEMPOSE_BINARY [CAN_GPIO_HW_TEST]]
 # Builds the gzip'd newc initramfs for the system-test VM from what prepare_host.sh
 # extracted (ENV_FILE = CACHE/current.env): busybox + applet links, the kernel modules
-# (incl. the out-of-tree gpio-sim), can-utils, gpiod tools, cyclictest, sempose (optional)
+# (incl. the out-of-tree gpio-sim), can-utils, gpiod tools, cyclictest, sempose and
+# can_gpio_hw_test (optional)
 # and all their shared libraries (ldd, incl. the dynamic loader), /init and the guest
 # test script. GUEST_CFG_DIR is copied to /cfg. No root needed: the device nodes
 # (/dev/console, /dev/null) go into a second, hand-written cpio member.
 set -euo pipefail
-ENV_FILE=${1:?}; OUT=${2:?}; CFG=${3:?}; SEMPOSE=${4:-}
+ENV_FILE=${1:?}; OUT=${2:?}; CFG=${3:?}; SEMPOSE=${4:-}; HWTEST=${5:-}
 HERE=$(cd "$(dirname "$0")" && pwd)
 # shellcheck disable=SC1090
 . "$ENV_FILE"
@@ -48,8 +49,12 @@ add_bin() { # add_bin SRC DEST
 for t in candump cansend cangen canplayer; do add_bin "$ROOT/usr/bin/$t" "usr/bin/$t"; done
 for t in gpioset gpioget gpiomon gpioinfo gpiodetect; do add_bin "$ROOT/usr/bin/$t" "usr/bin/$t"; done
 add_bin "$ROOT/usr/bin/cyclictest" usr/bin/cyclictest
+add_bin "$ROOT/usr/bin/chrt" usr/bin/chrt
 if [ -n "$SEMPOSE" ] && [ -x "$SEMPOSE" ]; then
   add_bin "$SEMPOSE" usr/bin/sempose
+fi
+if [ -n "$HWTEST" ] && [ -x "$HWTEST" ]; then
+  add_bin "$HWTEST" usr/bin/can_gpio_hw_test
 fi
 strip --strip-unneeded "$S"/lib/x86_64-linux-gnu/* 2>/dev/null || true
 
@@ -84,4 +89,4 @@ PY
 gzip -6 -n < "$OUT.cpio" > "$OUT.tmp"
 rm -f "$OUT.cpio"
 mv "$OUT.tmp" "$OUT"
-echo "[initramfs] $OUT: $(du -h "$OUT" | cut -f1) (sempose: ${SEMPOSE:-none})" >&2
+echo "[initramfs] $OUT: $(du -h "$OUT" | cut -f1) (sempose: ${SEMPOSE:-none}, hw test: ${HWTEST:-none})" >&2

@@ -44,11 +44,12 @@ fetch() { # fetch PKG[=VER] -> prints the .deb path
   ls -t "$DEBS"/"${name}"_*.deb | head -1
 }
 
+PKGS="busybox-static can-utils gpiod libgpiod2 rt-tests libnuma1 util-linux"  # util-linux: chrt
 ROOT="$CACHE/root-$KVER"          # all extracted packages (tools + kernel)
-STAMP="$ROOT/.extracted"
+STAMP="$ROOT/.extracted-$(echo "$PKGS" | md5sum | cut -c1-8)"
 if [ ! -f "$STAMP" ]; then
   rm -rf "$ROOT"; mkdir -p "$ROOT"
-  for p in "$KPKG=$KPKG_VER" busybox-static can-utils gpiod libgpiod2 rt-tests libnuma1; do
+  for p in "$KPKG=$KPKG_VER" $PKGS; do
     deb=$(fetch "$p")
     log "extract $(basename "$deb")"
     dpkg-deb -x "$deb" "$ROOT"
@@ -94,6 +95,7 @@ if [ ! -s "$GPIOSIM" ]; then
       linux-source-6.1/kernel/irq/irq_sim.c
     cp "$tmp"/linux-source-6.1/drivers/gpio/{gpio-sim.c,gpiolib.h} "$tmp"/linux-source-6.1/kernel/irq/irq_sim.c "$SRCDIR/"
     rm -rf "$tmp"
+    rm -f "$deb"   # 139 MB for three files: keep only those
   fi
   B=$(mktemp -d)
   cp "$SRCDIR/gpio-sim.c" "$B/gpio-sim-main.c"

@@ -1,36 +1,41 @@
 #!/bin/bash
-# run_system_test.sh SEMPOSE_BINARY OUT_DIR
+# run_system_test.sh SEMPOSE_BINARY OUT_DIR [CAN_GPIO_HW_TEST_BINARY]
 # The sempose system test (issue 7): boots Debian's PREEMPT_RT kernel in QEMU (TCG), brings
-# up vcan0 + a gpio-sim chip, runs candump / cyclictest / sempose inside, copies the
-# artifacts out over a second serial port and checks them on the host (check_results.py).
-# Exit: 0 pass, 1 fail, 77 skip (only when qemu cannot start at all).
+# up vcan0 + a gpio-sim chip, runs can_gpio_hw_test, candump, cyclictest and `sempose run`
+# inside (guest/guest_test.sh), copies the artifacts out over a second serial port and checks
+# them on the host (check_results.py). Exit: 0 pass, 1 fail, 77 skip (only when qemu cannot
+# start at all).
 # Env: SEMPOSE_SYSTEM_CACHE (default /var/cache/sempose-system-test), SEMPOSE_SYSTEM_DURATION
-#      (s, default 5), SEMPOSE_SYSTEM_CONFIG (guest config, default tests/system/system.yaml),
-#      SEMPOSE_SYSTEM_ARGS (extra `sempose run` args, default "--can-log /out/sempose_can.log"),
+#      (s, default 5), SEMPOSE_SYSTEM_CONFIG (default tests/system/system.yaml),
 #      SEMPOSE_DBC (default ipc/sempose.dbc), SEMPOSE_SYSTEM_BOOTS (attempts, default 3).
 set -uo pipefail
-SEMPOSE=${1:?usage: run_system_test.sh SEMPOSE_BINARY OUT_DIR}
-OUT=${2:?usage: run_system_test.sh SEMPOSE_BINARY OUT_DIR}
+SEMPOSE=${1:?usage: run_system_test.sh SEMPOSE_BINARY OUT_DIR [CAN_GPIO_HW_TEST]}
+OUT=${2:?usage: run_system_test.sh SEMPOSE_BINARY OUT_DIR [CAN_GPIO_HW_TEST]}
+HWTEST=${3:-}
 HERE=$(cd "$(dirname "$0")" && pwd)
 SRC=$(cd "$HERE/../.." && pwd)
 CACHE=${SEMPOSE_SYSTEM_CACHE:-/var/cache/sempose-system-test}
 DURATION=${SEMPOSE_SYSTEM_DURATION:-5}
 CONFIG=${SEMPOSE_SYSTEM_CONFIG:-$HERE/system.yaml}
-ARGS=${SEMPOSE_SYSTEM_ARGS---can-log /out/sempose_can.log}
 DBC=${SEMPOSE_DBC:-$SRC/ipc/sempose.dbc}
 BOOTS=${SEMPOSE_SYSTEM_BOOTS:-3}
 PY=/usr/bin/python3
-T0=$(date +%s)
-log() { echo "[system-test +$(( $(date +%s) - T0 ))s] $*"; }
+T0=$(date +%s.%N)
+el() { awk -v a="$T0" -v b="$(date +%s.%N)" 'BEGIN{printf "%.1f", b-a}'; }
+log() { echo "[system-test +$(el)s] $*"; }
 
 QEMU=$(command -v qemu-system-x86_64 || true)
 if [ -z "$QEMU" ] || ! echo quit | timeout 30 "$QEMU" -machine none -accel tcg -display none \
        -nodefaults -monitor stdio >/dev/null 2>&1; then
   echo "SKIP: qemu-system-x86_64 cannot start here (apt-get install qemu-system-x86)"; exit 77
 fi
+[ -x "$SEMPOSE" ] || { echo "FAIL: sempose binary '$SEMPOSE' missing (build the sempose target)"; exit 1; }
+if [ -z "$HWTEST" ] || [ ! -x "$HWTEST" ]; then
+  echo "FAIL: can_gpio_hw_test binary '${HWTEST}' missing (build the can_gpio_hw_test target)"; exit 1
+fi
 
 mkdir -p "$OUT"; OUT=$(cd "$OUT" && pwd)
-rm -rf "$OUT"/attempt-* "$OUT/artifacts" "$OUT/guest-cfg"
+rm -rf "$OUT"/attempt-* "$OUT/artifacts" "$OUT/guest-cfg" "$OUT/report.txt"
 mkdir -p "$OUT/guest-cfg" "$OUT/artifacts"
 
 log "prepare host cache $CACHE"
@@ -39,39 +44,25 @@ if ! "$HERE/prepare_host.sh" "$CACHE" > "$OUT/prepare.log" 2>&1; then
 fi
 grep '^\[prepare\]' "$OUT/prepare.log" | tail -n 1
 
-# Guest configuration: sempose config, parameters, command frames (from the DBC).
-cp "$CONFIG" "$OUT/guest-cfg/system.yaml"
-cat > "$OUT/guest-cfg/params.env" <<P
-DURATION=$DURATION
-SEMPOSE_ARGS="$ARGS"
-P
-if [ -f "$DBC" ]; then
-  if ! $PY "$HERE/make_commands.py" "$DBC" "$DURATION" > "$OUT/guest-cfg/commands.txt" 2> "$OUT/make_commands.log"; then
-    : > "$OUT/guest-cfg/commands.txt"
-  fi
-  cat "$OUT/make_commands.log"
-else
-  log "no DBC at $DBC: no command frames will be injected"
-  : > "$OUT/guest-cfg/commands.txt"
+# Guest configuration (system.yaml, the recorded pattern, params) + host preflight of the config.
+if ! "$HERE/prepare_config.sh" "$SEMPOSE" "$CONFIG" "$OUT/guest-cfg" "$DURATION"; then
+  echo "FAIL: the system-test config does not run on the host (see above)"; exit 1
 fi
-cp "$OUT/guest-cfg/commands.txt" "$OUT/artifacts/commands_planned.txt"
-
-SEMPOSE_IN=""
-if [ -x "$SEMPOSE" ]; then SEMPOSE_IN=$SEMPOSE; else log "WARNING: sempose binary '$SEMPOSE' missing"; fi
-if ! "$HERE/build_initramfs.sh" "$CACHE/current.env" "$OUT/initramfs.img" "$OUT/guest-cfg" "$SEMPOSE_IN" 2>&1; then
+if ! "$HERE/build_initramfs.sh" "$CACHE/current.env" "$OUT/initramfs.img" "$OUT/guest-cfg" "$SEMPOSE" "$HWTEST" 2>&1; then
   echo "FAIL: initramfs build failed"; exit 1
 fi
 . "$CACHE/current.env"
+log "host ready"
 
-# Boot: retry only when the guest never reached /init (a TCG boot hang), never on a
-# guest-reported failure.
+# Boot. A retry only when the VM produced no verdict (a TCG boot hang, a panic, a timeout);
+# a guest that reports failure is never retried.
 BOOT_STALL_S=${SEMPOSE_SYSTEM_BOOT_STALL:-25}   # no console progress before /init
 BOOT_MAX_S=${SEMPOSE_SYSTEM_BOOT_MAX:-90}       # /init not reached at all
-VM_MAX_S=$(( 150 + 3 * DURATION ))              # whole guest run
+VM_MAX_S=$(( 180 + 4 * DURATION ))              # whole guest run
 status=""; ATT=""
 for attempt in $(seq 1 "$BOOTS"); do
   ATT="$OUT/attempt-$attempt"; mkdir -p "$ATT"
-  log "boot attempt $attempt/$BOOTS (kernel $KVER, TCG)"
+  log "boot attempt $attempt/$BOOTS (kernel $KVER, TCG, 2 vCPUs)"
   timeout "$VM_MAX_S" "$QEMU" -accel tcg -machine pc -smp 2 -m 512 -cpu max \
     -kernel "$VMLINUX" -initrd "$OUT/initramfs.img" \
     -append "console=ttyS0 panic=-1 tsc=reliable" \
@@ -79,10 +70,13 @@ for attempt in $(seq 1 "$BOOTS"); do
     -serial "file:$ATT/console.log" -serial "file:$ATT/results.raw" \
     -device isa-debug-exit,iobase=0xf4,iosize=0x04 > "$ATT/qemu.log" 2>&1 &
   QPID=$!
-  last_size=-1; last_change=$(date +%s); start=$(date +%s); stalled=""
+  last_size=-1; last_change=$(date +%s); start=$(date +%s); stalled=""; stage=""
   while kill -0 $QPID 2>/dev/null; do
     sleep 0.5
-    grep -q "^STAGE init" "$ATT/results.raw" 2>/dev/null && continue
+    # progress: the guest's STAGE lines
+    s=$(grep -a '^STAGE' "$ATT/results.raw" 2>/dev/null | tail -n 1 | tr -d '\r')
+    if [ -n "$s" ] && [ "$s" != "$stage" ]; then stage=$s; log "guest: $s"; fi
+    [ -n "$stage" ] && continue
     size=$(stat -c %s "$ATT/console.log" 2>/dev/null || echo 0)
     now=$(date +%s)
     if [ "$size" != "$last_size" ]; then last_size=$size; last_change=$now; fi
@@ -94,8 +88,8 @@ for attempt in $(seq 1 "$BOOTS"); do
   wait $QPID; status=$?
   tr -d '\r' < "$ATT/results.raw" > "$ATT/results.txt"
   log "qemu exit status $status after $(( $(date +%s) - start )) s${stalled:+ ($stalled)}"
-  if grep -q "^STAGE init" "$ATT/results.txt"; then break; fi
-  log "guest never reached /init; console tail:"; tail -n 5 "$ATT/console.log" | tr -d '\r' | sed 's/^/    /'
+  if grep -q "^VERDICT" "$ATT/results.txt"; then break; fi
+  log "no verdict from attempt $attempt; console tail:"; tail -n 8 "$ATT/console.log" | tr -d '\r' | sed 's/^/    /'
 done
 
 cp "$ATT/console.log" "$OUT/artifacts/console.log" 2>/dev/null
@@ -108,8 +102,14 @@ sed -n '/^=== ARTIFACTS BEGIN/,/^=== ARTIFACTS END/p' "$OUT/artifacts/results.tx
 fail_tail() {
   echo "---- guest console tail ($ATT/console.log) ----"
   tail -n 40 "$ATT/console.log" 2>/dev/null | tr -d '\r'
-  echo "---- guest results ----"
-  grep -v '^[A-Za-z0-9+/=]*$' "$ATT/results.txt" 2>/dev/null | grep -v '^$' | tail -n 40
+  echo "---- guest checks and stages ----"
+  grep -E '^(STAGE|CHECK|INFO|VERDICT)' "$ATT/results.txt" 2>/dev/null | tail -n 40
+  if [ -s "$OUT/artifacts/sempose_stderr.txt" ]; then
+    echo "---- sempose stderr (tail) ----"; tail -n 15 "$OUT/artifacts/sempose_stderr.txt"
+  fi
+  if [ -s "$OUT/artifacts/sempose_stdout.txt" ]; then
+    echo "---- sempose stdout (tail) ----"; tail -n 15 "$OUT/artifacts/sempose_stdout.txt"
+  fi
   echo "---- artifacts: $OUT/artifacts ----"
 }
 case "$status" in
@@ -118,16 +118,18 @@ case "$status" in
   *)   log "qemu ended without a verdict (status $status: panic or power-off?)" ;;
 esac
 if ! grep -q "^VERDICT" "$OUT/artifacts/results.txt" 2>/dev/null; then
-  fail_tail; echo "FAIL: no verdict from the guest (qemu status $status)"; exit 1
+  fail_tail; echo "FAIL: no verdict from the guest after $BOOTS attempt(s) (qemu status $status)"; exit 1
 fi
 
 log "host checks"
 $PY "$HERE/check_results.py" --artifacts "$OUT/artifacts" --dbc "$DBC" --duration "$DURATION" \
     --report "$OUT/report.txt"
 rc=$?
-log "done in $(( $(date +%s) - T0 )) s; artifacts in $OUT/artifacts, report $OUT/report.txt"
+log "done in $(el) s (boot attempts: $attempt); artifacts in $OUT/artifacts, report $OUT/report.txt"
 if [ $rc -ne 0 ] || [ "$status" != 1 ]; then
-  fail_tail; echo "FAIL: system test (qemu status $status, checker rc $rc)"; exit 1
+  fail_tail
+  echo "FAILED CHECKS: $(grep -E '^FAIL' "$OUT/report.txt" 2>/dev/null | awk '{print $2}' | tr '\n' ' ')$(grep -E '^VERDICT FAIL' "$OUT/artifacts/results.txt" | cut -d' ' -f3-)"
+  echo "FAIL: system test (qemu status $status, checker rc $rc)"; exit 1
 fi
 echo "PASS: system test"
 exit 0
