@@ -153,10 +153,13 @@ if [ -n "$SIM" ]; then
   GM=$!
   if wait_for 5000 line_requested $SELF_MON; then
     pull $SELF_MON up
-    if wait_for 5000 file_has "$TMP/gpiomon.txt" RISING; then
+    # gpiomon exits after its one event (and only then flushes its stdout to the file)
+    gone() { ! alive $GM; }
+    wait_for 15000 gone
+    if grep -q RISING "$TMP/gpiomon.txt"; then
       check gpio_edge PASS "$(cat "$TMP/gpiomon.txt")"
     else
-      check gpio_edge FAIL "no rising edge event"
+      check gpio_edge FAIL "no rising edge event within 15 s: $(head -c 200 "$TMP/gpiomon.txt")"
     fi
   else
     check gpio_edge FAIL "gpiomon never requested line $SELF_MON"
