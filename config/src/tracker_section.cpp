@@ -25,6 +25,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("search_refine_step_deg", c.search_refine_step_deg, 0.25, 90.0);
   s.opt("predict_velocity", c.predict_velocity);
   s.opt_choice("subpixel", c.subpixel, {"gaussian", "quadratic"});
+  s.opt("fit_noise_correction", c.fit_noise_correction);
   if (c.roi_size_px < c.pattern_size_px) {
     s.error("roi_size_px", std::to_string(c.roi_size_px) + " is smaller than pattern_size_px " +
                                std::to_string(c.pattern_size_px) + " (the ROI must contain the pattern)");

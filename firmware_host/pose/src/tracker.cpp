@@ -143,11 +143,116 @@ struct Tracker::Impl {
   std::atomic<bool> reacquire{false};
   std::atomic<std::uint8_t> active{0};
 
+  // The outer ring of the pattern is made up at setup (prefilter edges replicated: 2 px per
+  // pass; bicubic rotation clamps its 2 px support at the square's edge): keep it out of the
+  // mask, or those pixels pull the peak off the true pose by a few tenths of a pixel in the
+  // pattern's own frame (a bias that turns with the target).
+  static double mask_inset_px(const config::TrackerConfig& c) noexcept { return 2.0 + 2.0 * c.prefilter_passes; }
+
   Impl(const config::TrackerConfig& c, int pattern_px)
       : cfg(c),
-        fine_mask(pattern_px, c.circular_mask),
-        half_mask(pattern_px / 2, c.circular_mask),
-        coarse_mask(pattern_px / c.search_downsample, c.circular_mask) {}
+        fine_mask(pattern_px, c.circular_mask, 8, mask_inset_px(c)),
+        half_mask(pattern_px / 2, c.circular_mask, 8, mask_inset_px(c) / 2),
+        coarse_mask(pattern_px / c.search_downsample, c.circular_mask) {
+    build_fit();
+  }
+
+  // Joint sub-pixel / sub-step fit: a quadratic in (dx, dy, dj) — 10 coefficients, cross terms
+  // included — least-squares over 19 exact scores around the integer maximum: the 3×3 position
+  // neighbourhood at angle j and the 5-point crosses at j±1. Separate 3-point fits per axis
+  // are biased whenever the peak is tilted (an edge at an angle couples x and y; content off
+  // the pattern centre couples position and angle) by up to a few tenths of a pixel/degree.
+  static constexpr int kFitSamples = 19, kFitTerms = 10;
+  static constexpr int kFitOffsets[kFitSamples][3] = {
+      {-1, -1, 0}, {0, -1, 0}, {1, -1, 0}, {-1, 0, 0}, {0, 0, 0}, {1, 0, 0}, {-1, 1, 0}, {0, 1, 0}, {1, 1, 0},
+      {0, 0, -1},  {-1, 0, -1}, {1, 0, -1}, {0, -1, -1}, {0, 1, -1},
+      {0, 0, 1},   {-1, 0, 1},  {1, 0, 1},  {0, -1, 1},  {0, 1, 1}};
+  double fit_pinv[kFitTerms][kFitSamples] = {};
+
+  static void fit_terms(double x, double y, double j, double* t) noexcept {
+    t[0] = 1;
+    t[1] = x;
+    t[2] = y;
+    t[3] = j;
+    t[4] = 0.5 * x * x;
+    t[5] = 0.5 * y * y;
+    t[6] = 0.5 * j * j;
+    t[7] = x * y;
+    t[8] = x * j;
+    t[9] = y * j;
+  }
+
+  // Setup: (AᵀA)⁻¹Aᵀ of the fixed 19-sample design, by Gauss-Jordan elimination.
+  void build_fit() noexcept {
+    double a[kFitSamples][kFitTerms];
+    for (int i = 0; i < kFitSamples; ++i) fit_terms(kFitOffsets[i][0], kFitOffsets[i][1], kFitOffsets[i][2], a[i]);
+    double m[kFitTerms][2 * kFitTerms] = {};
+    for (int r = 0; r < kFitTerms; ++r) {
+      for (int c = 0; c < kFitTerms; ++c)
+        for (int i = 0; i < kFitSamples; ++i) m[r][c] += a[i][r] * a[i][c];
+      m[r][kFitTerms + r] = 1;
+    }
+    for (int c = 0; c < kFitTerms; ++c) {
+      int piv = c;
+      for (int r = c + 1; r < kFitTerms; ++r)
+        if (std::fabs(m[r][c]) > std::fabs(m[piv][c])) piv = r;
+      for (int k = 0; k < 2 * kFitTerms; ++k) std::swap(m[c][k], m[piv][k]);
+      const double pv = m[c][c];
+      for (int k = 0; k < 2 * kFitTerms; ++k) m[c][k] /= pv;
+      for (int r = 0; r < kFitTerms; ++r) {
+        if (r == c) continue;
+        const double f = m[r][c];
+        for (int k = 0; k < 2 * kFitTerms; ++k) m[r][k] -= f * m[c][k];
+      }
+    }
+    for (int r = 0; r < kFitTerms; ++r)
+      for (int i = 0; i < kFitSamples; ++i) {
+        double v = 0;
+        for (int c = 0; c < kFitTerms; ++c) v += m[r][kFitTerms + c] * a[i][c];
+        fit_pinv[r][i] = v;
+      }
+  }
+
+  // Peak of the fitted quadratic: solves H·u = −g. False when the surface is not a clear
+  // maximum (H not negative definite) or the peak lies outside the sampled cube.
+  bool joint_fit(const float* s, bool log_scores, double& dx, double& dy, double& dj, float& peak) const noexcept {
+    double v[kFitSamples];
+    for (int i = 0; i < kFitSamples; ++i) {
+      if (s[i] <= -2.0f) return false;
+      if (log_scores && s[i] <= 0.0f) return false;
+      v[i] = log_scores ? std::log(static_cast<double>(s[i])) : s[i];
+    }
+    double q[kFitTerms];
+    for (int r = 0; r < kFitTerms; ++r) {
+      double acc = 0;
+      for (int i = 0; i < kFitSamples; ++i) acc += fit_pinv[r][i] * v[i];
+      q[r] = acc;
+    }
+    // H = [[q4, q7, q8], [q7, q5, q9], [q8, q9, q6]] must be negative definite.
+    const double a = q[4], b = q[7], c = q[8], e = q[5], f = q[9], k = q[6];
+    const double m2 = a * e - b * b;
+    const double det = a * (e * k - f * f) - b * (b * k - f * c) + c * (b * f - e * c);
+    if (!(a < 0 && m2 > 0 && det < 0)) return false;
+    // u = −H⁻¹g by the adjugate.
+    const double i00 = e * k - f * f, i01 = c * f - b * k, i02 = b * f - c * e;
+    const double i11 = a * k - c * c, i12 = b * c - a * f, i22 = a * e - b * b;
+    const double g0 = q[1], g1 = q[2], g2 = q[3];
+    const double ux = -(i00 * g0 + i01 * g1 + i02 * g2) / det;
+    const double uy = -(i01 * g0 + i11 * g1 + i12 * g2) / det;
+    const double uj = -(i02 * g0 + i12 * g1 + i22 * g2) / det;
+    // Up to 1.5 steps out (a tie put the grid point on the far side of the peak): the
+    // caller recentres and fits again.
+    if (!(std::fabs(ux) <= 1.5 && std::fabs(uy) <= 1.5 && std::fabs(uj) <= 1.5)) return false;
+    dx = ux;
+    dy = uy;
+    dj = uj;
+    double t[kFitTerms];
+    fit_terms(ux, uy, uj, t);
+    double val = 0;
+    for (int r = 0; r < kFitTerms; ++r) val += q[r] * t[r];
+    peak = static_cast<float>(log_scores ? std::exp(val) : val);
+    return true;
+  }
 
   int wrap_j(int j) const noexcept {
     j %= n_angles;
@@ -155,10 +260,11 @@ struct Tracker::Impl {
   }
   int angle_index(double deg) const noexcept { return wrap_j(static_cast<int>(std::lround(deg / step))); }
 
-  // Exact full-resolution ZNCC of angle j's pattern at displacement (ux, uy) of the loaded ROI,
-  // window mean and variance under the mask computed in the same pass. -2 outside the ROI.
-  float local_score(int j_pattern, const PatternBank& bank, int ux, int uy) const noexcept {
-    if (ux < 0 || uy < 0 || ux > roi_w - P || uy > roi_h - P) return -2.0f;
+  // Exact full-resolution correlation of angle j's pattern at displacement (ux, uy) of the
+  // loaded ROI, window mean and variance under the mask computed in the same pass:
+  // tf = Σ t·f (t zero-mean, unit norm) and var = Σ f² − (Σ f)²/n. False outside the ROI.
+  bool local_parts(int j_pattern, const PatternBank& bank, int ux, int uy, double& tf_out, double& var_out) const noexcept {
+    if (ux < 0 || uy < 0 || ux > roi_w - P || uy > roi_h - P) return false;
     const float* t = bank.pattern(j_pattern);
     double tf = 0, sf = 0, sff = 0;
     for (const MaskBand& b : fine_mask.bands()) {
@@ -177,42 +283,103 @@ struct Tracker::Impl {
         sff += e;
       }
     }
-    const double n = static_cast<double>(fine_mask.count());
-    const double var_sum = sff - sf * sf / n;
-    if (!(var_sum > 0.25 * n)) return 0.0f;  // flat window (std under half a filtered unit)
-    return static_cast<float>(std::clamp(tf / std::sqrt(var_sum), -1.0, 1.0));
+    tf_out = tf;
+    var_out = sff - sf * sf / static_cast<double>(fine_mask.count());
+    return true;
+  }
+  // ZNCC from the parts; a flat window (std under half a filtered unit) scores 0.
+  float zncc(double tf, double var) const noexcept {
+    if (!(var > 0.25 * static_cast<double>(fine_mask.count()))) return 0.0f;
+    return static_cast<float>(std::clamp(tf / std::sqrt(var), -1.0, 1.0));
+  }
+  float local_score(int j_pattern, const PatternBank& bank, int ux, int uy) const noexcept {
+    double tf = 0, var = 0;
+    return local_parts(j_pattern, bank, ux, uy, tf, var) ? zncc(tf, var) : -2.0f;
+  }
+
+  // One refine()'s exact evaluations, remembered: the climb, the walk and the fit revisit
+  // the same (angle, displacement) many times.
+  struct Eval {
+    int j = 0, x = 0, y = 0;
+    bool inside = false;
+    double tf = 0, var = 0;
+    float score = -2.0f;
+  };
+  struct EvalMemo {
+    std::array<Eval, 64> e;
+    int n = 0, next = 0, computed = 0;
+  };
+  Eval evaluate(EvalMemo& memo, const PatternBank& bank, int j, int x, int y) const noexcept {
+    j = wrap_j(j);
+    for (int i = 0; i < memo.n; ++i) {
+      const Eval& c = memo.e[static_cast<std::size_t>(i)];
+      if (c.j == j && c.x == x && c.y == y) return c;
+    }
+    Eval v;
+    v.j = j;
+    v.x = x;
+    v.y = y;
+    v.inside = local_parts(j, bank, x, y, v.tf, v.var);
+    v.score = v.inside ? zncc(v.tf, v.var) : -2.0f;
+    ++memo.computed;
+    memo.e[static_cast<std::size_t>(memo.next)] = v;
+    memo.next = (memo.next + 1) % static_cast<int>(memo.e.size());
+    memo.n = std::max(memo.n, memo.next == 0 ? static_cast<int>(memo.e.size()) : memo.next);
+    return v;
+  }
+
+  // The joint fit around (ux, uy, j). The window variance of a noisy frame is signal plus
+  // noise, and ZNCC = Σtf/√(signal+noise) leans towards displacements whose window holds
+  // more signal variance (and, for shot noise, more noise) — a bias that turns with the
+  // target. The fit therefore uses Σtf/√(var − noise var), with the noise variance taken
+  // from the best match itself (var₀ − (Σtf)₀²: what the pattern does not explain there).
+  bool fit_at(EvalMemo& memo, const PatternBank& bank, int ux, int uy, int j, double& dx, double& dy, double& dj) const noexcept {
+    Eval ev[kFitSamples];
+    for (int i = 0; i < kFitSamples; ++i) {
+      ev[i] = evaluate(memo, bank, j + kFitOffsets[i][2], ux + kFitOffsets[i][0], uy + kFitOffsets[i][1]);
+      if (!ev[i].inside) return false;
+    }
+    const Eval& c = ev[4];
+    const double noise_var = cfg.fit_noise_correction && c.tf > 0 ? std::max(0.0, c.var - c.tf * c.tf) : 0.0;
+    float fs[kFitSamples];
+    for (int i = 0; i < kFitSamples; ++i) {
+      const double v = ev[i].var - noise_var;
+      if (!(v > 1e-9 * c.var) || !(ev[i].var > 0.25 * static_cast<double>(fine_mask.count()))) return false;
+      fs[i] = static_cast<float>(ev[i].tf / std::sqrt(v));
+    }
+    float peak = 0;
+    return joint_fit(fs, gaussian, dx, dy, dj, peak) || (gaussian && joint_fit(fs, false, dx, dy, dj, peak));
   }
 
   // From the half-resolution peak: full-resolution hill-climb in position, the paper's
-  // orientation walk (j, j±1, move to the best until the centre wins, bounded), then
-  // sub-pixel (3×3) and sub-degree (3 angles) fits on exact full-resolution scores.
+  // orientation walk (j, j±1, move to the best until the centre wins, bounded), then the
+  // joint sub-pixel / sub-step fit on exact full-resolution scores.
   Measurement refine(const PatternBank& bank, int j, const Peak& pk, int max_moves) noexcept {
     Measurement m;
     m.valid = true;
     m.psr = pk.psr;
     m.psr_valid = pk.psr_valid;
     int ux = 2 * pk.ux, uy = 2 * pk.uy;
-    std::array<float, 9> nb{};
-    auto fill = [&](int jj) {
-      for (int k = 0; k < 9; ++k) nb[k] = local_score(wrap_j(jj), bank, ux + k % 3 - 1, uy + k / 3 - 1);
-      m.steps += 9;
-    };
+    EvalMemo memo;
+    auto score = [&](int jj, int x, int y) { return evaluate(memo, bank, jj, x, y).score; };
     // Position hill-climb at angle j (the binned peak is within a pixel or two).
     auto climb = [&](int jj) {
-      for (int it = 0; it < 4; ++it) {
-        fill(jj);
-        const int best = static_cast<int>(std::max_element(nb.begin(), nb.end()) - nb.begin());
+      for (int it = 0; it < 5; ++it) {
+        int best = 4;
+        float best_s = score(jj, ux, uy);
+        for (int k = 0; k < 9; ++k) {
+          const float sk = score(jj, ux + k % 3 - 1, uy + k / 3 - 1);
+          if (sk > best_s) best_s = sk, best = k;
+        }
         if (best == 4) return;
         ux += best % 3 - 1;
         uy += best / 3 - 1;
       }
-      fill(jj);
     };
     climb(j);
-    float s0 = nb[4];
-    float sm = local_score(wrap_j(j - 1), bank, ux, uy);
-    float sp = local_score(wrap_j(j + 1), bank, ux, uy);
-    m.steps += 2;
+    float s0 = score(j, ux, uy);
+    float sm = score(j - 1, ux, uy);
+    float sp = score(j + 1, ux, uy);
     int moves = 0;
     const int j_start = j;
     while (!(s0 >= sm && s0 >= sp)) {
@@ -224,30 +391,49 @@ struct Tracker::Impl {
         sm = s0;
         s0 = sp;
         ++j;
-        sp = local_score(wrap_j(j + 1), bank, ux, uy);
+        sp = score(j + 1, ux, uy);
       } else {
         sp = s0;
         s0 = sm;
         --j;
-        sm = local_score(wrap_j(j - 1), bank, ux, uy);
+        sm = score(j - 1, ux, uy);
       }
-      ++m.steps;
       ++moves;
     }
-    if (j != j_start) {
-      // The angle moved: the position's neighbourhood at the new angle.
-      const int ox = ux, oy = uy;
-      climb(j);
-      if (ux != ox || uy != oy) {
-        sm = local_score(wrap_j(j - 1), bank, ux, uy);
-        sp = local_score(wrap_j(j + 1), bank, ux, uy);
-        m.steps += 2;
-      }
-      s0 = nb[4];
+    if (j != j_start) climb(j);  // the angle moved: the position's neighbourhood at the new angle
+    // Joint fit; when its peak lies more than half a step away (a tie in the climb or the
+    // walk), recentre on the nearest grid point once and fit again.
+    bool fitted = false;
+    for (int pass = 0; pass < 2; ++pass) {
+      double dx = 0, dy = 0, dj = 0;
+      if (!fit_at(memo, bank, ux, uy, j, dx, dy, dj)) break;
+      fitted = true;
+      m.dx = std::clamp(dx, -1.0, 1.0);
+      m.dy = std::clamp(dy, -1.0, 1.0);
+      m.dj = std::clamp(dj, -1.0, 1.0);
+      if (pass == 1 || (std::fabs(dx) <= 0.6 && std::fabs(dy) <= 0.6 && std::fabs(dj) <= 0.6)) break;
+      const int sx = static_cast<int>(std::lround(dx)), sy = static_cast<int>(std::lround(dy));
+      const int sj = static_cast<int>(std::lround(dj));
+      if (score(j + sj, ux + sx, uy + sy) < score(j, ux, uy)) break;
+      ux += sx;
+      uy += sy;
+      j += sj;
+      m.dx = std::clamp(dx - sx, -1.0, 1.0);
+      m.dy = std::clamp(dy - sy, -1.0, 1.0);
+      m.dj = std::clamp(dj - sj, -1.0, 1.0);
     }
-    m.dx = (nb[3] > -2.0f && nb[5] > -2.0f) ? fit3(nb[3], s0, nb[5], gaussian) : 0.0;
-    m.dy = (nb[1] > -2.0f && nb[7] > -2.0f) ? fit3(nb[1], s0, nb[7], gaussian) : 0.0;
-    m.dj = (sm > -2.0f && sp > -2.0f) ? fit3(sm, s0, sp, false) : 0.0;
+    s0 = score(j, ux, uy);
+    if (!fitted) {
+      // No clear quadratic maximum (edge of the ROI, a ridge): separate 3-point fits.
+      const float l = score(j, ux - 1, uy), r = score(j, ux + 1, uy);
+      const float up = score(j, ux, uy - 1), dn = score(j, ux, uy + 1);
+      sm = score(j - 1, ux, uy);
+      sp = score(j + 1, ux, uy);
+      m.dx = (l > -2.0f && r > -2.0f) ? fit3(l, s0, r, gaussian) : 0.0;
+      m.dy = (up > -2.0f && dn > -2.0f) ? fit3(up, s0, dn, gaussian) : 0.0;
+      m.dj = (sm > -2.0f && sp > -2.0f) ? fit3(sm, s0, sp, false) : 0.0;
+    }
+    m.steps += memo.computed;
     m.j = wrap_j(j);
     m.ux = ux;
     m.uy = uy;

@@ -84,7 +84,7 @@ int good_fft_size(int n) noexcept {
   }
 }
 
-PatternMask::PatternMask(int size_px, bool circular, int bands_per_half)
+PatternMask::PatternMask(int size_px, bool circular, int bands_per_half, double inset_px)
     : size_(size_px), bitmap_(static_cast<std::size_t>(size_px) * size_px, 0) {
   if (!circular) {
     bands_.push_back({0, size_ - 1, 0, size_ - 1});
@@ -93,7 +93,7 @@ PatternMask::PatternMask(int size_px, bool circular, int bands_per_half)
     // half-width of its rows so every mask pixel lies inside the circle (rotated
     // patterns have real data there) while each window sum costs only 4 look-ups per band.
     const double c = (size_ - 1) / 2.0;
-    const double radius = size_ / 2.0;
+    const double radius = std::max(1.0, size_ / 2.0 - inset_px);
     const int band_rows = std::max(1, (size_ / 2 + bands_per_half - 1) / bands_per_half);
     auto half_width = [&](int row) {
       const double dy = std::fabs(row - c) + 0.5;

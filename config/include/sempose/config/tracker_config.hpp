@@ -37,7 +37,12 @@ struct TrackerConfig {
   double search_refine_step_deg = 4.0;     // FFT correlations inside that window, then the walk
   // Motion model and sub-pixel.
   bool predict_velocity = true;            // constant-velocity prediction of x, y and phi
-  std::string subpixel = "gaussian";       // gaussian | quadratic (3-point fits per axis)
+  // Sub-pixel / sub-step: one joint quadratic fit in (x, y, φ) over 19 exact scores around
+  // the best grid point, on log scores (gaussian) or scores (quadratic).
+  std::string subpixel = "gaussian";       // gaussian | quadratic
+  // Fit on Σtf/√(var − noise var) rather than the ZNCC, noise var estimated at the best
+  // match: removes the pull of noisy windows towards more signal/noise variance.
+  bool fit_noise_correction = true;
 };
 
 struct PatternSetConfig {

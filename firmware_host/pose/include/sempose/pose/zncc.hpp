@@ -23,9 +23,13 @@ struct MaskBand {
 };
 
 // The pattern's support: its inscribed circle as a stack of bands (or the full square).
+// inset_px shrinks the circle's radius: the pattern's outer pixels are not trustworthy after
+// setup-time filtering and rotation (edges replicated, bicubic support clamped), and a mask
+// that reaches them compares made-up pixels with real ones — an offset that turns with the
+// target.
 class PatternMask {
  public:
-  PatternMask(int size_px, bool circular, int bands_per_half = 8);
+  PatternMask(int size_px, bool circular, int bands_per_half = 8, double inset_px = 0);
   int size_px() const noexcept { return size_; }
   std::int64_t count() const noexcept { return count_; }
   const std::vector<MaskBand>& bands() const noexcept { return bands_; }
