@@ -325,7 +325,7 @@ int sempose::cli::run(int argc, char** argv) {
       "summary: poses=%llu poses_per_s=%.1f tracked_share=%.3f dropped=%llu overruns=%llu rt_allocs=%llu "
       "e2e_us_p50=%.0f e2e_us_p99=%.0f e2e_us_p999=%.0f e2e_us_max=%.1f dwell_ns_min=%llu dwell_ns_max=%llu "
       "frames=%llu scan_errors=%llu can_sent=%llu can_dropped=%llu can_bad_commands=%llu commands=%llu "
-      "duration_s=%.2f\n",
+      "duration_s=%.2f can_bus_state=%s",
       static_cast<unsigned long long>(poses), poses / run_s, poses ? double(tracked) / poses : 0.0,
       static_cast<unsigned long long>(pipe->dropped_frames()), static_cast<unsigned long long>(c.overruns.get()),
       static_cast<unsigned long long>(rt::alloc::allocations() - allocs_at_start), e2e ? e2e->percentile_us(0.5) : 0.0,
@@ -334,6 +334,13 @@ int sempose::cli::run(int argc, char** argv) {
       static_cast<unsigned long long>(c.frames_scanned.get()), static_cast<unsigned long long>(c.scan_errors.get()),
       static_cast<unsigned long long>(cc.poses_sent.load()), static_cast<unsigned long long>(cc.poses_dropped.load()),
       static_cast<unsigned long long>(cc.bad_commands.load()), static_cast<unsigned long long>(c.commands.get()),
-      run_s);
+      run_s, hal::to_string(can.channel->bus_state()));
+  if (synced) {
+    const auto& sc = synced->counters();
+    std::printf(" sync_edges=%llu sync_missed=%llu sync_late=%llu sync_spurious=%llu",
+                static_cast<unsigned long long>(sc.edges.load()), static_cast<unsigned long long>(sc.missed.load()),
+                static_cast<unsigned long long>(sc.late.load()), static_cast<unsigned long long>(sc.spurious.load()));
+  }
+  std::printf("\n");
   return 0;
 }

@@ -1,5 +1,7 @@
 #include "sempose/pipeline/pipeline.hpp"
 
+#include <poll.h>
+
 #include <algorithm>
 #include <stdexcept>
 
@@ -176,6 +178,7 @@ void Pipeline::acquisition_loop() noexcept {
   std::size_t schedule_pos = 0;
   std::uint64_t scanned = 0;
   const std::int64_t slack_ns = static_cast<std::int64_t>(config_.poll_slack_us) * rt::kNsPerUs;
+  const int sync_fd = source_.wait_fd();  // a frame-done edge (GPIO), or -1
 
   auto collect_free = [&]() noexcept {
     hal::FramePool::Index i = 0;
@@ -223,7 +226,13 @@ void Pipeline::acquisition_loop() noexcept {
         scanning = kNone;
         ++scanned;
       } else if (r == hal::PollResult::kBusy) {
-        if (!virtual_time_ && !spin_ && rt::now_ns() > source_.expected_done_ns() + 2 * slack_ns) {
+        if (!virtual_time_ && !spin_ && sync_fd >= 0) {
+          // ISR-like: sleep in the kernel until the scan generator's frame-done edge (or
+          // 1 ms, so the source can time out a missed edge), instead of polling on a timer.
+          pollfd pfd{sync_fd, POLLIN, 0};
+          const timespec timeout{0, 1'000'000};
+          ppoll(&pfd, 1, &timeout, nullptr);
+        } else if (!virtual_time_ && !spin_ && rt::now_ns() > source_.expected_done_ns() + 2 * slack_ns) {
           rt::sleep_until_ns(rt::now_ns() + 10 * rt::kNsPerUs);  // late source: do not hog a shared core
         } else {
           cpu_relax();
@@ -311,7 +320,11 @@ void Pipeline::apply_command(const Command& c) noexcept {
   };
   switch (c.kind) {
     case CommandKind::kSelectPatternSet:
-      for_targets([&](std::uint8_t t) { trackers_[t]->select_pattern_set(c.arg); });
+      // A non-zero scale from the controller overrides the configured nm/px of the set
+      // (e.g. a magnification step calibrated on the microscope); 0 keeps the configured one.
+      for_targets([&](std::uint8_t t) {
+        if (trackers_[t]->select_pattern_set(c.arg)) nm_per_px_override_[t] = c.nm_per_px > 0 ? c.nm_per_px : 0;
+      });
       break;
     case CommandKind::kStart:
       running_ = true;
@@ -389,7 +402,7 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   p.score = est.score;
   p.psr = est.psr;
   p.dwell_ns = m.dwell_ns;
-  p.nm_per_px = tracker.nm_per_px();
+  p.nm_per_px = nm_per_px_override_[target] > 0 ? nm_per_px_override_[target] : tracker.nm_per_px();
   p.t_scan_end_ns = m.t_scan_end_ns;
   p.t_pose_done_ns = m.t_pose_done_ns;
   if (target < m.truth_count && m.truth[target].present) {

@@ -142,6 +142,8 @@ class Pipeline {
   std::int64_t prev_pose_done_ns_ = 0;
   bool prev_pose_was_search_ = true;
   std::array<pose::TrackState, hal::kMaxTargets> last_state_{};
+  // nm/px commanded with SELECT_PATTERN_SET (0: the pattern set's configured scale).
+  std::array<double, hal::kMaxTargets> nm_per_px_override_{};
   rt::Mailbox<StatusWords> status_;  // correlation -> output (heartbeat contents)
   std::int64_t last_virtual_now_ns_ = 0;  // output-owned: the virtual "now" for service()
 
