@@ -7,17 +7,22 @@ namespace sempose::config {
 
 std::vector<SimTargetConfig> SimConfig::default_targets() {
   std::vector<SimTargetConfig> t(2);
-  // The needle tip of the real SEM image: its crop centre sits on the needle body just
-  // behind the tip; the threshold mask keeps the bright needle and drops the trench.
+  // The needle's last 120 px up to its blunt tip, from the real SEM image, shown at 3/4 scale
+  // (90x120 px): both tapered edges and the tip's front lie inside a 128 px pattern's circle,
+  // so the pattern holds the needle's outline, not its flat interior. The threshold mask keeps
+  // the bright needle and drops the trench; the pose point (crop centre) is on the needle axis
+  // 34 px behind the tip.
   SimTargetConfig& needle = t[0];
   needle.texture.source = "image";
   needle.texture.path = "../shared/data/sem/needle_contact_eb.pgm";
-  needle.texture.crop_x = 400;
-  needle.texture.crop_y = 400;
-  needle.texture.crop_w = 280;
-  needle.texture.crop_h = 250;
+  needle.texture.crop_x = 552;
+  needle.texture.crop_y = 430;
+  needle.texture.crop_w = 120;
+  needle.texture.crop_h = 160;
   needle.texture.mask = "threshold";
   needle.texture.mask_level = 0.5;
+  needle.width_px = 90;
+  needle.height_px = 120;
   needle.x_px = 512;
   needle.y_px = 384;
   needle.trajectory.kind = "sine";

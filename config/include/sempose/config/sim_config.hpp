@@ -1,7 +1,7 @@
 // The simulated SEM (YAML section `sim:`) and the replay source (section `replay:`).
 // Defaults make a usable simulation with no `sim:` section at all: a 1024x768 field, a needle
-// tip textured from the real SEM image ../shared/data/sem/needle_contact_eb.pgm moving on a
-// slow sine, a procedural gripper as a second (disabled) target, and a beam dose that gives
+// tip textured from the real SEM image ../shared/data/sem/needle_contact_eb.pgm (its last
+// 120 px at 3/4 scale, so a 128 px pattern holds its outline) moving on a slow sine, a procedural gripper as a second (disabled) target, and a beam dose that gives
 // single-digit detected electrons per pixel at 250 ns dwell (DESIGN.md §5).
 #pragma once
 
