@@ -210,8 +210,10 @@ def check_pose_frames(ctx):
     # the first pose comes after the full-field start search: the bus rate is a bit higher
     if not 0.8 * claimed <= rate <= 1.5 * claimed:
         problems.append(f"bus rate {rate:.1f}/s vs summary poses_per_s={claimed}")
-    if rate < 10:
-        problems.append(f"bus rate {rate:.1f} poses/s < 10")
+    # Under TCG a pose costs 10-100x its native time and the host may be busy: the rate is a
+    # functional check (poses keep flowing), not a performance figure.
+    if rate < 2:
+        problems.append(f"bus rate {rate:.1f} poses/s < 2")
     # (the injected malformed command is undecodable on purpose: checked in `commands`)
     foreign = [hex(i) for _, i, _ in ctx.undecodable if i != ID_CMD]
     if foreign:
@@ -312,9 +314,11 @@ def check_heartbeat(ctx):
     rate = (len(hb) - 1) / span
     expect = hz * ctx.num("duration_s")
     problems = []
-    if not 0.8 * hz <= rate <= 1.2 * hz:
+    # The heartbeat is serviced between poses on the correlation thread; under TCG one pose
+    # can take 100+ ms, so only a grossly wrong rate (or a burst above it) fails.
+    if not 0.5 * hz <= rate <= 1.2 * hz:
         problems.append(f"rate {rate:.2f}/s vs can.heartbeat_hz {hz:g}")
-    if len(hb) < 0.7 * expect:
+    if len(hb) < 0.5 * expect:
         problems.append(f"{len(hb)} heartbeats, expected ~{expect:.0f}")
     last = hb[-1][1]
     if last["bus_state"] != 0 or last["running"] != 1:
