@@ -196,8 +196,9 @@ Image render_sim_pattern(const config::SimConfig& cfg_in, const ScanLimits& limi
   }
   if (average_frames < 1) throw std::runtime_error("render_sim_pattern: average_frames must be >= 1");
   // Only this target, at rest, no drift: the operator records it with the stage still.
+  // cfg.seed stays: it also generates the scene (procedural background and textures), and the
+  // pattern must show the same scene the tracker will see. `seed` only selects the noise.
   config::SimConfig cfg = cfg_in;
-  cfg.seed = seed;
   cfg.clock = "virtual";
   cfg.drift.clear();
   cfg.brightness_drift = 0;
@@ -220,7 +221,9 @@ Image render_sim_pattern(const config::SimConfig& cfg_in, const ScanLimits& limi
   TargetTruth truth[kMaxTargets];
   for (int f = 0; f < average_frames; ++f) {
     // Every frame at t = 0: no motion, only fresh noise and jitter.
-    src.render({ox, oy, size_px, size_px}, dwell_ns, SimSource::kVirtualEpochNs, static_cast<std::uint64_t>(f), frame.data(), truth);
+    // Noise streams (seq) far from the ones of a run's frames (seq 0, 1, 2, ...).
+    const std::uint64_t seq = ((seed + 1) << 32) + static_cast<std::uint64_t>(f);
+    src.render({ox, oy, size_px, size_px}, dwell_ns, SimSource::kVirtualEpochNs, seq, frame.data(), truth);
     for (std::size_t i = 0; i < n; ++i) sum[i] += frame[i];
   }
   Image img;

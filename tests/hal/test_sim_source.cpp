@@ -226,5 +226,30 @@ TEST(SimPattern, DefaultNeedlePatternIsCentredAndAveragingReducesNoise) {
   EXPECT_GT(ref.at(47, 47), 120);
 }
 
+// The recorded pattern shows the very scene the source renders: the pattern's seed selects only
+// its noise, never another procedural background (a different background under the pattern's
+// rim dragged tracked poses by ~0.2 px along the target's own axis).
+TEST(SimPattern, RecordsTheSameSceneTheSourceRenders) {
+  ScanLimits lim;
+  config::SimConfig c;
+  c.targets[0].texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/needle_contact_eb.pgm";
+  c.seed = 3;
+  c.noise = false;
+  c.clock = "virtual";
+  c.drift.clear();
+  c.brightness_drift = 0;
+  c.targets[0].x_px = 300.5;  // 300.5 − 47.5 is a whole pixel: render_sim_pattern keeps it there
+  c.targets[0].y_px = 200.5;
+  c.targets[0].trajectory = config::TrajectoryConfig{};
+  const Image pattern = render_sim_pattern(c, lim, 0, 96, 1, 250, 12345);
+  SimSource src(lim, c);
+  std::vector<Pixel> roi(96 * 96);
+  TargetTruth truth[kMaxTargets];
+  src.render({253, 153, 96, 96}, 250, SimSource::kVirtualEpochNs, 0, roi.data(), truth);
+  int differ = 0;
+  for (std::size_t i = 0; i < roi.size(); ++i) differ += roi[i] != pattern.pixels[i];
+  EXPECT_EQ(differ, 0) << "pixels of the recorded pattern that differ from the scene";
+}
+
 }  // namespace
 }  // namespace sempose::hal

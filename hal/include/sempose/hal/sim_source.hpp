@@ -68,7 +68,9 @@ class SimSource final : public ScanSource {
 
 // The pattern an operator would record (the paper averaged 10 frames): target target_index at
 // φ = 0, centred in a size_px x size_px crop over its background, the mean of average_frames
-// noisy scans at dwell_ns; drift and motion off. Setup-time; throws on a bad index/size.
+// noisy scans at dwell_ns; drift and motion off. The scene is cfg's (cfg.seed makes the
+// procedural background and textures); `seed` only selects the noise of the averaged scans.
+// Setup-time; throws on a bad index/size.
 Image render_sim_pattern(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px,
                          int average_frames, std::uint32_t dwell_ns, std::uint64_t seed);
 
