@@ -31,6 +31,12 @@ struct Scenario {
   double start_phi_deg = 0;
   double start_x_px = 320, start_y_px = 240;
   bool noise = true;
+  // needle_tip: the sim's default needle (real SEM, its last 120 px up to the tip at 3/4
+  // scale, threshold mask); lamella_post: the lamella's end on its post (real SEM);
+  // lamella: the procedural lamella.
+  std::string target = "lamella_post";
+  bool drift = true;  // the simulator's slow image drift and beam lag
+  bool background = true;  // false: a flat background (no static clutter under the pattern)
 };
 
 inline config::SimConfig make_sim_config(const Scenario& s) {
@@ -42,17 +48,32 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
   // n = 6.24 · I[pA] · τ[µs] · η  →  I for the requested dose.
   c.beam_current_pa = s.dose_e / (6.24 * (s.dwell_ns * 1e-3) * c.yield);
   c.background.path = "";
-  auto& t = c.targets[0];
-  // The lamella's end on its post (real SEM texture): edges in two directions and surface
-  // detail, shown as a 100 px square so the 128 px pattern holds its outline, not a flat interior.
-  t.texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/lamella_on_post_eb.pgm";
-  t.texture.crop_x = 420;
-  t.texture.crop_y = 460;
-  t.texture.crop_w = 180;
-  t.texture.crop_h = 180;
-  t.texture.mask = "full";
-  t.width_px = 100;  // scaled down so its edges lie inside the 128 px pattern circle
-  t.height_px = 100;
+  if (!s.background) c.background.contrast = 0;
+  if (!s.drift) {
+    c.drift.clear();
+    c.beam_lag_px = 0;
+  }
+  auto& t = c.targets[0];  // the default needle tip
+  if (s.target == "lamella_post") {
+    // The lamella's end on its post (real SEM texture): edges in two directions and surface
+    // detail, shown as a 100 px square so the 128 px pattern holds its outline, not a flat interior.
+    t.texture = config::TextureConfig{};
+    t.texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/lamella_on_post_eb.pgm";
+    t.texture.crop_x = 420;
+    t.texture.crop_y = 460;
+    t.texture.crop_w = 180;
+    t.texture.crop_h = 180;
+    t.texture.mask = "full";
+    t.width_px = 100;  // scaled down so its edges lie inside the 128 px pattern circle
+    t.height_px = 100;
+  } else if (s.target == "lamella") {
+    t.texture = config::TextureConfig{};
+    t.texture.source = "lamella";
+    t.width_px = 100;
+    t.height_px = 64;
+  } else {
+    t.texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/needle_contact_eb.pgm";
+  }
   t.x_px = s.start_x_px;
   t.y_px = s.start_y_px;
   t.phi_deg = s.start_phi_deg;
@@ -89,6 +110,8 @@ struct RunStats {
   double sum_dx = 0, sum_dy = 0;  // signed, for the bias
   int err_n = 0;
   int recovery_max = 0;  // frames from a jump until TRACKING with error < 1 px again
+  int false_tracking = 0;  // TRACKING poses more than 3 px off the truth (a false match)
+  double false_max_px = 0;
   int jumps = 0;
   double acquire_ms = 0;
   std::vector<double> compute_us;
@@ -172,6 +195,10 @@ class SimHarness {
       const double dpos = std::hypot(dx, dy);
       if (e.state == TrackState::kTracking) {
         ++r.tracked;
+        if (dpos > 3.0) {
+          ++r.false_tracking;
+          r.false_max_px = std::max(r.false_max_px, dpos);
+        }
         if (!acquired) acquired = true;
         if (e.reason_bits == 0 && since_jump != 0) {  // the jump frame itself saw the old place
           ++r.err_n;

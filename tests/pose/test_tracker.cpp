@@ -118,6 +118,9 @@ TEST(Tracker, RecoversFromJumps) {
   EXPECT_GE(r.jumps, 2);
   EXPECT_LE(r.recovery_max, 3);
   EXPECT_GT(r.tracked_share(), 0.8);
+  // Right after a jump the old ROI holds look-alike texture: it must not be reported as
+  // TRACKING (every TRACKING pose within 3 px of the truth).
+  EXPECT_EQ(r.false_tracking, 0) << "worst TRACKING pose " << r.false_max_px << " px off";
 }
 
 TEST(Tracker, FlatBadAndOffFieldFramesAreLostNeverNan) {

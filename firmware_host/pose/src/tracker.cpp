@@ -139,6 +139,8 @@ struct Tracker::Impl {
   double pose_x = 0, pose_y = 0, pose_phi = 0;
   double vx = 0, vy = 0, vphi = 0;
   double pred_x = 0, pred_y = 0, pred_phi = 0;
+  double score_mean = 0;  // running mean of accepted scores (relative_score_threshold)
+  bool have_score_mean = false;
   int field_w = 0, field_h = 0;
   std::atomic<bool> reacquire{false};
   std::atomic<std::uint8_t> active{0};
@@ -585,13 +587,18 @@ struct Tracker::Impl {
     return half->load(binned.data(), bw, bh, bw);
   }
 
+  // A score far below the target's recent scores is a look-alike, not the target (after a
+  // jump the old ROI still holds texture that can beat the absolute threshold).
+  bool below_recent(const Measurement& m) const noexcept {
+    return cfg.relative_score_threshold > 0 && have_score_mean && m.score < cfg.relative_score_threshold * score_mean;
+  }
   bool weak(const Measurement& m) const noexcept {
-    return !m.valid || m.score < cfg.score_threshold ||
+    return !m.valid || m.score < cfg.score_threshold || below_recent(m) ||
            (cfg.psr_threshold > 0 && m.psr_valid && m.psr < cfg.psr_threshold);
   }
   std::uint8_t weak_bits(const Measurement& m) const noexcept {
     std::uint8_t b = 0;
-    if (!m.valid || m.score < cfg.score_threshold) b |= kReasonLowScore;
+    if (!m.valid || m.score < cfg.score_threshold || below_recent(m)) b |= kReasonLowScore;
     if (cfg.psr_threshold > 0 && m.psr_valid && m.psr < cfg.psr_threshold) b |= kReasonLowPsr;
     return b;
   }
@@ -607,6 +614,7 @@ struct Tracker::Impl {
 
   void go_lost() noexcept {
     tracking = false;
+    have_score_mean = false;
     have_prev = false;
     weak_frames = 0;
     vx = vy = vphi = 0;
@@ -623,6 +631,8 @@ struct Tracker::Impl {
     pose_x = e.x_px;
     pose_y = e.y_px;
     pose_phi = e.phi_deg;
+    score_mean = have_score_mean ? 0.8 * score_mean + 0.2 * e.score : e.score;
+    have_score_mean = true;
     have_prev = true;
     tracking = true;
     weak_frames = 0;

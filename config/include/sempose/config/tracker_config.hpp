@@ -28,6 +28,9 @@ struct TrackerConfig {
   // Loss detection.
   double score_threshold = 0.25;  // ZNCC peak below this = weak frame
   double psr_threshold = 0.0;     // peak-to-sidelobe ratio below this = weak frame (0 = off)
+  // Score below this fraction of the running mean of recent accepted scores = weak frame
+  // (0 = off): after a jump a look-alike in the old ROI can pass the absolute threshold.
+  double relative_score_threshold = 0.7;
   std::int32_t lost_after_frames = 1;  // K consecutive weak frames -> LOST, full-field search
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
