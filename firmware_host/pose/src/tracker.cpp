@@ -112,6 +112,10 @@ struct Tracker::Impl {
   std::unique_ptr<ZnccCorrelator> half, coarse;
   int Nh = 0;
   std::vector<float> roi_img;          // prefiltered ROI minus its mean, full resolution (row stride roi_w)
+  // Exact summed-area tables of the prefiltered ROI and its square ((roi_h+1)×(roi_w+1)): the
+  // window mean and variance under the mask bands in a few look-ups, so the exact local ZNCC
+  // costs one multiply-add per pixel.
+  std::vector<std::int64_t> sat1, sat2;
   std::vector<std::int32_t> binned;    // 2×2 sums of the prefiltered ROI
   int roi_w = 0, roi_h = 0;
   std::unique_ptr<Prefilter> prefilter;
@@ -268,25 +272,27 @@ struct Tracker::Impl {
   bool local_parts(int j_pattern, const PatternBank& bank, int ux, int uy, double& tf_out, double& var_out) const noexcept {
     if (ux < 0 || uy < 0 || ux > roi_w - P || uy > roi_h - P) return false;
     const float* t = bank.pattern(j_pattern);
-    double tf = 0, sf = 0, sff = 0;
+    const std::size_t sw = static_cast<std::size_t>(roi_w) + 1;
+    double tf = 0;
+    std::int64_t s1 = 0, s2 = 0;
     for (const MaskBand& b : fine_mask.bands()) {
+      const std::size_t ya = static_cast<std::size_t>(uy + b.y0) * sw, yb = static_cast<std::size_t>(uy + b.y1 + 1) * sw;
+      const std::size_t xa = static_cast<std::size_t>(ux + b.x0), xb = static_cast<std::size_t>(ux + b.x1 + 1);
+      s1 += sat1[yb + xb] - sat1[yb + xa] - sat1[ya + xb] + sat1[ya + xa];
+      s2 += sat2[yb + xb] - sat2[yb + xa] - sat2[ya + xb] + sat2[ya + xa];
       for (int y = b.y0; y <= b.y1; ++y) {
         const float* f = roi_img.data() + static_cast<std::size_t>(uy + y) * roi_w + ux;
         const float* tr = t + y * P;
-        float a = 0, c = 0, e = 0;
-#pragma omp simd reduction(+ : a, c, e)
-        for (int x = b.x0; x <= b.x1; ++x) {
-          a += tr[x] * f[x];
-          c += f[x];
-          e += f[x] * f[x];
-        }
+        float a = 0;
+#pragma omp simd reduction(+ : a)
+        for (int x = b.x0; x <= b.x1; ++x) a += tr[x] * f[x];
         tf += a;
-        sf += c;
-        sff += e;
       }
     }
+    // Σt = 0 under the mask, so Σ t·(f − mean) = Σ t·f for any offset of f.
     tf_out = tf;
-    var_out = sff - sf * sf / static_cast<double>(fine_mask.count());
+    const double n = static_cast<double>(fine_mask.count());
+    var_out = static_cast<double>(s2) - static_cast<double>(s1) * static_cast<double>(s1) / n;
     return true;
   }
   // ZNCC from the parts; a flat window (std under half a filtered unit) scores 0.
@@ -577,6 +583,23 @@ struct Tracker::Impl {
     for (std::size_t i = 0; i < n; ++i) sum += filtered[i];
     const float mean = static_cast<float>(sum / static_cast<double>(n));
     for (std::size_t i = 0; i < n; ++i) roi_img[i] = static_cast<float>(filtered[i]) - mean;
+    const std::size_t sw = static_cast<std::size_t>(w) + 1;
+    for (std::size_t x = 0; x < sw; ++x) sat1[x] = sat2[x] = 0;
+    for (int y = 0; y < h; ++y) {
+      std::int64_t r1 = 0, r2 = 0;
+      const std::int32_t* row = filtered.data() + static_cast<std::size_t>(y) * w;
+      std::int64_t* o1 = sat1.data() + static_cast<std::size_t>(y + 1) * sw;
+      std::int64_t* o2 = sat2.data() + static_cast<std::size_t>(y + 1) * sw;
+      const std::int64_t* p1 = o1 - sw;
+      const std::int64_t* p2 = o2 - sw;
+      o1[0] = o2[0] = 0;
+      for (int x = 0; x < w; ++x) {
+        r1 += row[x];
+        r2 += static_cast<std::int64_t>(row[x]) * row[x];
+        o1[x + 1] = p1[x + 1] + r1;
+        o2[x + 1] = p2[x + 1] + r2;
+      }
+    }
     const int bw = w / 2, bh = h / 2;
     for (int y = 0; y < bh; ++y) {
       const std::int32_t* r0 = filtered.data() + static_cast<std::size_t>(2 * y) * w;
@@ -812,6 +835,8 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   }
   const std::size_t vmax = static_cast<std::size_t>(t.Nh) * t.Nh;
   t.roi_img.assign(static_cast<std::size_t>(t.N) * t.N, 0.0f);
+  t.sat1.assign(static_cast<std::size_t>(t.N + 1) * (t.N + 1), 0);
+  t.sat2.assign(t.sat1.size(), 0);
   t.binned.assign(vmax, 0);
   t.map_a.assign(vmax, 0.0f);
   t.map_b.assign(vmax, 0.0f);
@@ -858,6 +883,7 @@ std::size_t Tracker::memory_bytes() const noexcept {
   const Impl& t = *impl_;
   std::size_t b = t.half->buffer_bytes() + t.coarse->buffer_bytes();
   b += t.roi_img.size() * sizeof(float) + t.binned.size() * sizeof(std::int32_t);
+  b += (t.sat1.size() + t.sat2.size()) * sizeof(std::int64_t);
   for (const auto& bank : t.banks) b += bank.memory_bytes();
   b += (t.map_a.size() + t.map_b.size() + t.cmap.size()) * sizeof(float) + t.coarse_img.size() * 4;
   b += t.filtered.size() * 4 + static_cast<std::size_t>(t.N) * t.N * 16;  // prefilter scratch
