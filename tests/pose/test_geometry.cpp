@@ -128,3 +128,24 @@ TEST(Geometry, NoisyLamellaHasNoBiasThatTurnsWithTheTarget) {
     EXPECT_LT(std::fabs(sphi / n), 0.1) << "phi " << phi;
   }
 }
+
+// A full-field frame arriving while tracking (scanned before the search's result reached the
+// scan plan) is tracked in its crop at the prediction, not searched again.
+TEST(Geometry, FullFieldFrameWhileTrackingIsNotSearchedAgain) {
+  config::TrackerConfig cfg;
+  cfg.angle_step_deg = 2;
+  Rig rig(kNeedle, cfg);
+  ASSERT_NE(rig.tracker, nullptr);
+  const PoseEstimate first = rig.run(200.3, 150.6, 20.0, 1);
+  ASSERT_EQ(first.state, TrackState::kTracking);
+  rig.scene.render(kNeedle.cx, kNeedle.cy, 200.3, 150.6, 20.0, kFieldW, kFieldH, rig.field);
+  hal::FrameMeta meta;
+  meta.roi = {0, 0, kFieldW, kFieldH};
+  meta.field_w = kFieldW;
+  meta.field_h = kFieldH;
+  meta.bits = 16;
+  const PoseEstimate e = rig.tracker->update(meta, rig.field.data());
+  EXPECT_FALSE(e.searched);
+  EXPECT_EQ(e.state, TrackState::kTracking);
+  EXPECT_LT(std::hypot(e.x_px - 200.3, e.y_px - 150.6), 0.1);
+}

@@ -715,7 +715,21 @@ PoseEstimate Tracker::Impl::update(const hal::FrameMeta& meta, const hal::Pixel*
     }
   }
 
-  if (full_field || !tracking || w > N || h > N) {
+  // A full-field frame while tracking (scanned before the last search's result reached the
+  // scan plan): track in its crop at the predicted pose instead of searching again.
+  int origin_x = meta.roi.x, origin_y = meta.roi.y, w_roi = w, h_roi = h;
+  std::ptrdiff_t stride = w;
+  if (full_field && tracking) {
+    const int rw = std::min(R, w), rh = std::min(R, h);
+    origin_x = std::clamp(static_cast<int>(std::lround(pred_x - (rw - 1) / 2.0)), 0, w - rw);
+    origin_y = std::clamp(static_cast<int>(std::lround(pred_y - (rh - 1) / 2.0)), 0, h - rh);
+    px += static_cast<std::size_t>(origin_y) * w + origin_x;
+    w_roi = rw;
+    h_roi = rh;
+    origin_x += meta.roi.x;
+    origin_y += meta.roi.y;
+  }
+  if (!tracking || w_roi > N || h_roi > N) {
     int rx = 0, ry = 0;
     e.searched = true;
     const Measurement m = search(bank, px, w, h, meta.bits, rx, ry);
@@ -732,9 +746,9 @@ PoseEstimate Tracker::Impl::update(const hal::FrameMeta& meta, const hal::Pixel*
   }
 
   // Tracking: one forward FFT for this ROI, the predicted angle, the walk.
-  if (w < P || h < P || !load_roi(px, w, h, w, meta.bits)) {
+  if (w_roi < P || h_roi < P || !load_roi(px, w_roi, h_roi, stride, meta.bits)) {
     e.state = TrackState::kLost;
-    e.reason_bits = static_cast<std::uint8_t>((w < P || h < P) ? kReasonOutOfField
+    e.reason_bits = static_cast<std::uint8_t>((w_roi < P || h_roi < P) ? kReasonOutOfField
                                                                                       : kReasonFlatFrame);
     e.score = 0;
     go_lost();
@@ -754,7 +768,7 @@ PoseEstimate Tracker::Impl::update(const hal::FrameMeta& meta, const hal::Pixel*
     if (r.score > m.score) m = r;
     else m.steps = r.steps;
   }
-  to_estimate(m, meta.roi.x, meta.roi.y, e);
+  to_estimate(m, origin_x, origin_y, e);
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
   const double margin = 0.0;
   if (pred_x < margin || pred_y < margin || pred_x > field_w - 1 - margin || pred_y > field_h - 1 - margin) {
