@@ -123,6 +123,7 @@ int main() {
     sim.render(meta.roi, 250, hal::SimSource::kVirtualEpochNs, 1, px.data(), meta.truth);
     int found = 0;
     const Timing ts = time_it(15, [&] {
+      t.request_reacquire();  // a full-field frame while tracking is otherwise tracked in its crop
       const PoseEstimate e = t.update(meta, px.data());
       found += e.state == TrackState::kTracking && std::hypot(e.x_px - meta.truth[0].x_px, e.y_px - meta.truth[0].y_px) < 1.0;
     });

@@ -56,14 +56,16 @@ struct Rig {
     tracker->request_reacquire();
     PoseEstimate e;
     for (int f = 0; f <= frames; ++f) {
-      scene.render(target.cx, target.cy, x, y, phi, kFieldW, kFieldH, field, dose, seed * 1000 + static_cast<std::uint64_t>(f));
       hal::FrameMeta meta;
       meta.seq = seq++;
       meta.roi = tracker->next_roi();
       meta.field_w = kFieldW;
       meta.field_h = kFieldH;
       meta.bits = 16;
-      crop(field, kFieldW, meta.roi, roi);
+      // Only the scanned ROI is rendered (the noise differs from a full-field render's crop,
+      // which does not matter here).
+      scene.render(target.cx, target.cy, x, y, phi, kFieldW, kFieldH, roi, dose, seed * 1000 + static_cast<std::uint64_t>(f),
+                   meta.roi);
       e = tracker->update(meta, roi.data());
     }
     return e;
@@ -116,16 +118,20 @@ TEST(Geometry, NoisyLamellaHasNoBiasThatTurnsWithTheTarget) {
     const int n = 12;
     for (int k = 0; k < n; ++k) {
       const double x = 190.2 + 0.1 * k, y = 160.6 - 0.07 * k;
-      const PoseEstimate e = rig.run(x, y, phi, 1, 6.0, 17 + static_cast<std::uint64_t>(k));
-      ASSERT_EQ(e.state, TrackState::kTracking) << "phi " << phi << " seed " << k;
-      sx += e.x_px - x;
-      sy += e.y_px - y;
-      sphi += angle_error(e.phi_deg, phi);
-      worst = std::max(worst, std::hypot(e.x_px - x, e.y_px - y));
+      // Four tracked frames per placement (each with its own noise).
+      for (int f = 1; f <= 4; ++f) {
+        const PoseEstimate e = rig.run(x, y, phi, f, 6.0, 17 + static_cast<std::uint64_t>(k));
+        ASSERT_EQ(e.state, TrackState::kTracking) << "phi " << phi << " seed " << k;
+        sx += e.x_px - x;
+        sy += e.y_px - y;
+        sphi += angle_error(e.phi_deg, phi);
+        worst = std::max(worst, std::hypot(e.x_px - x, e.y_px - y));
+      }
     }
     EXPECT_LT(worst, 1.0) << "phi " << phi;
-    EXPECT_LT(std::hypot(sx / n, sy / n), 0.15) << "phi " << phi << " mean error " << sx / n << ", " << sy / n;
-    EXPECT_LT(std::fabs(sphi / n), 0.1) << "phi " << phi;
+    const double m = 4.0 * n;
+    EXPECT_LT(std::hypot(sx / m, sy / m), 0.15) << "phi " << phi << " mean error " << sx / m << ", " << sy / m;
+    EXPECT_LT(std::fabs(sphi / m), 0.1) << "phi " << phi;
   }
 }
 

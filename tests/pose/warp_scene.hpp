@@ -43,7 +43,7 @@ struct WarpScene {
   }
 
   double sample(double x, double y) const noexcept {
-    const int r = static_cast<int>(std::ceil(4 * sigma));
+    const int r = static_cast<int>(std::ceil(3 * sigma));
     const int ix = static_cast<int>(std::lround(x)), iy = static_cast<int>(std::lround(y));
     double wx[64], wy[64], sx = 0, sy = 0;
     const double k = -0.5 / (sigma * sigma);
@@ -75,13 +75,15 @@ struct WarpScene {
 
   // A fw×fh field showing scene point (cx, cy) at (x, y), turned by phi_deg CCW on screen.
   // dose_e > 0: Poisson electrons per pixel at brightness 1 (mean kept), else noise-free.
+  // roi: render only that part of the field (out is roi.w × roi.h); default: the whole field.
   void render(double cx, double cy, double x, double y, double phi_deg, int fw, int fh, std::vector<hal::Pixel>& out,
-              double dose_e = 0, std::uint64_t seed = 1) const {
-    out.resize(static_cast<std::size_t>(fw) * fh);
+              double dose_e = 0, std::uint64_t seed = 1, hal::Roi roi = {}) const {
+    if (roi.w <= 0 || roi.h <= 0) roi = {0, 0, fw, fh};
+    out.resize(static_cast<std::size_t>(roi.w) * roi.h);
     const double rad = phi_deg * M_PI / 180.0, cs = std::cos(rad), sn = std::sin(rad);
     std::mt19937_64 rng(seed);
-    for (int py = 0; py < fh; ++py)
-      for (int px = 0; px < fw; ++px) {
+    for (int py = roi.y; py < roi.y + roi.h; ++py)
+      for (int px = roi.x; px < roi.x + roi.w; ++px) {
         // Inverse of the CCW screen rotation (same formula as rotate_pattern and the simulator).
         const double dx = px - x, dy = py - y;
         double b = sample(cx + dx * cs - dy * sn, cy + dx * sn + dy * cs);
@@ -89,7 +91,7 @@ struct WarpScene {
           std::poisson_distribution<int> p(std::max(0.0, b) * dose_e);
           b = p(rng) / dose_e;
         }
-        out[static_cast<std::size_t>(py) * fw + px] = to_level(b);
+        out[static_cast<std::size_t>(py - roi.y) * roi.w + (px - roi.x)] = to_level(b);
       }
   }
 

@@ -554,6 +554,21 @@ struct Tracker::Impl {
       const Window win{(ex - d - 2) / 2, (ey - d - 2) / 2, (ex + d + 3) / 2, (ey + d + 3) / 2};  // binned px
       Measurement m = sweep(bank, angle_index(bank.coarse_angle_deg(cd.k)), cfg.search_refine_window_deg,
                             cfg.search_refine_step_deg, max_moves, win);
+      // The coarse level keeps one angle per place, and elongated targets (a needle, a
+      // lamella) look much alike turned by 180° at ×8 and a few electrons per pixel: try the
+      // opposite angle at full resolution too (no FFT: same place, exact scores).
+      if (m.valid) {
+        Peak opposite;
+        opposite.ux = m.ux / 2;
+        opposite.uy = m.uy / 2;
+        Measurement f = refine(bank, wrap_j(m.j + n_angles / 2), opposite, max_moves);
+        if (f.valid && f.score > m.score) {
+          f.psr = m.psr;
+          f.psr_valid = m.psr_valid;
+          f.steps += m.steps;
+          m = f;
+        }
+      }
       // Rank by coarse + fine score: the ×8 level averages 64 pixels per sample and is the
       // more discriminative statistic at a few electrons per pixel; the fine level refines.
       if (m.valid && m.score + cd.score > best_rank) {
