@@ -135,6 +135,16 @@ int sempose::cli::run(int argc, char** argv) {
   sigaddset(&signals, SIGUSR1);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
+  // Output files may name folders that do not exist yet (out/demo/...): make them, so a run
+  // never fails after its setup work for want of a directory.
+  for (const std::string& file : {cfg.output.poses_csv, opt.can_log.empty() && cfg.can.interface.empty()
+                                                          ? cfg.can.log_file
+                                                          : opt.can_log}) {
+    const auto parent = std::filesystem::path(file).parent_path();
+    std::error_code ec;
+    if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
+  }
+
   // ---- setup: everything that allocates
   rt::Status st;
   std::unique_ptr<hal::ScanSource> source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st);

@@ -256,15 +256,20 @@ void Pipeline::acquisition_loop() noexcept {
       continue;
     }
 
-    // Next target in the schedule whose plan is enabled.
+    // Next target in the schedule whose plan is enabled. A full-field plan is scanned once
+    // per version: while its start search runs, scanning the field again (~200 ms of beam
+    // time) would only deliver a frame the new plan has already made stale.
     ScanPlan plan{};
     std::uint8_t target = 0;
     bool found = false;
     for (std::size_t k = 0; k < schedule_len_ && !found; ++k) {
       target = schedule_[schedule_pos];
       schedule_pos = (schedule_pos + 1) % schedule_len_;
+      const std::uint32_t version = plans_[target].version();
       plan = plans_[target].read();
-      found = plan.enabled != 0;
+      const bool full_field = plan.w > source_.limits().max_roi_w || plan.h > source_.limits().max_roi_h;
+      found = plan.enabled != 0 && !(full_field && full_field_version_[target] == version);
+      if (found && full_field) full_field_version_[target] = version;
     }
     if (!found) {
       idle_wait(rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs);

@@ -144,6 +144,8 @@ class Pipeline {
   std::array<pose::TrackState, hal::kMaxTargets> last_state_{};
   // nm/px commanded with SELECT_PATTERN_SET (0: the pattern set's configured scale).
   std::array<double, hal::kMaxTargets> nm_per_px_override_{};
+  // Acquisition only: the plan version of each target's last full-field scan (0: none).
+  std::array<std::uint32_t, hal::kMaxTargets> full_field_version_{};
   rt::Mailbox<StatusWords> status_;  // correlation -> output (heartbeat contents)
   std::int64_t last_virtual_now_ns_ = 0;  // output-owned: the virtual "now" for service()
 
