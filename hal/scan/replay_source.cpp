@@ -62,7 +62,7 @@ std::vector<std::vector<double>> read_csv(const std::string& path, std::size_t m
 }  // namespace
 
 ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig& cfg)
-    : limits_(limits), loop_(cfg.loop), virtual_(cfg.clock != "real") {
+    : limits_(limits), loop_(cfg.loop), timer_(cfg.clock != "real") {
   const std::vector<std::string> names = list_pgm_frames(cfg.frames_dir);
   // Memory check before loading: all frames stay resident.
   Image first = read_pgm(names.front());
@@ -118,10 +118,8 @@ ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig&
   }
 }
 
-std::int64_t ReplaySource::now_ns() const noexcept { return virtual_ ? now_virtual_ns_ : rt::now_ns(); }
-
 StartResult ReplaySource::start(const ScanRequest& req, FrameSlot& slot) noexcept {
-  if (slot_ != nullptr) return StartResult::kBusy;
+  if (timer_.busy()) return StartResult::kBusy;
   if (index_ >= frames_.size()) {
     if (!loop_) return StartResult::kEnded;
     if (!t_ns_.empty()) {
@@ -140,36 +138,13 @@ StartResult ReplaySource::start(const ScanRequest& req, FrameSlot& slot) noexcep
     std::memcpy(slot.pixels + static_cast<std::size_t>(y) * r.w, src, static_cast<std::size_t>(r.w) * sizeof(Pixel));
   }
   std::int64_t t0 = now_ns();
-  if (virtual_ && !t_ns_.empty()) t0 = std::max(t0, t_ns_[index_] + loop_offset_ns_);
+  if (timer_.is_virtual() && !t_ns_.empty()) t0 = std::max(t0, t_ns_[index_] + loop_offset_ns_);
+  timer_.begin(slot, req, limits_, dwell, seq_++, t0);
   FrameMeta& m = slot.meta;
-  m.seq = seq_++;
-  m.roi = r;
-  m.field_w = limits_.field_w;
-  m.field_h = limits_.field_h;
-  m.dwell_ns = dwell;
-  m.bits = limits_.bits;
-  m.target = req.target;
-  m.status = FrameStatus::kOk;
-  m.t_scan_start_ns = t0;
-  m.t_scan_end_ns = t0 + limits_.scan_time_ns(r.w, r.h, dwell);
-  m.t_seen_ns = m.t_pose_done_ns = m.t_sent_ns = 0;
   m.truth_count = truth_count_;
   for (int t = 0; t < kMaxTargets; ++t) m.truth[t] = truth_.empty() ? TargetTruth{} : truth_[index_][static_cast<std::size_t>(t)];
   ++index_;
-  end_ns_ = m.t_scan_end_ns;
-  slot_ = &slot;
   return StartResult::kStarted;
-}
-
-PollResult ReplaySource::poll() noexcept {
-  if (slot_ == nullptr) return PollResult::kIdle;
-  if (virtual_) {
-    now_virtual_ns_ = std::max(now_virtual_ns_, end_ns_);
-  } else if (rt::now_ns() < end_ns_) {
-    return PollResult::kBusy;
-  }
-  slot_ = nullptr;
-  return PollResult::kDone;
 }
 
 }  // namespace sempose::hal

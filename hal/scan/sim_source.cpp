@@ -31,8 +31,8 @@ inline float sample_clamped(const FloatImage& img, float x, float y) noexcept {
 SimSource::SimSource(const ScanLimits& limits, const config::SimConfig& cfg)
     : limits_(limits),
       scene_(cfg, limits),
-      virtual_(cfg.clock == "virtual"),
-      epoch_ns_(virtual_ ? kVirtualEpochNs : rt::now_ns()) {
+      timer_(cfg.clock == "virtual"),
+      epoch_ns_(timer_.is_virtual() ? kVirtualEpochNs : rt::now_ns()) {
   if (limits.bits != 8 && limits.bits != 16) throw std::runtime_error("scan.bits must be 8 or 16");
   for (std::size_t i = 0; i < cfg.targets.size(); ++i) {
     const auto& t = cfg.targets[i];
@@ -44,8 +44,6 @@ SimSource::SimSource(const ScanLimits& limits, const config::SimConfig& cfg)
   }
 }
 
-std::int64_t SimSource::now_ns() const noexcept { return virtual_ ? virtual_now_ns_ : rt::now_ns(); }
-
 void SimSource::drift_at(double t_s, double& dx, double& dy) const noexcept {
   dx = dy = 0;
   for (const auto& d : scene_.config().drift) {
@@ -56,40 +54,16 @@ void SimSource::drift_at(double t_s, double& dx, double& dy) const noexcept {
 }
 
 StartResult SimSource::start(const ScanRequest& req, FrameSlot& slot) noexcept {
-  if (slot_ != nullptr) return StartResult::kBusy;
+  if (timer_.busy()) return StartResult::kBusy;
   std::uint32_t dwell = 0;
   const StartResult check = check_scan_request(limits_, req, slot.capacity_pixels, dwell);
   if (check != StartResult::kStarted) return check;
   const std::int64_t t0 = now_ns();
-  FrameMeta& m = slot.meta;
-  m.seq = seq_;
-  m.roi = req.roi;
-  m.field_w = limits_.field_w;
-  m.field_h = limits_.field_h;
-  m.dwell_ns = dwell;
-  m.bits = limits_.bits;
-  m.target = req.target;
-  m.status = FrameStatus::kOk;
-  m.t_scan_start_ns = t0;
-  m.t_scan_end_ns = t0 + limits_.scan_time_ns(req.roi.w, req.roi.h, dwell);
-  m.t_seen_ns = m.t_pose_done_ns = m.t_sent_ns = 0;
-  m.truth_count = target_count();
-  render(req.roi, dwell, t0, seq_, slot.pixels, m.truth);
+  timer_.begin(slot, req, limits_, dwell, seq_, t0);
+  slot.meta.truth_count = target_count();
+  render(req.roi, dwell, t0, seq_, slot.pixels, slot.meta.truth);
   ++seq_;
-  end_ns_ = m.t_scan_end_ns;
-  slot_ = &slot;
   return StartResult::kStarted;
-}
-
-PollResult SimSource::poll() noexcept {
-  if (slot_ == nullptr) return PollResult::kIdle;
-  if (virtual_) {
-    virtual_now_ns_ = std::max(virtual_now_ns_, end_ns_);
-  } else if (rt::now_ns() < end_ns_) {
-    return PollResult::kBusy;
-  }
-  slot_ = nullptr;
-  return PollResult::kDone;
 }
 
 void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_start_ns, std::uint64_t seq,

@@ -17,6 +17,7 @@
 #include "sempose/config/sim_config.hpp"
 #include "sempose/hal/image.hpp"
 #include "sempose/hal/scan_source.hpp"
+#include "sempose/hal/scan_timer.hpp"
 
 namespace sempose::hal {
 
@@ -27,13 +28,11 @@ class ReplaySource final : public ScanSource {
 
   const ScanLimits& limits() const noexcept override { return limits_; }
   StartResult start(const ScanRequest& req, FrameSlot& slot) noexcept override;
-  PollResult poll() noexcept override;
-  std::int64_t now_ns() const noexcept override;
-  std::int64_t expected_done_ns() const noexcept override { return slot_ ? end_ns_ : 0; }
-  bool is_virtual_time() const noexcept override { return virtual_; }
-  void advance_virtual_ns(std::int64_t ns) noexcept override {
-    if (virtual_ && ns > 0) now_virtual_ns_ += ns;
-  }
+  PollResult poll() noexcept override { return timer_.poll(); }
+  std::int64_t now_ns() const noexcept override { return timer_.now_ns(); }
+  std::int64_t expected_done_ns() const noexcept override { return timer_.expected_done_ns(); }
+  bool is_virtual_time() const noexcept override { return timer_.is_virtual(); }
+  void advance_virtual_ns(std::int64_t ns) noexcept override { timer_.advance_virtual_ns(ns); }
 
   std::size_t frame_count() const noexcept { return frames_.size(); }
   std::size_t next_frame() const noexcept { return index_; }
@@ -41,17 +40,14 @@ class ReplaySource final : public ScanSource {
  private:
   ScanLimits limits_;
   bool loop_;
-  bool virtual_;
+  ScanTimer timer_;
   std::vector<Image> frames_;
   std::vector<std::int64_t> t_ns_;  // per frame, or empty
   std::vector<std::array<TargetTruth, kMaxTargets>> truth_;  // per frame, or empty
   std::uint8_t truth_count_ = 0;
   std::int64_t loop_offset_ns_ = 0;
-  std::int64_t now_virtual_ns_ = 1'000'000'000;
   std::size_t index_ = 0;
   std::uint64_t seq_ = 0;
-  FrameSlot* slot_ = nullptr;
-  std::int64_t end_ns_ = 0;
 };
 
 // Sorted *.pgm names in a directory (setup; throws when it is missing or has none).

@@ -15,6 +15,7 @@
 #include "sempose/config/sim_config.hpp"
 #include "sempose/hal/image.hpp"
 #include "sempose/hal/scan_source.hpp"
+#include "sempose/hal/scan_timer.hpp"
 #include "sempose/hal/sim_rng.hpp"
 #include "sempose/hal/sim_scene.hpp"
 #include "sempose/hal/trajectory.hpp"
@@ -23,20 +24,18 @@ namespace sempose::hal {
 
 class SimSource final : public ScanSource {
  public:
-  static constexpr std::int64_t kVirtualEpochNs = 1'000'000'000;
+  static constexpr std::int64_t kVirtualEpochNs = ScanTimer::kVirtualEpochNs;
 
   // Setup: builds the scene; throws std::runtime_error with a message on a bad config.
   SimSource(const ScanLimits& limits, const config::SimConfig& cfg);
 
   const ScanLimits& limits() const noexcept override { return limits_; }
   StartResult start(const ScanRequest& req, FrameSlot& slot) noexcept override;
-  PollResult poll() noexcept override;
-  std::int64_t now_ns() const noexcept override;
-  std::int64_t expected_done_ns() const noexcept override { return slot_ ? end_ns_ : 0; }
-  bool is_virtual_time() const noexcept override { return virtual_; }
-  void advance_virtual_ns(std::int64_t ns) noexcept override {
-    if (virtual_ && ns > 0) virtual_now_ns_ += ns;
-  }
+  PollResult poll() noexcept override { return timer_.poll(); }
+  std::int64_t now_ns() const noexcept override { return timer_.now_ns(); }
+  std::int64_t expected_done_ns() const noexcept override { return timer_.expected_done_ns(); }
+  bool is_virtual_time() const noexcept override { return timer_.is_virtual(); }
+  void advance_virtual_ns(std::int64_t ns) noexcept override { timer_.advance_virtual_ns(ns); }
 
   // Renders roi as scanned from t_start_ns (the source's clock) into out (roi.w·roi.h
   // pixels) and fills truth[0..target count) with the poses at mid-scan. RT-safe.
@@ -55,15 +54,12 @@ class SimSource final : public ScanSource {
 
   ScanLimits limits_;
   SimScene scene_;
-  bool virtual_;
+  ScanTimer timer_;
   std::int64_t epoch_ns_;
-  std::int64_t virtual_now_ns_ = kVirtualEpochNs;
   std::array<Trajectory, kMaxTargets> trajectories_{};
   std::array<float, 64> lag_px_{};  // beam position lag for the first pixels of a line
   SimRng rng_{0, 0};
   std::uint64_t seq_ = 0;
-  FrameSlot* slot_ = nullptr;
-  std::int64_t end_ns_ = 0;
 };
 
 // The pattern an operator would record (the paper averaged 10 frames): target target_index at

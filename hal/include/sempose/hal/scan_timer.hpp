@@ -1,0 +1,68 @@
+// Clock and completion shared by the sources that produce the whole frame in start() (the
+// simulated SEM, replay): a scan is done once its modelled scan time (w·h·dwell + h·flyback)
+// has passed on CLOCK_MONOTONIC, or at once on the virtual clock, which then jumps to the
+// scan end. RT-safe: noexcept, no allocation.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+
+#include "sempose/hal/scan_source.hpp"
+#include "sempose/rt/clock.hpp"
+
+namespace sempose::hal {
+
+class ScanTimer {
+ public:
+  // Virtual time starts at 1 s: 0 means "not reached" in FrameMeta.
+  static constexpr std::int64_t kVirtualEpochNs = 1'000'000'000;
+
+  explicit ScanTimer(bool virtual_time) noexcept : virtual_(virtual_time) {}
+
+  bool is_virtual() const noexcept { return virtual_; }
+  bool busy() const noexcept { return slot_ != nullptr; }
+  std::int64_t now_ns() const noexcept { return virtual_ ? virtual_now_ns_ : rt::now_ns(); }
+  std::int64_t expected_done_ns() const noexcept { return slot_ ? end_ns_ : 0; }
+  void advance_virtual_ns(std::int64_t ns) noexcept {
+    if (virtual_ && ns > 0) virtual_now_ns_ += ns;
+  }
+
+  // Fills the identity and timing fields of slot.meta for req (dwell already checked and
+  // rounded) scanned from t0_ns, and arms completion. The caller fills pixels and truth.
+  void begin(FrameSlot& slot, const ScanRequest& req, const ScanLimits& limits, std::uint32_t dwell_ns,
+             std::uint64_t seq, std::int64_t t0_ns) noexcept {
+    FrameMeta& m = slot.meta;
+    m.seq = seq;
+    m.roi = req.roi;
+    m.field_w = limits.field_w;
+    m.field_h = limits.field_h;
+    m.dwell_ns = dwell_ns;
+    m.bits = limits.bits;
+    m.target = req.target;
+    m.status = FrameStatus::kOk;
+    m.t_scan_start_ns = t0_ns;
+    m.t_scan_end_ns = t0_ns + limits.scan_time_ns(req.roi.w, req.roi.h, dwell_ns);
+    m.t_seen_ns = m.t_pose_done_ns = m.t_sent_ns = 0;
+    end_ns_ = m.t_scan_end_ns;
+    slot_ = &slot;
+  }
+
+  PollResult poll() noexcept {
+    if (slot_ == nullptr) return PollResult::kIdle;
+    if (virtual_) {
+      virtual_now_ns_ = std::max(virtual_now_ns_, end_ns_);
+    } else if (rt::now_ns() < end_ns_) {
+      return PollResult::kBusy;
+    }
+    slot_ = nullptr;
+    return PollResult::kDone;
+  }
+
+ private:
+  bool virtual_;
+  std::int64_t virtual_now_ns_ = kVirtualEpochNs;
+  FrameSlot* slot_ = nullptr;
+  std::int64_t end_ns_ = 0;
+};
+
+}  // namespace sempose::hal
