@@ -6,6 +6,7 @@
 #pragma GCC diagnostic ignored "-Wnull-dereference"  // GCC 12 false positive in std::vector<float>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -105,6 +106,10 @@ Bias sim_bias(const config::TrackerConfig& tc, const std::string& target, double
 int main(int argc, char** argv) {
   const bool quick = argc > 1 && std::strcmp(argv[1], "--quick") == 0;
   const bool bias_only = argc > 1 && std::strcmp(argv[1], "--bias") == 0;
+  // --only TARGET [MOTION]: just those table rows, no bias section (a quick look at one case).
+  const bool only = argc > 2 && std::strcmp(argv[1], "--only") == 0;
+  const std::string only_target = only ? argv[2] : "";
+  const std::string only_motion = only && argc > 3 ? argv[3] : "";
   config::TrackerConfig tc;
   const int frames = quick ? 60 : 150;
   std::printf("accuracy on the simulated SEM: 640x480 field, pattern %d², ROI %d², 250 ns dwell, %d frames per run\n"
@@ -117,7 +122,9 @@ int main(int argc, char** argv) {
   int bad = 0;
   for (const char* target : {"needle_tip", "lamella_post", "lamella"}) {
     if (bias_only) break;
+    if (only && only_target != target) continue;
     for (const char* motion : {"smooth", "fast", "spin", "jump"}) {
+      if (only && !only_motion.empty() && only_motion != motion) continue;
       for (double dose : {20.0, 6.0, 2.5, 1.0}) {
         if (quick && dose == 20.0) continue;
         Scenario s;
@@ -133,6 +140,15 @@ int main(int argc, char** argv) {
         }
         h.run();
         const RunStats r = h.stats();
+        // TRACE_DOSE=<dose> in the environment: every frame's pose and truth of that dose's runs.
+        if (std::getenv("TRACE_DOSE") && std::atof(std::getenv("TRACE_DOSE")) == dose)
+          for (std::size_t f = 0; f < h.poses().size(); ++f) {
+            const auto& e = h.poses()[f];
+            const auto& t = h.truth()[f];
+            std::printf("f%3zu st%d s%d rb%02x est %7.2f %7.2f %7.2f truth %7.2f %7.2f %7.2f sc %.3f\n", f,
+                        static_cast<int>(e.state), e.searched, e.reason_bits, e.x_px, e.y_px, e.phi_deg, t.x_px,
+                        t.y_px, t.phi_deg, e.score);
+          }
         for (const auto& e : h.poses())
           if (!std::isfinite(e.x_px) || !std::isfinite(e.phi_deg) || !std::isfinite(e.score)) ++bad;
         char recov[16] = "-";
@@ -145,6 +161,7 @@ int main(int argc, char** argv) {
     }
   }
 
+  if (only) return bad ? 2 : 0;
   std::printf("\nbias (mean error in the target's own frame: along its x axis, across it, and in angle)\n");
   std::printf("%-36s %6s | %8s %8s %8s %8s\n", "source", "phi", "along", "across", "phi_deg", "rms_px");
   for (double phi : {0.0, 90.0, 180.0, -90.0, 33.0}) {
