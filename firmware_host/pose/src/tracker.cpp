@@ -589,16 +589,17 @@ struct Tracker::Impl {
     return best;
   }
 
-  // Scores of a target and its 180° look-alike within kFlipTieScore of each other are a tie
-  // at a few electrons per pixel (measured: 0.003–0.005 between the two on the simulated
-  // lamellae, the true one not always ahead). A target that was being tracked has not turned
-  // by 180° meanwhile: a tie goes to the angle nearer the last tracked one, or, with no
-  // history, stays with the coarse level's choice (m).
-  static constexpr float kFlipTieScore = 0.01f;
+  // Exact scores of a target and its 180° look-alike within kFlipTieScore of each other are a
+  // tie at a few electrons per pixel (measured on the simulated lamellae: wrong-way-round
+  // leads of 0.003–0.016 at doses 1–6 e⁻/px; the true flip of lamella_post at 2.5 e⁻/px
+  // leads by 0.03). A target that was being tracked has not turned by 180° meanwhile: a tie
+  // goes to the angle within kFlipPriorDeg of the last tracked one (a last pose from a torn
+  // frame can be far off: no prior then), else stays with the coarse level's choice (m).
+  static constexpr float kFlipTieScore = 0.02f;
+  static constexpr double kFlipPriorDeg = 45.0;
   bool prefer_opposite(const Measurement& m, const Measurement& f) const noexcept {
     if (std::fabs(f.score - m.score) >= kFlipTieScore) return f.score > m.score;
-    if (!have_last_phi) return false;
-    return std::fabs(wrap_deg(f.j * step - last_phi)) < std::fabs(wrap_deg(m.j * step - last_phi));
+    return have_last_phi && std::fabs(wrap_deg(f.j * step - last_phi)) < kFlipPriorDeg;
   }
 
   void insert_candidate(const Candidate& c, int sep) noexcept {
