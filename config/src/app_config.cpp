@@ -24,6 +24,14 @@ void cross_check(Section& root, const AppConfig& c) {
   }
 }
 
+// Reads one top-level section with its part's reader; the child Section reports its unknown
+// keys when it goes out of scope here.
+template <typename Config>
+void read_section(Section& root, const char* key, void (*reader)(Section&, Config&), Config& out) {
+  Section s = root.child(key);
+  reader(s, out);
+}
+
 // Pattern files are written relative to the config file's folder.
 std::string resolve(const std::string& config_path, const std::string& file) {
   if (file.empty() || file[0] == '/') return file;
@@ -49,46 +57,19 @@ bool load_app_config(const std::string& path, AppConfig& result, std::string& er
   {
     Section root(node, "", errors);
     root.opt_choice("source", out.source, {"sim", "replay"});
-    {
-      Section s = root.child("scan");
-      read_scan(s, out.scan);
-    }
-    {
-      Section s = root.child("sim");
-      read_sim(s, out.sim);
-    }
-    {
-      Section s = root.child("replay");
-      read_replay(s, out.replay);
-    }
+    read_section(root, "scan", read_scan, out.scan);
+    read_section(root, "sim", read_sim, out.sim);
+    read_section(root, "replay", read_replay, out.replay);
     read_targets(root, out.targets);
     for (auto& t : out.targets) {
       for (auto& p : t.pattern_sets) p.file = resolve(path, p.file);
     }
-    {
-      Section s = root.child("tracker");
-      read_tracker(s, out.tracker);
-    }
-    {
-      Section s = root.child("governor");
-      read_governor(s, out.governor);
-    }
-    {
-      Section s = root.child("pipeline");
-      read_pipeline(s, out.pipeline);
-    }
-    {
-      Section s = root.child("output");
-      read_output(s, out.output);
-    }
-    {
-      Section s = root.child("can");
-      read_can(s, out.can);
-    }
-    {
-      Section s = root.child("gpio");
-      read_gpio(s, out.gpio);
-    }
+    read_section(root, "tracker", read_tracker, out.tracker);
+    read_section(root, "governor", read_governor, out.governor);
+    read_section(root, "pipeline", read_pipeline, out.pipeline);
+    read_section(root, "output", read_output, out.output);
+    read_section(root, "can", read_can, out.can);
+    read_section(root, "gpio", read_gpio, out.gpio);
     cross_check(root, out);
   }  // root's destructor reports unknown top-level sections
   error_text = errors.joined();
