@@ -6,6 +6,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cstdlib>
+#include <string>
 #include <cstdio>
 #include <vector>
 
@@ -37,10 +39,14 @@ Timing time_it(int reps, F&& f) {
 
 }  // namespace
 
-int main() {
+int main(int argc, char** argv) {
+  // --profile ROI [REPS]: only the tracker's per-pose loop at that ROI (for perf record).
+  const int profile_roi = argc > 2 && std::string(argv[1]) == "--profile" ? std::atoi(argv[2]) : 0;
+  const int profile_reps = argc > 3 ? std::atoi(argv[3]) : 20000;
   std::printf("per-pose compute with orientation, pattern 128², 3 angles (median / p99 over runs)\n");
   std::printf("%-6s | %12s %12s | %14s | %7s\n", "ROI", "sempose p50", "sempose p99", "matchTemplate", "ratio");
   for (int roi : {128, 160, 192}) {
+    if (profile_roi && roi != profile_roi) continue;
     config::TrackerConfig tc;
     tc.roi_size_px = roi;
     Scenario s;
@@ -67,6 +73,11 @@ int main() {
     std::vector<hal::Pixel> px(static_cast<std::size_t>(meta.roi.w) * meta.roi.h);
     sim.render(meta.roi, 250, hal::SimSource::kVirtualEpochNs, 1, px.data(), meta.truth);
     int tracked = 0;
+    if (profile_roi) {
+      const Timing p = time_it(profile_reps, [&] { tracked += t.update(meta, px.data()).state == TrackState::kTracking; });
+      std::printf("%3d²   | %9.1f us %9.1f us | tracked %d/%d\n", roi, p.p50_us, p.p99_us, tracked, profile_reps);
+      return 0;
+    }
     const Timing ours = time_it(400, [&] { tracked += t.update(meta, px.data()).state == TrackState::kTracking; });
 
     // The peer: three rotated 8-bit patterns against the 8-bit ROI.

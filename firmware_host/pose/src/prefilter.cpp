@@ -12,23 +12,24 @@ Prefilter::Prefilter(int passes, int max_w, int max_h)
       b_(static_cast<std::size_t>(max_w) * max_h),
       row_(static_cast<std::size_t>(max_w) + 4) {}
 
-int Prefilter::shift_for_bits(int bits) const noexcept { return std::max(0, bits + 8 * passes_ - 20); }
-
 namespace {
+// 32-bit lanes throughout: a pass multiplies by 256 (16 horizontally, 16 vertically), so
+// inputs kept under 2^20 before a pass stay under 2^28 — twice the lanes of 64-bit
+// arithmetic, and the reason each pass rescales its output.
 #define SEMPOSE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 template <typename T>
-void horizontal(const T* src, int w, std::int64_t* row, std::int64_t* out) noexcept {
-  for (int x = 0; x < w; ++x) row[x + 2] = src[x];
+SEMPOSE_CLONES void horizontal(const T* src, int w, std::int32_t* row, std::int32_t* out) noexcept {
+  for (int x = 0; x < w; ++x) row[x + 2] = static_cast<std::int32_t>(src[x]);
   row[0] = row[1] = row[2];
   row[w + 2] = row[w + 3] = row[w + 1];
   for (int x = 0; x < w; ++x) out[x] = row[x] + 4 * row[x + 1] + 6 * row[x + 2] + 4 * row[x + 3] + row[x + 4];
 }
-SEMPOSE_CLONES void vertical(const std::int64_t* in, int w, int h, std::int64_t* out) noexcept {
+SEMPOSE_CLONES void vertical(const std::int32_t* in, int w, int h, int shift, std::int32_t* out) noexcept {
   for (int y = 0; y < h; ++y) {
-    const std::int64_t* r[5];
+    const std::int32_t* r[5];
     for (int k = 0; k < 5; ++k) r[k] = in + static_cast<std::size_t>(std::clamp(y + k - 2, 0, h - 1)) * w;
-    std::int64_t* o = out + static_cast<std::size_t>(y) * w;
-    for (int x = 0; x < w; ++x) o[x] = r[0][x] + 4 * r[1][x] + 6 * r[2][x] + 4 * r[3][x] + r[4][x];
+    std::int32_t* o = out + static_cast<std::size_t>(y) * w;
+    for (int x = 0; x < w; ++x) o[x] = (r[0][x] + 4 * r[1][x] + 6 * r[2][x] + 4 * r[3][x] + r[4][x]) >> shift;
   }
 }
 }  // namespace
@@ -37,23 +38,24 @@ void Prefilter::apply(const std::uint16_t* src, int w, int h, std::ptrdiff_t str
                       std::int32_t* out) noexcept {
   w = std::min(w, max_w_);
   h = std::min(h, max_h_);
-  const int shift = shift_for_bits(bits);
   if (passes_ == 0) {
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) out[y * w + x] = src[y * stride + x];
     return;
   }
-  // Pass 1 reads the source; further passes work in int64 scratch (no overflow for 16-bit).
-  for (int y = 0; y < h; ++y) horizontal(src + y * stride, w, row_.data(), b_.data() + static_cast<std::size_t>(y) * w);
-  vertical(b_.data(), w, h, a_.data());
-  for (int p = 1; p < passes_; ++p) {
+  // Each pass's output is shifted back to at most 20 bits (the correlator's window sums and
+  // the next pass both need that headroom); the last pass writes straight into out.
+  int cur_bits = bits;
+  for (int p = 0; p < passes_; ++p) {
+    const int shift = std::max(0, cur_bits + 8 - 20);
+    cur_bits = std::min(20, cur_bits + 8);
     for (int y = 0; y < h; ++y) {
-      horizontal(a_.data() + static_cast<std::size_t>(y) * w, w, row_.data(), b_.data() + static_cast<std::size_t>(y) * w);
+      std::int32_t* dst = b_.data() + static_cast<std::size_t>(y) * w;
+      if (p == 0) horizontal(src + y * stride, w, row_.data(), dst);
+      else horizontal(a_.data() + static_cast<std::size_t>(y) * w, w, row_.data(), dst);
     }
-    vertical(b_.data(), w, h, a_.data());
+    vertical(b_.data(), w, h, shift, p + 1 == passes_ ? out : a_.data());
   }
-  const std::size_t n = static_cast<std::size_t>(w) * h;
-  for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<std::int32_t>(a_[i] >> shift);
 }
 
 void prefilter_pattern(float* p, int n, int passes) {

@@ -74,27 +74,51 @@ Peak find_peak(const float* map, int vw, int vh, const Window& win = {}) noexcep
   return p;
 }
 
-// Σ t·f over the mask bands: pattern t (P×P), image f at the window's top-left (row stride).
-// The hot loop of every exact evaluation: cloned for AVX-512 / AVX2 (the build targets
-// baseline x86-64), one vector accumulator per row segment.
+// Σ t·f over bands of the pattern: pattern t (P×P), image f at the window's top-left (row
+// stride). The hot loop of every exact evaluation, cloned for AVX-512 / AVX2 (the build
+// targets baseline x86-64). The bands are the mask's, widened to whole 16-float chunks
+// (dot_bands): t is zero outside the mask, so the extra products add exactly nothing, and
+// each chunk is one vector multiply-add into 16 lane sums reduced once at the end (a
+// per-row horizontal reduction cost more than the products themselves).
 __attribute__((target_clones("avx512f", "avx2", "default"))) double masked_dot(const float* t, int P, const float* f,
                                                                            std::ptrdiff_t stride, const MaskBand* bands,
                                                                            int n_bands) noexcept {
-  double total = 0;
+  constexpr int kLanes = 16;
+  float lanes[kLanes] = {};
+  float tail = 0;
   for (int k = 0; k < n_bands; ++k) {
     const MaskBand& b = bands[k];
-    float band = 0;
+    const int n = b.x1 - b.x0 + 1, n_vec = n / kLanes * kLanes;
     for (int y = b.y0; y <= b.y1; ++y) {
-      const float* tr = t + static_cast<std::ptrdiff_t>(y) * P;
-      const float* fr = f + static_cast<std::ptrdiff_t>(y) * stride;
-      float a = 0;
-#pragma omp simd reduction(+ : a)
-      for (int x = b.x0; x <= b.x1; ++x) a += tr[x] * fr[x];
-      band += a;
+      const float* tr = t + static_cast<std::ptrdiff_t>(y) * P + b.x0;
+      const float* fr = f + static_cast<std::ptrdiff_t>(y) * stride + b.x0;
+      for (int x = 0; x < n_vec; x += kLanes) {
+#pragma omp simd
+        for (int l = 0; l < kLanes; ++l) lanes[l] += tr[x + l] * fr[x + l];
+      }
+      for (int x = n_vec; x < n; ++x) tail += tr[x] * fr[x];
     }
-    total += band;
   }
+  double total = tail;
+  for (float v : lanes) total += v;
   return total;
+}
+
+// The mask's bands widened to whole 16-column chunks inside the pattern (see masked_dot),
+// neighbouring bands with the same widened columns merged.
+std::vector<MaskBand> dot_bands(const PatternMask& mask) {
+  std::vector<MaskBand> out;
+  const int P = mask.size_px();
+  for (MaskBand b : mask.bands()) {
+    b.x0 = b.x0 / 16 * 16;
+    b.x1 = std::min(P - 1, (b.x1 / 16 + 1) * 16 - 1);
+    if (!out.empty() && out.back().x0 == b.x0 && out.back().x1 == b.x1 && out.back().y1 + 1 == b.y0) {
+      out.back().y1 = b.y1;
+    } else {
+      out.push_back(b);
+    }
+  }
+  return out;
 }
 
 // Offset of a peak from three samples (left, centre, right), in (-0.5, 0.5).
@@ -130,6 +154,7 @@ struct Tracker::Impl {
   int P = 0, R = 0, N = 0, d = 8, Pc = 0, coarse_off = 0, n_angles = 360;
   double step = 1.0;
   PatternMask fine_mask, half_mask, coarse_mask;
+  std::vector<MaskBand> fine_dot_bands;  // fine_mask widened for masked_dot
   // half: the whole ROI, 2×2 binned, correlated via FFT (finds the peak for every displacement);
   // the exact full-resolution ZNCC is then evaluated around it (local_score).
   std::unique_ptr<ZnccCorrelator> half, coarse;
@@ -186,7 +211,8 @@ struct Tracker::Impl {
       : cfg(c),
         fine_mask(pattern_px, c.circular_mask, 8, mask_inset_px(c)),
         half_mask(pattern_px / 2, c.circular_mask, 8, mask_inset_px(c) / 2),
-        coarse_mask(pattern_px / c.search_downsample, c.circular_mask) {
+        coarse_mask(pattern_px / c.search_downsample, c.circular_mask),
+        fine_dot_bands(dot_bands(fine_mask)) {
     build_fit();
   }
 
@@ -308,7 +334,7 @@ struct Tracker::Impl {
       s2 += sat2[yb + xb] - sat2[yb + xa] - sat2[ya + xb] + sat2[ya + xa];
     }
     const double tf = masked_dot(t, P, roi_img.data() + static_cast<std::size_t>(uy) * roi_w + ux, roi_w,
-                                 fine_mask.bands().data(), static_cast<int>(fine_mask.bands().size()));
+                                 fine_dot_bands.data(), static_cast<int>(fine_dot_bands.size()));
     // Σt = 0 under the mask, so Σ t·(f − mean) = Σ t·f for any offset of f.
     tf_out = tf;
     const double n = static_cast<double>(fine_mask.count());
@@ -629,11 +655,6 @@ struct Tracker::Impl {
     roi_w = w;
     roi_h = h;
     prefilter->apply(px, w, h, stride, bits, filtered.data());
-    const std::size_t n = static_cast<std::size_t>(w) * h;
-    double sum = 0;
-    for (std::size_t i = 0; i < n; ++i) sum += filtered[i];
-    const float mean = static_cast<float>(sum / static_cast<double>(n));
-    for (std::size_t i = 0; i < n; ++i) roi_img[i] = static_cast<float>(filtered[i]) - mean;
     const std::size_t sw = static_cast<std::size_t>(w) + 1;
     for (std::size_t x = 0; x < sw; ++x) sat1[x] = sat2[x] = 0;
     for (int y = 0; y < h; ++y) {
@@ -651,6 +672,11 @@ struct Tracker::Impl {
         o2[x + 1] = p2[x + 1] + r2;
       }
     }
+    // The ROI's mean from the table's corner (exact; a running double sum is a serial chain
+    // of dependent adds and cost more than the table).
+    const std::size_t n = static_cast<std::size_t>(w) * h;
+    const float mean = static_cast<float>(static_cast<double>(sat1[static_cast<std::size_t>(h) * sw + w]) / static_cast<double>(n));
+    for (std::size_t i = 0; i < n; ++i) roi_img[i] = static_cast<float>(filtered[i]) - mean;
     const int bw = w / 2, bh = h / 2;
     for (int y = 0; y < bh; ++y) {
       const std::int32_t* r0 = filtered.data() + static_cast<std::size_t>(2 * y) * w;

@@ -2,7 +2,8 @@
 // (σ ≈ 1 px each) in integers, edges replicated. At single-digit electrons per pixel most
 // of a pixel's variance is shot noise; correlating smoothed frame and smoothed pattern is
 // the matched filter for the texture's band and lifts the ZNCC peak well above the noise.
-// Integer output keeps the correlator's window sums exact; the scale is 256^passes >> shift.
+// Integer output keeps the correlator's window sums exact; each pass scales by 256 and is
+// shifted back to at most 20 bits.
 #pragma once
 
 #include <cstddef>
@@ -16,14 +17,12 @@ class Prefilter {
   // max_w/max_h: the largest region filtered (setup allocates the scratch rows).
   Prefilter(int passes, int max_w, int max_h);
   int passes() const noexcept { return passes_; }
-  // Right shift keeping outputs <= 2^20 for `bits`-bit input (window sums stay exact).
-  int shift_for_bits(int bits) const noexcept;
   // RT: filters a w×h region (row stride in px) into out (w×h, row stride w).
   void apply(const std::uint16_t* src, int w, int h, std::ptrdiff_t stride, int bits, std::int32_t* out) noexcept;
 
  private:
   int passes_, max_w_, max_h_;
-  std::vector<std::int64_t> a_, b_, row_;
+  std::vector<std::int32_t> a_, b_, row_;
 };
 
 // Setup: the same filter on a float pattern (n×n, edges replicated), passes times.
