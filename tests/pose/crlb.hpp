@@ -119,54 +119,98 @@ inline hal::Roi mask_window(double x, double y, int P) {
   return {static_cast<std::int32_t>(std::lround(x - half)), static_cast<std::int32_t>(std::lround(y - half)), P, P};
 }
 
-// The simulator (config cfg, field fw×fh, dwell) with target 0 standing still at (x, y, φ):
-// noise, drift, beam lag and brightness drift off (the renders are the expected electrons);
-// the static background stays (its pixels do not move with θ, so they carry no pose
-// information by themselves). Variance: the simulator's cascade, λ·(1 + 1/k) + read_noise².
-// Each render builds its own SimSource (the trajectory is fixed at construction).
-inline Crlb crlb_sim_config(config::SimConfig cfg, std::int32_t fw, std::int32_t fh, std::uint32_t dwell_ns,
-                            const config::TrackerConfig& tc, double x, double y, double phi_deg, CrlbStep step = {}) {
-  cfg.noise = false;
-  cfg.drift.clear();
-  cfg.beam_lag_px = 0;
-  cfg.brightness_drift = 0;
-  cfg.clock = "virtual";
-  auto& t = cfg.targets[0];
-  t.trajectory = config::TrajectoryConfig{};  // static
+// The simulator's expected electrons of one ROI with target 0 at any pose, from a SimScene
+// built once (building it — texture load, PSF blur — takes ~40 ms, a render ~1 ms): the
+// compositing lines of SimSource::render copied (hal/scan/sim_source.cpp, float arithmetic
+// kept) with noise, jitter, drift, beam lag and brightness drift off; only target 0 is drawn
+// (make_sim_config disables the others). test_crlb checks it against SimSource::render.
+class SimMeanRenderer {
+ public:
+  SimMeanRenderer(const config::SimConfig& cfg, std::int32_t fw, std::int32_t fh, std::uint32_t dwell_ns)
+      : scene_(cfg, limits(fw, fh)),
+        n_white_(std::max(1e-9, cfg.electrons_per_pixel(dwell_ns))),
+        excess_(1.0 + 1.0 / cfg.detector_gain_shape),
+        read_noise_e_(cfg.read_noise_e) {}
+  CrlbNoise noise() const noexcept { return {excess_, read_noise_e_}; }
+
+  void render(const hal::Roi& roi, double x, double y, double phi_deg, std::vector<double>& out) const {
+    out.resize(static_cast<std::size_t>(roi.w) * roi.h);
+    const hal::FloatImage& bg = scene_.background();
+    const hal::SimLayer& L = scene_.targets()[0];
+    const double rad = phi_deg * (6.283185307179586 / 360.0);
+    const float c = static_cast<float>(std::cos(rad)), s = static_cast<float>(std::sin(rad));
+    for (int row = 0; row < roi.h; ++row) {
+      const float qy = static_cast<float>(roi.y + row);
+      const bool active = L.enabled && std::fabs(qy - y) <= L.radius;
+      const float qx0 = static_cast<float>(roi.x);
+      for (int i = 0; i < roi.w; ++i) {
+        const float qx = qx0 + static_cast<float>(i);
+        float b = sample_clamped(bg, qx, qy);
+        if (active) {
+          const float X = qx - static_cast<float>(x), Y = qy - static_cast<float>(y);
+          const float u = static_cast<float>(L.cx) + c * X - s * Y;
+          const float v = static_cast<float>(L.cy) + s * X + c * Y;
+          if (u >= 0.0f && v >= 0.0f && u < static_cast<float>(L.alpha.w - 1) && v < static_cast<float>(L.alpha.h - 1)) {
+            const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
+            const float au = u - u0, av = v - v0;
+            const std::size_t o = static_cast<std::size_t>(v0) * L.alpha.w + u0;
+            const float w00 = (1 - au) * (1 - av), w10 = au * (1 - av), w01 = (1 - au) * av, w11 = au * av;
+            const float* A = &L.alpha.v[o];
+            const float* P = &L.premul.v[o];
+            const std::size_t st = static_cast<std::size_t>(L.alpha.w);
+            const float al = w00 * A[0] + w10 * A[1] + w01 * A[st] + w11 * A[st + 1];
+            const float pm = w00 * P[0] + w10 * P[1] + w01 * P[st] + w11 * P[st + 1];
+            b = b * (1.0f - al) + pm;
+          }
+        }
+        out[static_cast<std::size_t>(row) * roi.w + i] = std::max(0.0, static_cast<double>(b)) * n_white_;
+      }
+    }
+  }
+
+ private:
+  static hal::ScanLimits limits(std::int32_t fw, std::int32_t fh) {
+    hal::ScanLimits lim;
+    lim.field_w = fw;
+    lim.field_h = fh;
+    return lim;
+  }
+  // Copied from sim_source.cpp (file-local there): bilinear, coordinates clamped to the image.
+  static float sample_clamped(const hal::FloatImage& img, float x, float y) noexcept {
+    x = std::clamp(x, 0.0f, static_cast<float>(img.w - 1));
+    y = std::clamp(y, 0.0f, static_cast<float>(img.h - 1));
+    const int x0 = std::min(static_cast<int>(x), img.w - 2 < 0 ? 0 : img.w - 2);
+    const int y0 = std::min(static_cast<int>(y), img.h - 2 < 0 ? 0 : img.h - 2);
+    const float ax = x - x0, ay = y - y0;
+    const float* p = &img.v[static_cast<std::size_t>(y0) * img.w + x0];
+    const float top = p[0] + ax * (p[1] - p[0]);
+    const float bot = p[img.w] + ax * (p[img.w + 1] - p[img.w]);
+    return top + ay * (bot - top);
+  }
+
+  hal::SimScene scene_;
+  double n_white_, excess_, read_noise_e_;
+};
+
+// The bound for the simulator's target 0 standing still at (x, y, φ) in field fw×fh: the static
+// background stays (its pixels do not move with θ, so they carry no pose information by
+// themselves). Variance: the simulator's cascade, λ·(1 + 1/k) + read_noise².
+inline Crlb crlb_sim(const SimMeanRenderer& sim, std::int32_t fw, std::int32_t fh, const config::TrackerConfig& tc,
+                     double x, double y, double phi_deg, CrlbStep step = {}) {
   const int P = tc.pattern_size_px;
-  hal::ScanLimits lim;
-  lim.field_w = fw;
-  lim.field_h = fh;
-  lim.max_roi_w = lim.max_roi_h = std::max(256, P);
-  lim.bits = 16;  // fine output steps: the differences of δ-shifted renders are a few counts at 8 bits
   hal::Roi roi = mask_window(x, y, P);
   roi.x = std::clamp(roi.x, 0, fw - P);
   roi.y = std::clamp(roi.y, 0, fh - P);
-  // Counts back to electrons as SimSource::render maps them (its + 0.5 only rounds).
-  const double n_white = std::max(1e-9, cfg.electrons_per_pixel(dwell_ns));
-  const double counts_per_e = cfg.output_white * lim.max_value() / n_white;
-  const double offset_counts = cfg.output_offset * lim.max_value();
   const std::size_t n = static_cast<std::size_t>(P) * P;
-  std::vector<hal::Pixel> px(n);
-  hal::TargetTruth truth[hal::kMaxTargets];
-  auto render = [&](double px_x, double px_y, double ph, std::vector<double>& out) {
-    t.x_px = px_x;
-    t.y_px = px_y;
-    t.phi_deg = ph;
-    hal::SimSource src(lim, cfg);
-    src.render(roi, dwell_ns, hal::SimSource::kVirtualEpochNs, 0, px.data(), truth);
-    out.resize(n);
-    for (std::size_t i = 0; i < n; ++i) out[i] = (px[i] - offset_counts) / counts_per_e;
-  };
   std::vector<double> mean_e;
   std::array<std::vector<double>, 3> plus, minus;
-  render(x, y, phi_deg, mean_e);
-  render(x + step.pos_px, y, phi_deg, plus[0]);
-  render(x - step.pos_px, y, phi_deg, minus[0]);
-  render(x, y + step.pos_px, phi_deg, plus[1]);
-  render(x, y - step.pos_px, phi_deg, minus[1]);
-  render(x, y, phi_deg + step.phi_deg, plus[2]);
-  render(x, y, phi_deg - step.phi_deg, minus[2]);
+  sim.render(roi, x, y, phi_deg, mean_e);
+  sim.render(roi, x + step.pos_px, y, phi_deg, plus[0]);
+  sim.render(roi, x - step.pos_px, y, phi_deg, minus[0]);
+  sim.render(roi, x, y + step.pos_px, phi_deg, plus[1]);
+  sim.render(roi, x, y - step.pos_px, phi_deg, minus[1]);
+  sim.render(roi, x, y, phi_deg + step.phi_deg, plus[2]);
+  sim.render(roi, x, y, phi_deg - step.phi_deg, minus[2]);
   // The mask follows the target; the window may have been clamped at the field's edge.
   std::vector<std::uint8_t> use = tracker_mask(tc);
   const hal::Roi want = mask_window(x, y, P);
@@ -180,8 +224,13 @@ inline Crlb crlb_sim_config(config::SimConfig cfg, std::int32_t fw, std::int32_t
       }
     use.swap(moved);
   }
-  const CrlbNoise noise{1.0 + 1.0 / cfg.detector_gain_shape, cfg.read_noise_e};
-  return crlb_from_renders(mean_e, plus, minus, {step.pos_px, step.pos_px, step.phi_deg}, use, noise);
+  return crlb_from_renders(mean_e, plus, minus, {step.pos_px, step.pos_px, step.phi_deg}, use, sim.noise());
+}
+
+// One-off form (builds the scene): config cfg, field fw×fh, dwell.
+inline Crlb crlb_sim_config(const config::SimConfig& cfg, std::int32_t fw, std::int32_t fh, std::uint32_t dwell_ns,
+                            const config::TrackerConfig& tc, double x, double y, double phi_deg, CrlbStep step = {}) {
+  return crlb_sim(SimMeanRenderer(cfg, fw, fh, dwell_ns), fw, fh, tc, x, y, phi_deg, step);
 }
 
 // A benchmark scenario (make_sim_config, as SimHarness runs it) at the pose (x, y, φ).

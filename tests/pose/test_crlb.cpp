@@ -182,3 +182,46 @@ TEST(Crlb, SimulatorBackgroundAloneCarriesNoPoseInformation) {
   EXPECT_FALSE(c.valid);
   EXPECT_TRUE(std::isinf(c.pos_rms_px()));
 }
+
+// The bound's renderer copies SimSource::render's compositing; it must stay equal to it (noise,
+// drift and beam lag off), or the bench's bound would describe another scene.
+TEST(Crlb, SimMeanRendererEqualsTheSimulatorsNoiseFreeRender) {
+  for (const char* target : {"needle_tip", "lamella_post", "lamella"}) {
+    Scenario s;
+    s.target = target;
+    s.dose_e = 6.0;
+    config::SimConfig cfg = make_sim_config(s);
+    cfg.noise = false;
+    cfg.drift.clear();
+    cfg.beam_lag_px = 0;
+    cfg.brightness_drift = 0;
+    cfg.clock = "virtual";
+    const double x = 301.37, y = 252.81, phi = -47.3;
+    cfg.targets[0].x_px = x;
+    cfg.targets[0].y_px = y;
+    cfg.targets[0].phi_deg = phi;
+    cfg.targets[0].trajectory = config::TrajectoryConfig{};
+    hal::ScanLimits lim;
+    lim.field_w = s.field_w;
+    lim.field_h = s.field_h;
+    lim.bits = 16;
+    hal::SimSource src(lim, cfg);
+    const hal::Roi roi{240, 190, 128, 128};
+    std::vector<hal::Pixel> px(128 * 128);
+    hal::TargetTruth truth[hal::kMaxTargets];
+    src.render(roi, s.dwell_ns, hal::SimSource::kVirtualEpochNs, 0, px.data(), truth);
+    const SimMeanRenderer mine(cfg, s.field_w, s.field_h, s.dwell_ns);
+    std::vector<double> e;
+    mine.render(roi, x, y, phi, e);
+    const double n_white = cfg.electrons_per_pixel(s.dwell_ns);
+    const double counts_per_e = cfg.output_white * 65535.0 / n_white, offset = cfg.output_offset * 65535.0 + 0.5;
+    double worst = 0, spread = 0;
+    for (std::size_t i = 0; i < px.size(); ++i) {
+      const double expect = std::floor(offset + e[i] * counts_per_e);
+      worst = std::max(worst, std::fabs(px[i] - expect));
+      spread = std::max(spread, std::fabs(e[i] - e[0]));
+    }
+    EXPECT_LE(worst, 1.0) << target;      // counts of 65535 (float rounding at a floor)
+    EXPECT_GT(spread, 0.5) << target;     // the ROI shows structure (not a blank comparison)
+  }
+}
