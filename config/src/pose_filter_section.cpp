@@ -10,6 +10,7 @@ void read_pose_filter(Section& s, PoseFilterConfig& c) {
   s.opt("meas_sigma_deg", c.meas_sigma_deg, 1e-4, 180.0);
   s.opt("jerk_px_s3", c.jerk_px_s3, 1e-3, 1e9);
   s.opt("jerk_deg_s3", c.jerk_deg_s3, 1e-3, 1e9);
+  s.opt("adapt_jerk", c.adapt_jerk);
   s.opt("gate_sigma", c.gate_sigma, 1.0, 1000.0);
   s.opt("max_gap_s", c.max_gap_s, 1e-4, 60.0);
 }

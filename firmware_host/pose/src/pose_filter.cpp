@@ -1,5 +1,6 @@
 #include "sempose/pose/pose_filter.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -21,6 +22,16 @@ constexpr double kInitialVelocityVar = 1e4 * 1e4;      // (units/s)²
 constexpr double kInitialAccelerationVar = 1e6 * 1e6;  // (units/s²)²
 
 constexpr int kAxisX = 0, kAxisY = 1, kAxisPhi = 2;
+
+// Process-noise adaptation (adapt_jerk). A consistent filter has E[y²/S] = 1; averaged over
+// ~10 frames (α = 0.1, spread ≈ 0.3) a value above 2 is lag, not noise. Raising by 1.5 per
+// frame catches up within a few frames; 0.98 per frame decays over ~35 frames (a 1 s sine
+// swing is caught in its fast part and released in its slow one). Limit: jerk ×100.
+constexpr double kNisAverageWeight = 0.1;
+constexpr double kNisInconsistent = 2.0;
+constexpr double kNoiseRaisePerFrame = 1.5;
+constexpr double kNoiseDecayPerFrame = 0.98;
+constexpr double kMaxNoiseScale = 1e4;
 
 double wrap_deg(double a) noexcept {
   double w = std::remainder(a, 360.0);  // [-180, 180]
@@ -111,6 +122,8 @@ void PoseFilter::reset() noexcept {
   started_ = false;
   last_t_s_ = 0.0;
   for (auto& a : axes_) a = AxisState{};
+  noise_scale_ = {1.0, 1.0, 1.0};
+  nis_average_ = {1.0, 1.0, 1.0};
 }
 
 PoseSample PoseFilter::start_from(const PoseSample& m, PoseFilterEvent event) noexcept {
@@ -125,6 +138,7 @@ PoseSample PoseFilter::start_from(const PoseSample& m, PoseFilterEvent event) no
     a.P[1][1] = kInitialVelocityVar;
     a.P[2][2] = kInitialAccelerationVar;
   }
+  nis_average_ = {1.0, 1.0, 1.0};  // the learnt noise_scale_ stays: the motion is still as fast
   last_t_s_ = m.t_s;
   started_ = true;
   last_event_ = event;
@@ -147,22 +161,30 @@ PoseSample PoseFilter::update(const PoseSample& m) noexcept {
   const double dt = m.t_s - last_t_s_;
   if (!(dt > 0.0) || dt > config_.max_gap_s) return start_from(m, PoseFilterEvent::kGapReset);
 
-  for (int i = 0; i < 3; ++i) predict(axes_[static_cast<std::size_t>(i)], dt, jerk_psd_[static_cast<std::size_t>(i)]);
+  for (std::size_t i = 0; i < 3; ++i) predict(axes_[i], dt, jerk_psd_[i] * noise_scale_[i]);
   axes_[kAxisPhi].x[0] = wrap_deg(axes_[kAxisPhi].x[0]);
 
   // Innovations of all three axes first: one broken axis re-initialises the whole pose (a
   // jump or a torn frame spoils x, y and φ together).
   const Vec3 z{m.x_px, m.y_px, m.phi_deg};
   Vec3 innovation{};
+  Vec3 nis{};  // normalized innovation squared, y²/S
   for (std::size_t i = 0; i < 3; ++i) {
     const AxisState& a = axes_[i];
     innovation[i] = z[i] - a.x[0];
     if (i == kAxisPhi) innovation[i] = wrap_deg(innovation[i]);
     const double S = a.P[0][0] + meas_var_[i];
-    if (std::fabs(innovation[i]) > config_.gate_sigma * std::sqrt(S))
-      return start_from(m, PoseFilterEvent::kGateReset);
+    nis[i] = innovation[i] * innovation[i] / S;
+    if (nis[i] > config_.gate_sigma * config_.gate_sigma) return start_from(m, PoseFilterEvent::kGateReset);
   }
-  for (std::size_t i = 0; i < 3; ++i) correct(axes_[i], innovation[i], meas_var_[i]);
+  for (std::size_t i = 0; i < 3; ++i) {
+    correct(axes_[i], innovation[i], meas_var_[i]);
+    if (!config_.adapt_jerk) continue;
+    nis_average_[i] += kNisAverageWeight * (nis[i] - nis_average_[i]);
+    noise_scale_[i] = nis_average_[i] > kNisInconsistent
+                          ? std::min(kMaxNoiseScale, noise_scale_[i] * kNoiseRaisePerFrame)
+                          : std::max(1.0, noise_scale_[i] * kNoiseDecayPerFrame);
+  }
   axes_[kAxisPhi].x[0] = wrap_deg(axes_[kAxisPhi].x[0]);
 
   const PoseSample out{m.t_s, axes_[kAxisX].x[0], axes_[kAxisY].x[0], axes_[kAxisPhi].x[0]};

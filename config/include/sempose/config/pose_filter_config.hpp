@@ -20,6 +20,12 @@ struct PoseFilterConfig {
   // exactly). Larger: less lag on fast-changing motion, less noise reduction.
   double jerk_px_s3 = 1000.0;
   double jerk_deg_s3 = 1000.0;
+  // Motion faster than the jerk setting makes the filter lag: its normalized innovations grow
+  // (squared, averaged over ~10 frames: NIS > 2). true: that axis' process noise is then
+  // raised (×1.5 per frame, up to jerk ×100) and decays back (×0.98 per frame) once the
+  // innovations fit again, so the output is never much worse than the raw poses. Costs
+  // smoothing when meas_sigma_* is set below the real noise (NIS > 2 on noise alone).
+  bool adapt_jerk = true;
   // Normalized innovation |z - prediction| / σ_innovation above this on any axis = the model
   // is broken: re-initialise from the measurement instead of smoothing it away.
   double gate_sigma = 4.5;

@@ -3,7 +3,9 @@
 // jerk, on the real frame timestamps (the scan-speed governor varies the frame interval).
 // An innovation gate re-initialises the filter from the measurement when the motion breaks
 // the model (bounce, jump, torn frame), so it never smooths a real jump away; right after a
-// (re)start it outputs the raw poses and converges over a few frames.
+// (re)start it outputs the raw poses and converges over a few frames. When the motion is
+// faster than the configured jerk (lag shows as oversized innovations) the process noise of
+// that axis is raised until the innovations fit again (adapt_jerk).
 //
 // Pure algorithm, RT-safe: update() and reset() are noexcept, allocate nothing, block on
 // nothing. The constructor checks the settings (setup only; throws std::invalid_argument).
@@ -54,6 +56,9 @@ class PoseFilter {
     std::array<std::array<double, 3>, 3> P{};      // covariance
   };
   const AxisState& axis(int i) const noexcept { return axes_[static_cast<std::size_t>(i)]; }
+  // Current process-noise factor of an axis (1 = the configured jerk; > 1 = raised because
+  // the motion outran the model, see PoseFilterConfig::adapt_jerk).
+  double process_noise_scale(int i) const noexcept { return noise_scale_[static_cast<std::size_t>(i)]; }
 
  private:
   PoseSample start_from(const PoseSample& measured, PoseFilterEvent event) noexcept;
@@ -62,6 +67,8 @@ class PoseFilter {
   std::array<double, 3> meas_var_{};   // r² per axis
   std::array<double, 3> jerk_psd_{};   // q per axis
   std::array<AxisState, 3> axes_{};
+  std::array<double, 3> noise_scale_{};  // adaptive factor on jerk_psd_
+  std::array<double, 3> nis_average_{};  // EWMA of the squared normalized innovation
   double last_t_s_ = 0.0;
   bool started_ = false;
   PoseFilterEvent last_event_ = PoseFilterEvent::kStarted;
