@@ -1,8 +1,9 @@
 // Accuracy on the simulated SEM (closed loop, ground truth): tracked share, start searches,
 // RMS/max errors, jump recovery and false TRACKING poses per target texture, motion and dose;
 // then the sub-pixel / angle bias, simulator-free (a real SEM crop warped to exact poses) and
-// on the simulator. Printed figures; exits non-zero only when something is broken (NaN,
-// crash), never on a figure.
+// on the simulator. Next to the measured RMS errors: the Cramér–Rao bound of a single frame
+// (crlb.hpp) at the run's true poses, and the efficiency bound/measured. Printed figures;
+// exits non-zero only when something is broken (NaN, crash), never on a figure.
 #pragma GCC diagnostic ignored "-Wnull-dereference"  // GCC 12 false positive in std::vector<float>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include <cstring>
 #include <string>
 
+#include "crlb.hpp"
 #include "sim_harness.hpp"
 #include "warp_scene.hpp"
 
@@ -23,8 +25,32 @@ double angle_error(double a, double b) { return std::fmod(a - b + 540.0, 360.0) 
 
 // Mean error (x, y in the target's own frame, φ) over sub-pixel phases: the bias.
 struct Bias {
-  double along = 0, across = 0, phi = 0, rms_px = 0;
+  double along = 0, across = 0, phi = 0, rms_px = 0, rms_deg = 0;
 };
+
+// The single-frame bound along a run: the variances averaged over every 15th frame's true pose
+// (the bound changes a little with the angle and with the background under the mask).
+double g_bound_s = 0;  // time spent computing bounds (its share of the bench's run time is printed)
+
+CrlbMean run_bound(const Scenario& s, const config::TrackerConfig& tc, const std::vector<hal::TargetTruth>& truth) {
+  const std::int64_t t0 = rt::now_ns();
+  const SimMeanRenderer sim(make_sim_config(s), s.field_w, s.field_h, s.dwell_ns);
+  CrlbMean m;
+  for (std::size_t f = 0; f < truth.size(); f += 15) {
+    if (!truth[f].present) continue;
+    m.add(crlb_sim(sim, s.field_w, s.field_h, tc, truth[f].x_px, truth[f].y_px, truth[f].phi_deg));
+  }
+  g_bound_s += (rt::now_ns() - t0) * 1e-9;
+  return m;
+}
+
+// "1.234" or "inf" (no bound: the pose is not observable from the mask's pixels).
+std::string fmt(double v, const char* f = "%.3f") {
+  if (!std::isfinite(v)) return "inf";
+  char b[32];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
 
 Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) {
   static const WarpScene scene = WarpScene::load(std::string(SEMPOSE_SHARED_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
@@ -61,12 +87,27 @@ Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) 
     b.across += ex * s + ey * c;
     b.phi += angle_error(e.phi_deg, phi);
     b.rms_px += ex * ex + ey * ey;
+    b.rms_deg += angle_error(e.phi_deg, phi) * angle_error(e.phi_deg, phi);
   }
   b.along /= n;
   b.across /= n;
   b.phi /= n;
   b.rms_px = std::sqrt(b.rms_px / n);
+  b.rms_deg = std::sqrt(b.rms_deg / n);
   return b;
+}
+
+// The bound for warp_bias's frames (Poisson at dose), averaged over a few of its sub-pixel phases.
+CrlbMean warp_bound(const config::TrackerConfig& tc, double phi, double dose) {
+  static const WarpScene scene = WarpScene::load(std::string(SEMPOSE_SHARED_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
+  const std::int64_t t0 = rt::now_ns();
+  CrlbMean m;
+  for (int k = 0; k < 12; k += 4) {
+    const double x = 190 + 0.37 * k - std::floor(0.37 * k), y = 160 + 0.61 * k - std::floor(0.61 * k);
+    m.add(crlb_warp(scene, 563.5, 527.5, tc, x, y, phi, dose));
+  }
+  g_bound_s += (rt::now_ns() - t0) * 1e-9;
+  return m;
 }
 
 Bias sim_bias(const config::TrackerConfig& tc, const std::string& target, double phi, bool background) {
@@ -93,11 +134,13 @@ Bias sim_bias(const config::TrackerConfig& tc, const std::string& target, double
     b.across += ex * s + ey * c;
     b.phi += angle_error(e.phi_deg, tr.phi_deg);
     b.rms_px += ex * ex + ey * ey;
+    b.rms_deg += angle_error(e.phi_deg, tr.phi_deg) * angle_error(e.phi_deg, tr.phi_deg);
   }
   b.along /= n;
   b.across /= n;
   b.phi /= n;
   b.rms_px = std::sqrt(b.rms_px / n);
+  b.rms_deg = std::sqrt(b.rms_deg / n);
   return b;
 }
 
@@ -112,13 +155,16 @@ int main(int argc, char** argv) {
   const std::string only_motion = only && argc > 3 ? argv[3] : "";
   config::TrackerConfig tc;
   const int frames = quick ? 60 : 150;
+  const std::int64_t bench_t0 = rt::now_ns();
   std::printf("accuracy on the simulated SEM: 640x480 field, pattern %d², ROI %d², 250 ns dwell, %d frames per run\n"
               "targets: needle_tip = needle_contact_eb.pgm crop 552,430 120x160 at 90x120 (threshold mask);\n"
               "         lamella_post = lamella_on_post_eb.pgm crop 420,460 180x180 at 100x100; lamella = procedural 100x64\n"
-              "false = TRACKING poses > 3 px off the truth; recov = frames from a jump to a pose < 1 px off\n",
+              "false = TRACKING poses > 3 px off the truth; recov = frames from a jump to a pose < 1 px off\n"
+              "crlb_px, crlb_deg = Cramér–Rao bound of one frame (2-D position RMS, angle SD) at the run's true poses\n"
+              "  (every 15th frame): Poisson × Gamma gain + read noise over the tracker's mask; eff = crlb_px / rms_px\n",
               tc.pattern_size_px, tc.roi_size_px, frames);
-  std::printf("%-12s %-6s %5s | %8s %6s %7s %7s %7s %7s %5s %5s\n", "target", "motion", "dose", "tracked", "search",
-              "rms_px", "max_px", "rms_deg", "max_deg", "recov", "false");
+  std::printf("%-12s %-6s %5s | %8s %6s %7s %7s %7s %7s %5s %5s | %7s %8s %5s\n", "target", "motion", "dose", "tracked",
+              "search", "rms_px", "max_px", "rms_deg", "max_deg", "recov", "false", "crlb_px", "crlb_deg", "eff");
   int bad = 0;
   for (const char* target : {"needle_tip", "lamella_post", "lamella"}) {
     if (bias_only) break;
@@ -153,34 +199,44 @@ int main(int argc, char** argv) {
           if (!std::isfinite(e.x_px) || !std::isfinite(e.phi_deg) || !std::isfinite(e.score)) ++bad;
         char recov[16] = "-";
         if (r.jumps) std::snprintf(recov, sizeof recov, "%d", r.recovery_max);
-        std::printf("%-12s %-6s %5.1f | %7.1f%% %6d %7.3f %7.3f %7.3f %7.3f %5s %5d\n", target, motion, dose,
-                    100.0 * r.tracked_share(), r.searches, r.rms_px(), r.max_px, r.rms_deg(), r.max_deg, recov,
-                    r.false_tracking);
+        const CrlbMean bound = run_bound(s, tc, h.truth());
+        const std::string eff = r.err_n ? fmt(bound.pos_rms_px() / r.rms_px(), "%.2f") : "-";
+        std::printf("%-12s %-6s %5.1f | %7.1f%% %6d %7.3f %7.3f %7.3f %7.3f %5s %5d | %7s %8s %5s\n", target, motion,
+                    dose, 100.0 * r.tracked_share(), r.searches, r.rms_px(), r.max_px, r.rms_deg(), r.max_deg, recov,
+                    r.false_tracking, fmt(bound.pos_rms_px()).c_str(), fmt(bound.phi_deg()).c_str(), eff.c_str());
         std::fflush(stdout);
       }
     }
   }
 
-  if (only) return bad ? 2 : 0;
+  if (only) {
+    std::printf("(bounds computed in %.2f s of %.1f s)\n", g_bound_s, (rt::now_ns() - bench_t0) * 1e-9);
+    return bad ? 2 : 0;
+  }
   std::printf("\nbias (mean error in the target's own frame: along its x axis, across it, and in angle)\n");
-  std::printf("%-36s %6s | %8s %8s %8s %8s\n", "source", "phi", "along", "across", "phi_deg", "rms_px");
+  std::printf("(rms_deg: RMS angle error; crlb_px, crlb_deg, eff: the single-frame bound, Poisson, as in the table above)\n");
+  std::printf("%-36s %6s | %8s %8s %8s %8s %8s | %7s %8s %5s\n", "source", "phi", "along", "across", "phi_deg", "rms_px",
+              "rms_deg", "crlb_px", "crlb_deg", "eff");
   for (double phi : {0.0, 90.0, 180.0, -90.0, 33.0}) {
     if (bias_only) break;
     const Bias b = warp_bias(tc, phi, 0, quick ? 6 : 12);
-    std::printf("%-36s %6.0f | %+8.4f %+8.4f %+8.4f %8.4f\n", "warped real SEM, noise-free", phi, b.along, b.across, b.phi,
-                b.rms_px);
+    std::printf("%-36s %6.0f | %+8.4f %+8.4f %+8.4f %8.4f %8.4f |\n", "warped real SEM, noise-free", phi, b.along, b.across,
+                b.phi, b.rms_px, b.rms_deg);
   }
   for (double phi : {0.0, 90.0, 180.0, -90.0}) {
     const Bias b = warp_bias(tc, phi, 6.0, quick ? 12 : 32);
-    std::printf("%-36s %6.0f | %+8.4f %+8.4f %+8.4f %8.4f\n", "warped real SEM, dose 6 (Poisson)", phi, b.along, b.across,
-                b.phi, b.rms_px);
+    const CrlbMean bound = warp_bound(tc, phi, 6.0);
+    std::printf("%-36s %6.0f | %+8.4f %+8.4f %+8.4f %8.4f %8.4f | %7s %8s %5s\n", "warped real SEM, dose 6 (Poisson)", phi,
+                b.along, b.across, b.phi, b.rms_px, b.rms_deg, fmt(bound.pos_rms_px()).c_str(),
+                fmt(bound.phi_deg()).c_str(), fmt(bound.pos_rms_px() / b.rms_px, "%.2f").c_str());
   }
   for (const char* target : {"needle_tip", "lamella_post"}) {
     for (double phi : {0.0, 90.0, 180.0, -90.0}) {
       const Bias b = sim_bias(tc, target, phi, true);
       char name[64];
       std::snprintf(name, sizeof name, "simulator %s, noise-free", target);
-      std::printf("%-36s %6.0f | %+8.4f %+8.4f %+8.4f %8.4f\n", name, phi, b.along, b.across, b.phi, b.rms_px);
+      std::printf("%-36s %6.0f | %+8.4f %+8.4f %+8.4f %8.4f %8.4f |\n", name, phi, b.along, b.across, b.phi, b.rms_px,
+                  b.rms_deg);
     }
     for (double phi : {0.0, 180.0}) {
       // The same with a flat background: the static clutter under the pattern's rim is what
@@ -188,7 +244,8 @@ int main(int argc, char** argv) {
       const Bias b = sim_bias(tc, target, phi, false);
       char name[64];
       std::snprintf(name, sizeof name, "  same, flat background");
-      std::printf("%-36s %6.0f | %+8.4f %+8.4f %+8.4f %8.4f\n", name, phi, b.along, b.across, b.phi, b.rms_px);
+      std::printf("%-36s %6.0f | %+8.4f %+8.4f %+8.4f %8.4f %8.4f |\n", name, phi, b.along, b.across, b.phi, b.rms_px,
+                  b.rms_deg);
     }
   }
   // Peak-fit bias against the sub-pixel phase (noise off): the joint fit vs. phase.
@@ -219,5 +276,6 @@ int main(int argc, char** argv) {
     }
     std::printf("  | max %.3f px rms %.3f px\n", worst, std::sqrt(sum2 / n));
   }
+  std::printf("\n(bounds computed in %.2f s of %.1f s)\n", g_bound_s, (rt::now_ns() - bench_t0) * 1e-9);
   return bad ? 2 : 0;
 }
