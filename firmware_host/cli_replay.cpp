@@ -1,4 +1,4 @@
-// `sempose replay --frames DIR --pattern P.pgm [--pattern Q.pgm ...] [--config FILE]
+// `sempose replay --frames DIR --pattern P.pgm [--mask M.pgm] [--pattern Q.pgm ...] [--config FILE]
 //                 [--truth ground_truth.csv] --out poses.csv`
 // Tracks through a recorded sequence (DESIGN.md §11) exactly as on the microscope: every
 // target's tracker asks for its next ROI, gets it as a crop of the current full-field frame,
@@ -26,6 +26,7 @@
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
+#include "sempose/pipeline/tracker_setup.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "sempose/rt/clock.hpp"
 
@@ -35,10 +36,11 @@ using namespace sempose;
 
 int usage(std::FILE* out) {
   std::fprintf(out,
-               "usage: sempose replay --frames DIR --pattern P.pgm [--pattern Q.pgm ...] [--config FILE]\n"
+               "usage: sempose replay --frames DIR --pattern P.pgm [--mask M.pgm] [--pattern Q.pgm ...] [--config FILE]\n"
                "                      [--truth ground_truth.csv] --out poses.csv\n"
                "  tracks every pattern (one target each) through the recorded full-field frames in DIR\n"
                "  --config: YAML; its tracker: section (and targets:, when no --pattern is given) are used\n"
+               "  --mask:   the preceding pattern's shape mask (PGM, same size; non-zero = the target)\n"
                "  --truth:  frame,x_px,y_px,phi_deg[,target]; prints RMS/max errors\n");
   return out == stdout ? 0 : 2;
 }
@@ -83,7 +85,7 @@ double percentile(std::vector<double> v, double q) {
 
 int run_replay(int argc, char** argv) {
   std::string frames_dir, config_path, truth_path, out_path;
-  std::vector<std::string> patterns;
+  std::vector<std::string> patterns, masks;  // masks[i]: --mask after pattern i ("" = none)
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](std::string& dst) {
@@ -99,6 +101,13 @@ int run_replay(int argc, char** argv) {
       std::string p;
       value(p);
       patterns.push_back(p);
+      masks.emplace_back();
+    } else if (a == "--mask") {
+      if (patterns.empty()) {
+        std::fprintf(stderr, "sempose replay: --mask must follow the --pattern it belongs to\n");
+        return usage(stderr);
+      }
+      value(masks.back());
     } else {
       std::fprintf(stderr, "sempose replay: unknown option '%s'\n", a.c_str());
       return usage(stderr);
@@ -123,7 +132,7 @@ int run_replay(int argc, char** argv) {
     for (std::size_t i = 0; i < patterns.size(); ++i) {
       config::TargetConfig t;
       t.name = std::filesystem::path(patterns[i]).stem().string();
-      t.pattern_sets.push_back({patterns[i], 1.0});
+      t.pattern_sets.push_back({patterns[i], 1.0, masks[i]});
       targets_cfg.push_back(t);
     }
   }
@@ -146,7 +155,15 @@ int run_replay(int argc, char** argv) {
   std::vector<Target> targets;
   for (const auto& tc : targets_cfg) {
     std::vector<pose::PatternSet> sets;
-    for (const auto& ps : tc.pattern_sets) sets.push_back({hal::read_pgm(ps.file), ps.nm_per_px});
+    for (const auto& ps : tc.pattern_sets) {
+      pose::PatternSet set;
+      const rt::Status loaded = pipeline::load_pattern_set(ps, set);
+      if (!loaded.ok) {
+        std::fprintf(stderr, "sempose replay: target '%s': %s\n", tc.name.c_str(), loaded.message.c_str());
+        return 2;
+      }
+      sets.push_back(std::move(set));
+    }
     rt::Status st;
     Target t{tc.name, pose::Tracker::create(tracker_cfg, std::move(sets), limits, st)};
     if (!t.tracker) {

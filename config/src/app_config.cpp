@@ -32,7 +32,7 @@ void read_section(Section& root, const char* key, void (*reader)(Section&, Confi
   reader(s, out);
 }
 
-// Pattern files are written relative to the config file's folder.
+// Pattern and mask files are written relative to the config file's folder.
 std::string resolve(const std::string& config_path, const std::string& file) {
   if (file.empty() || file[0] == '/') return file;
   const auto slash = config_path.rfind('/');
@@ -62,7 +62,10 @@ bool load_app_config(const std::string& path, AppConfig& result, std::string& er
     read_section(root, "replay", read_replay, out.replay);
     read_targets(root, out.targets);
     for (auto& t : out.targets) {
-      for (auto& p : t.pattern_sets) p.file = resolve(path, p.file);
+      for (auto& p : t.pattern_sets) {
+        p.file = resolve(path, p.file);
+        p.mask = resolve(path, p.mask);
+      }
     }
     read_section(root, "tracker", read_tracker, out.tracker);
     read_section(root, "governor", read_governor, out.governor);

@@ -107,6 +107,7 @@ void read_sim(Section& s, SimConfig& c) {
   s.opt("seed", c.seed);
   s.opt_choice("clock", c.clock, {"real", "virtual"});
   s.opt("noise", c.noise);
+  s.opt("use_shape_masks", c.use_shape_masks);
   s.opt("beam_current_pa", c.beam_current_pa, 0.01, 1e5);
   s.opt("yield", c.yield, 1e-4, 10.0);
   s.opt("detector_gain_shape", c.detector_gain_shape, 0.2, 1000.0);

@@ -11,7 +11,12 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("roi_size_px", c.roi_size_px, 8, 1024);
   s.opt("angle_step_deg", c.angle_step_deg, 0.25, 45.0);
   s.opt("circular_mask", c.circular_mask);
+  s.opt("shape_mask_margin_px", c.shape_mask_margin_px, 0.0, 64.0);
   s.opt("prefilter_passes", c.prefilter_passes, 0, 3);
+  {
+    Section filter = s.child("filter");
+    read_pose_filter(filter, c.filter);
+  }
   s.opt("max_angle_steps_per_frame", c.max_angle_steps_per_frame, 1, 180);
   s.opt("recover_sweep_deg", c.recover_sweep_deg, 0.0, 180.0);
   s.opt("recover_step_deg", c.recover_step_deg, 0.25, 90.0);
@@ -54,6 +59,7 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
       PatternSetConfig p;
       ps.req("file", p.file);
       ps.opt("nm_per_px", p.nm_per_px, 1e-6, 1e9);
+      ps.opt("mask", p.mask);
       tc.pattern_sets.push_back(p);
     }
     if (tc.pattern_sets.empty()) t.error("pattern_sets", "a target needs at least one pattern set ({file, nm_per_px})");

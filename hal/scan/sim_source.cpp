@@ -159,6 +159,16 @@ void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_st
   for (std::size_t t = n_targets; t < static_cast<std::size_t>(kMaxTargets); ++t) truth[t] = TargetTruth{};
 }
 
+namespace {
+// Where the pattern crop of a target lies: centred on the target, clamped to the field.
+void pattern_origin(const config::SimTargetConfig& t, const ScanLimits& limits, int size_px, std::int32_t& ox,
+                    std::int32_t& oy) {
+  const double half = (size_px - 1) / 2.0;
+  ox = static_cast<std::int32_t>(std::clamp(std::lround(t.x_px - half), 0L, static_cast<long>(limits.field_w - size_px)));
+  oy = static_cast<std::int32_t>(std::clamp(std::lround(t.y_px - half), 0L, static_cast<long>(limits.field_h - size_px)));
+}
+}  // namespace
+
 Image render_sim_pattern(const config::SimConfig& cfg_in, const ScanLimits& limits, int target_index, int size_px,
                          int average_frames, std::uint32_t dwell_ns, std::uint64_t seed) {
   if (target_index < 0 || target_index >= static_cast<int>(cfg_in.targets.size())) {
@@ -179,8 +189,8 @@ Image render_sim_pattern(const config::SimConfig& cfg_in, const ScanLimits& limi
   for (std::size_t i = 0; i < cfg.targets.size(); ++i) cfg.targets[i].enabled = static_cast<int>(i) == target_index;
   config::SimTargetConfig& t = cfg.targets[static_cast<std::size_t>(target_index)];
   const double half = (size_px - 1) / 2.0;
-  const auto ox = static_cast<std::int32_t>(std::clamp(std::lround(t.x_px - half), 0L, static_cast<long>(limits.field_w - size_px)));
-  const auto oy = static_cast<std::int32_t>(std::clamp(std::lround(t.y_px - half), 0L, static_cast<long>(limits.field_h - size_px)));
+  std::int32_t ox = 0, oy = 0;
+  pattern_origin(t, limits, size_px, ox, oy);
   t.x_px = ox + half;
   t.y_px = oy + half;
   t.phi_deg = 0;
@@ -205,6 +215,35 @@ Image render_sim_pattern(const config::SimConfig& cfg_in, const ScanLimits& limi
   img.bits = lim.bits;
   img.pixels.resize(n);
   for (std::size_t i = 0; i < n; ++i) img.pixels[i] = static_cast<std::uint16_t>(std::lround(sum[i] / average_frames));
+  return img;
+}
+
+Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px) {
+  if (target_index < 0 || target_index >= static_cast<int>(cfg.targets.size())) {
+    throw std::runtime_error("render_sim_pattern_mask: target " + std::to_string(target_index) + " is not configured");
+  }
+  const SimScene scene(cfg, limits);
+  const SimLayer& layer = scene.targets()[static_cast<std::size_t>(target_index)];
+  const config::SimTargetConfig& t = cfg.targets[static_cast<std::size_t>(target_index)];
+  std::int32_t ox = 0, oy = 0;
+  pattern_origin(t, limits, size_px, ox, oy);
+  const double half = (size_px - 1) / 2.0;
+  Image img;
+  img.width = img.height = size_px;
+  img.bits = 8;
+  img.pixels.assign(static_cast<std::size_t>(size_px) * size_px, 0);
+  for (int y = 0; y < size_px; ++y) {
+    for (int x = 0; x < size_px; ++x) {
+      // The target at rest (φ = 0) centred on the crop: texture = layer centre + offset (as render()).
+      const double u = layer.cx + (x - half), v = layer.cy + (y - half);
+      if (!(u >= 0 && v >= 0 && u < layer.alpha.w - 1 && v < layer.alpha.h - 1)) continue;
+      const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
+      const double au = u - u0, av = v - v0;
+      const double a = (1 - au) * (1 - av) * layer.alpha.at(u0, v0) + au * (1 - av) * layer.alpha.at(u0 + 1, v0) +
+                       (1 - au) * av * layer.alpha.at(u0, v0 + 1) + au * av * layer.alpha.at(u0 + 1, v0 + 1);
+      if (a >= 0.5) img.pixels[static_cast<std::size_t>(y) * size_px + x] = 255;
+    }
+  }
   return img;
 }
 

@@ -37,6 +37,7 @@ struct Scenario {
   std::string target = "lamella_post";
   bool drift = true;  // the simulator's slow image drift and beam lag
   bool background = true;  // false: a flat background (no static clutter under the pattern)
+  bool shape_mask = false;  // give the tracker the target's shape mask with its pattern (opt-in, see README)
 };
 
 inline config::SimConfig make_sim_config(const Scenario& s) {
@@ -134,6 +135,7 @@ class SimHarness {
     pat_cfg.targets[0].y_px = s.field_h / 2.0;
     std::vector<PatternSet> sets(1);
     sets[0].image = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, 10, s.dwell_ns, 777);
+    if (s.shape_mask) sets[0].mask = hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px);
     sets[0].nm_per_px = 40;
     sim_ = std::make_unique<hal::SimSource>(limits_, sim_cfg_);
     tracker_ = Tracker::create(tc, std::move(sets), limits_, status_);

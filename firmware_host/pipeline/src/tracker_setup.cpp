@@ -20,6 +20,15 @@ constexpr int kPatternFrames = 10;
 constexpr double kSimNmPerPx = 40.0;  // the paper's scale (~40 nm per pixel)
 }  // namespace
 
+rt::Status load_pattern_set(const config::PatternSetConfig& ps, pose::PatternSet& out) {
+  std::string error;
+  if (!hal::try_read_pgm(ps.file, out.image, error)) return rt::Status::failure("pattern file '" + ps.file + "': " + error);
+  if (!ps.mask.empty() && !hal::try_read_pgm(ps.mask, out.mask, error))
+    return rt::Status::failure("mask file '" + ps.mask + "': " + error);
+  out.nm_per_px = ps.nm_per_px;
+  return rt::Status::success();
+}
+
 rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& limits, TrackerSetup& out) {
   std::vector<std::vector<pose::PatternSet>> per_target;
   if (!cfg.targets.empty()) {
@@ -28,11 +37,8 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
       std::string origins;
       for (const auto& ps : t.pattern_sets) {
         pose::PatternSet set;
-        std::string error;
-        if (!hal::try_read_pgm(ps.file, set.image, error)) {
-          return rt::Status::failure(cfg.path + ": targets: " + t.name + ": pattern file '" + ps.file + "': " + error);
-        }
-        set.nm_per_px = ps.nm_per_px;
+        const rt::Status loaded = load_pattern_set(ps, set);
+        if (!loaded.ok) return rt::Status::failure(cfg.path + ": targets: " + t.name + ": " + loaded.message);
         sets.push_back(std::move(set));
         origins += (origins.empty() ? "" : ", ") + ps.file;
       }
@@ -48,6 +54,10 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
       try {
         set.image = hal::render_sim_pattern(cfg.sim, limits, static_cast<int>(i), cfg.tracker.pattern_size_px,
                                             kPatternFrames, dwell, cfg.sim.seed + 1000 + i);
+        // The simulator knows the target's outline: its shape mask, as an operator would draw
+        // it — opt-in (sim.use_shape_masks), it costs robustness at a few e⁻/px (README).
+        if (cfg.sim.use_shape_masks)
+          set.mask = hal::render_sim_pattern_mask(cfg.sim, limits, static_cast<int>(i), cfg.tracker.pattern_size_px);
       } catch (const std::exception& e) {
         return rt::Status::failure(cfg.path + ": sim.targets[" + std::to_string(i) + "]: cannot record its pattern: " +
                                    e.what());

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <new>
+#include <string>
+#include <vector>
 
 namespace sempose::pose {
 
@@ -66,7 +68,45 @@ void downsample_pattern(const float* src, int n, int factor, float* out) noexcep
   }
 }
 
-bool PatternBank::build(const hal::Image& pattern, int prefilter_passes, double step_deg, const PatternMask& fine_mask,
+namespace {
+// The shape mask turned by phi_deg (same interpolation as the pattern), cut to `within`.
+// Returns the number of pixels inside.
+std::int64_t turned_support(const std::vector<float>& shape, int n, double phi_deg, const std::uint8_t* within,
+                            std::vector<float>& scratch, std::vector<std::uint8_t>& out) {
+  rotate_pattern(shape.data(), n, phi_deg, scratch.data());
+  std::int64_t count = 0;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i] = within[i] && scratch[i] >= 0.5f;
+    count += out[i];
+  }
+  return count;
+}
+// Grows a 0/1 mask by a disk of radius r px: the target's outline and a thin ring of what
+// surrounds it stay in the support (a silhouette's position lives in its edges; the
+// interior alone can be nearly flat).
+void dilate_disk(std::vector<float>& mask, int n, double r) {
+  if (r <= 0) return;
+  const int ri = static_cast<int>(std::floor(r));
+  const std::vector<float> src = mask;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      if (src[static_cast<std::size_t>(y) * n + x] != 0.0f) continue;
+      bool hit = false;
+      for (int dy = -ri; dy <= ri && !hit; ++dy)
+        for (int dx = -ri; dx <= ri && !hit; ++dx) {
+          const int xx = x + dx, yy = y + dy;
+          hit = dx * dx + dy * dy <= r * r && xx >= 0 && yy >= 0 && xx < n && yy < n &&
+                src[static_cast<std::size_t>(yy) * n + xx] != 0.0f;
+        }
+      if (hit) mask[static_cast<std::size_t>(y) * n + x] = 1.0f;
+    }
+}
+
+}  // namespace
+
+bool PatternBank::build(const hal::Image& pattern, const hal::Image& shape_image, double shape_margin_px,
+                        int prefilter_passes, double step_deg,
+                        const PatternMask& fine_mask,
                         const PatternMask& half_mask, ZnccCorrelator& half, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
                         ZnccCorrelator& coarse, std::string& why) {
   size_ = pattern.width;
@@ -90,15 +130,45 @@ bool PatternBank::build(const hal::Image& pattern, int prefilter_passes, double 
   coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)));
   if (!spectra_ || !coarse_spectra_) throw std::bad_alloc();
 
+  has_shape_ = !shape_image.empty();
+  std::vector<float> shape(src.size(), 1.0f), shape_scratch(src.size());
+  if (has_shape_) {
+    if (shape_image.width != n || shape_image.height != n) {
+      why = "the shape mask is " + std::to_string(shape_image.width) + "x" + std::to_string(shape_image.height) +
+            ", the pattern " + std::to_string(n) + "x" + std::to_string(n) + "; they must be the same size";
+      return false;
+    }
+    for (std::size_t i = 0; i < shape.size(); ++i) shape[i] = shape_image.pixels[i] != 0 ? 1.0f : 0.0f;
+    dilate_disk(shape, n, shape_margin_px);
+  }
+  std::vector<std::uint8_t> fine_in(src.size());
+  support_.clear();
+  support_begin_.assign(1, 0);
+  support_count_.clear();
   for (int j = 0; j < angles_; ++j) {
     float* p = spatial_.data() + static_cast<std::size_t>(j) * n * n;
     rotate_pattern(src.data(), n, j * step_deg, raw.data());
     std::copy(raw.begin(), raw.end(), p);
     downsample_pattern(raw.data(), n, 2, halved.data());
-    if (!normalize_pattern(p, fine_mask) || !normalize_pattern(halved.data(), half_mask)) {
-      why = "the pattern is flat (constant grey level) inside its mask";
+    // The shape mask applies to the exact full-resolution scores (the fit); the binned and
+    // coarse levels that only locate the peak keep the whole circle: a silhouette's outline
+    // at ×2 or ×8 is too thin a support to find it reliably (measured: the needle was
+    // acquired elsewhere at margins below 6 px).
+    std::int64_t count = fine_mask.count();
+    if (has_shape_) {
+      count = turned_support(shape, n, j * step_deg, fine_mask.bitmap(), shape_scratch, fine_in);
+    } else {
+      std::copy_n(fine_mask.bitmap(), fine_in.size(), fine_in.begin());
+    }
+    if (!normalize_pattern(p, n, fine_in.data()) || !normalize_pattern(halved.data(), half_mask)) {
+      why = has_shape_ && count < 64 ? "the shape mask leaves under 64 pixels inside the pattern circle"
+                                     : "the pattern is flat (constant grey level) inside its mask";
       return false;
     }
+    const std::vector<MaskBand> bands = has_shape_ ? bands_of(fine_in.data(), n) : fine_mask.bands();
+    support_.insert(support_.end(), bands.begin(), bands.end());
+    support_begin_.push_back(support_.size());
+    support_count_.push_back(count);
     half.make_spectrum(halved.data(), spectra_.get() + static_cast<std::size_t>(j) * spectrum_len_);
   }
   for (int k = 0; k < coarse_angles_; ++k) {
@@ -114,7 +184,9 @@ bool PatternBank::build(const hal::Image& pattern, int prefilter_passes, double 
 }
 
 std::size_t PatternBank::memory_bytes() const noexcept {
-  return spatial_.size() * sizeof(float) + sizeof(Complex) * (spectrum_len_ * angles_ + coarse_len_ * coarse_angles_);
+  return spatial_.size() * sizeof(float) + sizeof(Complex) * (spectrum_len_ * angles_ + coarse_len_ * coarse_angles_) +
+         support_.size() * sizeof(MaskBand) + support_begin_.size() * sizeof(std::size_t) +
+         support_count_.size() * sizeof(std::int64_t);
 }
 
 }  // namespace sempose::pose

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "sempose/pose/pattern_bank.hpp"
+#include "sempose/pose/pose_filter.hpp"
 #include "sempose/pose/prefilter.hpp"
 #include "sempose/pose/zncc.hpp"
 
@@ -156,7 +157,7 @@ struct Tracker::Impl {
   PatternMask fine_mask, half_mask, coarse_mask;
   std::vector<MaskBand> fine_dot_bands;  // fine_mask widened for masked_dot
   // half: the whole ROI, 2×2 binned, correlated via FFT (finds the peak for every displacement);
-  // the exact full-resolution ZNCC is then evaluated around it (local_score).
+  // the exact full-resolution ZNCC is then evaluated around it (local_parts).
   std::unique_ptr<ZnccCorrelator> half, coarse;
   int Nh = 0;
   std::vector<float> roi_img;          // prefiltered ROI minus its mean, full resolution (row stride roi_w)
@@ -198,6 +199,7 @@ struct Tracker::Impl {
   double score_mean = 0;  // running mean of accepted scores (relative_score_threshold)
   bool have_score_mean = false;
   int field_w = 0, field_h = 0;
+  PoseFilter filter;
   std::atomic<bool> reacquire{false};
   std::atomic<std::uint8_t> active{0};
 
@@ -212,7 +214,8 @@ struct Tracker::Impl {
         fine_mask(pattern_px, c.circular_mask, 8, mask_inset_px(c)),
         half_mask(pattern_px / 2, c.circular_mask, 8, mask_inset_px(c) / 2),
         coarse_mask(pattern_px / c.search_downsample, c.circular_mask),
-        fine_dot_bands(dot_bands(fine_mask)) {
+        fine_dot_bands(dot_bands(fine_mask)),
+        filter(c.filter) {
     build_fit();
   }
 
@@ -322,33 +325,37 @@ struct Tracker::Impl {
   // Exact full-resolution correlation of angle j's pattern at displacement (ux, uy) of the
   // loaded ROI, window mean and variance under the mask computed in the same pass:
   // tf = Σ t·f (t zero-mean, unit norm) and var = Σ f² − (Σ f)²/n. False outside the ROI.
-  bool local_parts(int j_pattern, const PatternBank& bank, int ux, int uy, double& tf_out, double& var_out) const noexcept {
+  bool local_parts(int j_pattern, const PatternBank& bank, int ux, int uy, double& tf_out, double& var_out,
+                   double& count_out) const noexcept {
     if (ux < 0 || uy < 0 || ux > roi_w - P || uy > roi_h - P) return false;
     const float* t = bank.pattern(j_pattern);
     const std::size_t sw = static_cast<std::size_t>(roi_w) + 1;
     std::int64_t s1 = 0, s2 = 0;
-    for (const MaskBand& b : fine_mask.bands()) {
+    // The window's sums over this angle's support (the circle, or the turned shape mask).
+    const MaskBand* bands = bank.support_bands(j_pattern);
+    const int n_bands = bank.support_band_count(j_pattern);
+    for (int k = 0; k < n_bands; ++k) {
+      const MaskBand& b = bands[k];
       const std::size_t ya = static_cast<std::size_t>(uy + b.y0) * sw, yb = static_cast<std::size_t>(uy + b.y1 + 1) * sw;
       const std::size_t xa = static_cast<std::size_t>(ux + b.x0), xb = static_cast<std::size_t>(ux + b.x1 + 1);
       s1 += sat1[yb + xb] - sat1[yb + xa] - sat1[ya + xb] + sat1[ya + xa];
       s2 += sat2[yb + xb] - sat2[yb + xa] - sat2[ya + xb] + sat2[ya + xa];
     }
+    // The pattern is zero outside its support, so the dot product may run over the whole
+    // (chunk-widened) circle.
     const double tf = masked_dot(t, P, roi_img.data() + static_cast<std::size_t>(uy) * roi_w + ux, roi_w,
                                  fine_dot_bands.data(), static_cast<int>(fine_dot_bands.size()));
-    // Σt = 0 under the mask, so Σ t·(f − mean) = Σ t·f for any offset of f.
+    // Σt = 0 under the support, so Σ t·(f − mean) = Σ t·f for any offset of f.
     tf_out = tf;
-    const double n = static_cast<double>(fine_mask.count());
+    const double n = static_cast<double>(bank.support_count(j_pattern));
+    count_out = n;
     var_out = static_cast<double>(s2) - static_cast<double>(s1) * static_cast<double>(s1) / n;
     return true;
   }
   // ZNCC from the parts; a flat window (std under half a filtered unit) scores 0.
-  float zncc(double tf, double var) const noexcept {
-    if (!(var > 0.25 * static_cast<double>(fine_mask.count()))) return 0.0f;
+  static float zncc(double tf, double var, double count) noexcept {
+    if (!(var > 0.25 * count)) return 0.0f;
     return static_cast<float>(std::clamp(tf / std::sqrt(var), -1.0, 1.0));
-  }
-  float local_score(int j_pattern, const PatternBank& bank, int ux, int uy) const noexcept {
-    double tf = 0, var = 0;
-    return local_parts(j_pattern, bank, ux, uy, tf, var) ? zncc(tf, var) : -2.0f;
   }
 
   // One refine()'s exact evaluations, remembered: the climb, the walk and the fit revisit
@@ -356,7 +363,7 @@ struct Tracker::Impl {
   struct Eval {
     int j = 0, x = 0, y = 0;
     bool inside = false;
-    double tf = 0, var = 0;
+    double tf = 0, var = 0, count = 0;
     float score = -2.0f;
   };
   struct EvalMemo {
@@ -373,8 +380,8 @@ struct Tracker::Impl {
     v.j = j;
     v.x = x;
     v.y = y;
-    v.inside = local_parts(j, bank, x, y, v.tf, v.var);
-    v.score = v.inside ? zncc(v.tf, v.var) : -2.0f;
+    v.inside = local_parts(j, bank, x, y, v.tf, v.var, v.count);
+    v.score = v.inside ? zncc(v.tf, v.var, v.count) : -2.0f;
     ++memo.computed;
     memo.e[static_cast<std::size_t>(memo.next)] = v;
     memo.next = (memo.next + 1) % static_cast<int>(memo.e.size());
@@ -398,7 +405,7 @@ struct Tracker::Impl {
     float fs[kFitSamples];
     for (int i = 0; i < kFitSamples; ++i) {
       const double v = ev[i].var - noise_var;
-      if (!(v > 1e-9 * c.var) || !(ev[i].var > 0.25 * static_cast<double>(fine_mask.count()))) return false;
+      if (!(v > 1e-9 * c.var) || !(ev[i].var > 0.25 * ev[i].count)) return false;
       fs[i] = static_cast<float>(ev[i].tf / std::sqrt(v));
     }
     float peak = 0;
@@ -647,7 +654,7 @@ struct Tracker::Impl {
     for (int i = n_cands - 1; i > 0 && cands[i].score > cands[i - 1].score; --i) std::swap(cands[i], cands[i - 1]);
   }
 
-  // Prefilter the ROI, keep it at full resolution (minus its mean, for local_score), bin it
+  // Prefilter the ROI, keep it at full resolution (minus its mean, for local_parts), bin it
   // 2×2 and load the binned image into the half-resolution correlator (one forward FFT).
   bool load_roi(const hal::Pixel* px, int w, int h, std::ptrdiff_t stride, int bits) noexcept {
     w = std::min(w, N);
@@ -707,17 +714,32 @@ struct Tracker::Impl {
     e.x_px = origin_x + m.ux + m.dx + (P - 1) / 2.0;
     e.y_px = origin_y + m.uy + m.dy + (P - 1) / 2.0;
     e.phi_deg = wrap_deg((m.j + m.dj) * step);
+    e.meas_x_px = e.x_px;
+    e.meas_y_px = e.y_px;
+    e.meas_phi_deg = e.phi_deg;
     e.score = std::clamp(m.score, -1.0f, 1.0f);
     e.psr = m.psr;
     e.angle_steps = m.steps;
   }
 
   void go_lost() noexcept {
+    filter.reset();
     tracking = false;
     have_score_mean = false;
     have_prev = false;
     weak_frames = 0;
     vx = vy = vphi = 0;
+  }
+
+  // The reported pose through the temporal filter (a pass-through unless tracker.filter is
+  // on), timed at mid-scan: with a varying dwell the ROI's centre is scanned mid-frame.
+  void filter_output(PoseEstimate& e, const hal::FrameMeta& meta, bool fresh) noexcept {
+    if (fresh) filter.reset();
+    const double t_s = 0.5e-9 * (static_cast<double>(meta.t_scan_start_ns) + static_cast<double>(meta.t_scan_end_ns));
+    const PoseSample f = filter.update({t_s, e.x_px, e.y_px, e.phi_deg});
+    e.x_px = f.x_px;
+    e.y_px = f.y_px;
+    e.phi_deg = f.phi_deg;
   }
 
   void accept(const PoseEstimate& e, bool fresh) noexcept {
@@ -800,6 +822,7 @@ PoseEstimate Tracker::Impl::update(const hal::FrameMeta& meta, const hal::Pixel*
     if (m.valid && !weak(m)) {
       e.state = TrackState::kTracking;
       accept(e, true);
+      filter_output(e, meta, true);
     } else {
       e.state = TrackState::kAcquiring;
       e.reason_bits = m.valid ? weak_bits(m) : static_cast<std::uint8_t>(kReasonFlatFrame);
@@ -840,6 +863,7 @@ PoseEstimate Tracker::Impl::update(const hal::FrameMeta& meta, const hal::Pixel*
   if (!weak(m)) {
     e.state = TrackState::kTracking;
     accept(e, false);
+    filter_output(e, meta, false);
     return e;
   }
   e.reason_bits |= weak_bits(m);
@@ -921,7 +945,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   t.banks.resize(sets.size());
   for (std::size_t i = 0; i < sets.size(); ++i) {
     std::string why;
-    if (!t.banks[i].build(sets[i].image, cfg.prefilter_passes, t.step, t.fine_mask, t.half_mask, *t.half, cfg.search_angle_step_deg, t.d,
+    if (!t.banks[i].build(sets[i].image, sets[i].mask, cfg.shape_mask_margin_px, cfg.prefilter_passes, t.step, t.fine_mask, t.half_mask, *t.half, cfg.search_angle_step_deg, t.d,
                           t.coarse_mask, *t.coarse, why))
       return fail("pattern set " + std::to_string(i) + ": " + why);
     t.nm_per_px.push_back(sets[i].nm_per_px);

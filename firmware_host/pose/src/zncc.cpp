@@ -125,26 +125,63 @@ PatternMask::PatternMask(int size_px, bool circular, int bands_per_half, double 
 }
 
 bool normalize_pattern(float* p, const PatternMask& mask) noexcept {
-  const int n = mask.size_px();
+  return normalize_pattern(p, mask.size_px(), mask.bitmap());
+}
+
+bool normalize_pattern(float* p, int n, const std::uint8_t* inside) noexcept {
   double sum = 0;
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) {
-      if (mask.inside(x, y)) sum += p[y * n + x];
+  std::int64_t count = 0;
+  for (int i = 0; i < n * n; ++i) {
+    if (inside[i]) {
+      sum += p[i];
+      ++count;
     }
   }
-  const double mean = sum / static_cast<double>(mask.count());
+  if (count == 0) return false;
+  const double mean = sum / static_cast<double>(count);
   double ss = 0;
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) {
-      float& v = p[y * n + x];
-      v = mask.inside(x, y) ? static_cast<float>(v - mean) : 0.0f;
-      ss += static_cast<double>(v) * v;
-    }
+  for (int i = 0; i < n * n; ++i) {
+    float& v = p[i];
+    v = inside[i] ? static_cast<float>(v - mean) : 0.0f;
+    ss += static_cast<double>(v) * v;
   }
-  if (!(ss > 1e-12 * static_cast<double>(mask.count()))) return false;
+  if (!(ss > 1e-12 * static_cast<double>(count))) return false;
   const float scale = static_cast<float>(1.0 / std::sqrt(ss));
   for (int i = 0; i < n * n; ++i) p[i] *= scale;
   return true;
+}
+
+std::vector<MaskBand> bands_of(const std::uint8_t* inside, int n) {
+  std::vector<MaskBand> out;
+  std::size_t prev_begin = 0, prev_end = 0;  // the previous row's bands in out
+  for (int y = 0; y < n; ++y) {
+    const std::size_t row_begin = out.size();
+    for (int x = 0; x < n;) {
+      if (!inside[y * n + x]) {
+        ++x;
+        continue;
+      }
+      int x1 = x;
+      while (x1 + 1 < n && inside[y * n + x1 + 1]) ++x1;
+      bool merged = false;
+      for (std::size_t k = prev_begin; k < prev_end && !merged; ++k) {
+        if (out[k].x0 == x && out[k].x1 == x1 && out[k].y1 == y - 1) {
+          out[k].y1 = y;
+          merged = true;
+        }
+      }
+      if (!merged) out.push_back({y, y, x, x1});
+      x = x1 + 1;
+    }
+    // Bands extended into this row stay candidates for the next one.
+    prev_begin = std::min(prev_begin, row_begin);
+    prev_end = out.size();
+    std::size_t first_live = prev_end;
+    for (std::size_t k = prev_begin; k < prev_end; ++k)
+      if (out[k].y1 == y) first_live = std::min(first_live, k);
+    prev_begin = first_live;
+  }
+  return out;
 }
 
 ZnccCorrelator::ZnccCorrelator(int fft_w, int fft_h, const PatternMask& mask)

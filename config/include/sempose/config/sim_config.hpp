@@ -64,6 +64,9 @@ struct SimConfig {
   std::uint64_t seed = 1;
   std::string clock = "real";  // real (CLOCK_MONOTONIC) | virtual (deterministic)
   bool noise = true;           // false: expected values, no jitter (geometry tests)
+  // Give each simulated target's tracker its shape mask (the target's outline, as an operator
+  // would draw it); off by default: it helps at >= 6 e-/px on cluttered ground, hurts below.
+  bool use_shape_masks = false;
   // Counting law: n = 6.24 · I[pA] · τ[µs] · η electrons for brightness 1.
   double beam_current_pa = 50.0;
   double yield = 0.10;              // η: SE yield × detector efficiency

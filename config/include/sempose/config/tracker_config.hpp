@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "sempose/config/pose_filter_config.hpp"
+
 namespace sempose::config {
 
 class Section;
@@ -16,6 +18,11 @@ struct TrackerConfig {
   std::int32_t roi_size_px = 192;      // square tracking ROI side (>= pattern_size_px)
   double angle_step_deg = 1.0;         // pattern bank step: 360/step rotated copies
   bool circular_mask = true;           // mask the pattern to its inscribed circle (corners don't bias)
+  // A pattern set's shape mask (targets[].pattern_sets[].mask) grown by this many px before
+  // use (for a mask drawn tight inside the outline). 0 measured best on the simulated needle
+  // and lamella: the prefilter already carries the outline's gradient into the mask's edge
+  // pixels, and every px of ring lets static clutter back in.
+  double shape_mask_margin_px = 0.0;
   // 5-tap binomial low-pass passes on frame and pattern before correlating (matched filter
   // against shot noise at a few electrons per pixel); 0 = raw pixels.
   std::int32_t prefilter_passes = 1;
@@ -46,11 +53,15 @@ struct TrackerConfig {
   // Fit on Σtf/√(var − noise var) rather than the ZNCC, noise var estimated at the best
   // match: removes the pull of noisy windows towards more signal/noise variance.
   bool fit_noise_correction = true;
+  // Optional temporal filter of the reported pose (tracker.filter:); the ROI placement keeps
+  // using the raw measurements, so the filter cannot feed back into tracking.
+  PoseFilterConfig filter;
 };
 
 struct PatternSetConfig {
   std::string file;            // PGM of the pattern at this magnification step
   double nm_per_px = 1.0;      // scale of this magnification step
+  std::string mask;            // optional PGM, pattern-sized: non-zero = the target's own pixels
 };
 
 struct TargetConfig {

@@ -70,4 +70,8 @@ class SimSource final : public ScanSource {
 Image render_sim_pattern(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px,
                          int average_frames, std::uint32_t dwell_ns, std::uint64_t seed);
 
+// The same crop's shape mask: 255 where the target covers the pixel (its alpha >= 0.5), 0 on
+// the background — what an operator draws around a recorded pattern. Setup-time; throws.
+Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px);
+
 }  // namespace sempose::hal

@@ -14,6 +14,7 @@
 
 namespace sempose::pose {
 class Tracker;
+struct PatternSet;
 }
 
 namespace sempose::pipeline {
@@ -28,6 +29,9 @@ struct TrackerSetup {
   TrackerSetup(TrackerSetup&&) noexcept;
   TrackerSetup& operator=(TrackerSetup&&) noexcept;
 };
+
+// Reads one pattern set's PGM files (pattern, optional shape mask); the error names the file.
+rt::Status load_pattern_set(const config::PatternSetConfig& cfg, pose::PatternSet& out);
 
 rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& limits, TrackerSetup& out);
 

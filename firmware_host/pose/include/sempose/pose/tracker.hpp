@@ -23,6 +23,9 @@ struct PoseEstimate {
   double x_px = 0;      // full-field px, DESIGN.md §2 (centre of the pattern)
   double y_px = 0;
   double phi_deg = 0;   // (-180, 180]
+  // This frame's own measurement; equal to x_px, y_px, phi_deg unless tracker.filter is on
+  // (then those are the filtered pose).
+  double meas_x_px = 0, meas_y_px = 0, meas_phi_deg = 0;
   float score = 0;      // ZNCC in [-1, 1]
   float psr = 0;        // peak-to-sidelobe ratio of the position peak
   std::uint8_t pattern_set = 0;
@@ -34,6 +37,9 @@ struct PoseEstimate {
 struct PatternSet {
   hal::Image image;
   double nm_per_px = 1.0;
+  // Optional shape mask, pattern-sized, non-zero = the target's own pixels (the rest, e.g.
+  // the substrate around a needle, is left out of the exact scores). Empty = the circle.
+  hal::Image mask;
 };
 
 class Tracker {

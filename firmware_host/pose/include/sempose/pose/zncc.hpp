@@ -34,6 +34,7 @@ class PatternMask {
   std::int64_t count() const noexcept { return count_; }
   const std::vector<MaskBand>& bands() const noexcept { return bands_; }
   bool inside(int x, int y) const noexcept { return bitmap_[static_cast<std::size_t>(y * size_ + x)] != 0; }
+  const std::uint8_t* bitmap() const noexcept { return bitmap_.data(); }
 
  private:
   int size_;
@@ -43,8 +44,14 @@ class PatternMask {
 };
 
 // Makes a pattern ready for correlation: zero outside the mask, zero mean and unit L2 norm
-// inside. Returns false when the pattern is flat under the mask.
+// inside. Returns false when the pattern is flat under the mask (or the mask is empty).
 bool normalize_pattern(float* pattern, const PatternMask& mask) noexcept;
+// The same for any support: inside[size_px²], non-zero = pattern pixel.
+bool normalize_pattern(float* pattern, int size_px, const std::uint8_t* inside) noexcept;
+
+// A support bitmap (size_px², non-zero = inside) as row runs, consecutive rows with the same
+// run merged into one band: window sums over it cost four summed-area look-ups per band.
+std::vector<MaskBand> bands_of(const std::uint8_t* inside, int size_px);
 
 class ZnccCorrelator {
  public:
