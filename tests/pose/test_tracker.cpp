@@ -214,3 +214,42 @@ TEST(Tracker, NoHeapAllocationOverThousandFrames) {
   EXPECT_GT(r.searches, 1);
   EXPECT_GT(r.tracked, 500);
 }
+
+// tracker.filter: off, the reported pose is the frame's measurement; on, it is filtered (less
+// noise on a still target) while meas_* keep the raw measurement.
+TEST(Tracker, PoseFilterSmoothsTheReportedPoseOnly) {
+  Scenario s;
+  s.motion = "static";
+  s.dose_e = 2.5;
+  s.frames = 60;
+  auto run = [&](bool enabled, double& rms_out, double& rms_meas) {
+    config::TrackerConfig tc;
+    tc.filter.enabled = enabled;
+    tc.filter.meas_sigma_px = 0.4;
+    tc.filter.meas_sigma_deg = 0.8;
+    SimHarness h(s, tc);
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    double sum = 0, sum_meas = 0;
+    int n = 0;
+    for (int f = 10; f < s.frames; ++f) {
+      const PoseEstimate& e = h.poses()[static_cast<std::size_t>(f)];
+      const hal::TargetTruth& t = h.truth()[static_cast<std::size_t>(f)];
+      ASSERT_EQ(e.state, TrackState::kTracking);
+      if (!enabled) {
+        ASSERT_EQ(e.x_px, e.meas_x_px);
+      }
+      sum += std::pow(e.x_px - t.x_px, 2) + std::pow(e.y_px - t.y_px, 2);
+      sum_meas += std::pow(e.meas_x_px - t.x_px, 2) + std::pow(e.meas_y_px - t.y_px, 2);
+      ++n;
+    }
+    rms_out = std::sqrt(sum / n);
+    rms_meas = std::sqrt(sum_meas / n);
+  };
+  double off = 0, off_meas = 0, on = 0, on_meas = 0;
+  run(false, off, off_meas);
+  run(true, on, on_meas);
+  EXPECT_DOUBLE_EQ(off, off_meas);
+  EXPECT_NEAR(on_meas, off_meas, 1e-9);  // the measurements themselves do not change
+  EXPECT_LT(on, 0.8 * on_meas) << "filtered " << on << " px vs raw " << on_meas << " px";
+}

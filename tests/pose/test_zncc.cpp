@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "sempose/pose/pattern_bank.hpp"
@@ -208,4 +209,90 @@ TEST(Rotation, CounterClockwiseOnScreen) {
   EXPECT_NEAR(out[10 * n + 16], 0.0f, 1e-5);
   rotate_pattern(src.data(), n, 0.0, out.data());
   for (int i = 0; i < n * n; ++i) EXPECT_NEAR(out[i], src[i], 1e-6);
+}
+
+// A shape mask's support as bands covers exactly its pixels, each once.
+TEST(ShapeMask, BandsCoverTheBitmapExactly) {
+  constexpr int n = 40;
+  std::mt19937 rng(5);
+  std::vector<std::uint8_t> in(n * n);
+  // Blobs with holes and several runs per row: the merging must not lose or double a pixel.
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) in[y * n + x] = ((x / 5 + y / 7) % 3 != 0) && (rng() % 11 != 0);
+  const std::vector<MaskBand> bands = bands_of(in.data(), n);
+  std::vector<int> hits(n * n, 0);
+  for (const MaskBand& b : bands)
+    for (int y = b.y0; y <= b.y1; ++y)
+      for (int x = b.x0; x <= b.x1; ++x) ++hits[y * n + x];
+  for (int i = 0; i < n * n; ++i) ASSERT_EQ(hits[i], in[i] ? 1 : 0) << "pixel " << i % n << "," << i / n;
+  EXPECT_LT(bands.size(), static_cast<std::size_t>(n * n / 4));  // rows were merged
+}
+
+// With a shape mask every angle's pattern is zero outside that angle's support, zero-mean and
+// unit-norm inside it, and the support turns with the pattern.
+TEST(ShapeMask, BankSupportTurnsWithThePattern) {
+  constexpr int P = 64;
+  const std::vector<std::uint16_t> tex = texture(P, P, 3);
+  sempose::hal::Image pattern, shape;
+  pattern.width = pattern.height = shape.width = shape.height = P;
+  pattern.bits = 16;
+  shape.bits = 8;
+  pattern.pixels.assign(tex.begin(), tex.end());
+  shape.pixels.assign(P * P, 0);
+  for (int y = 20; y < 44; ++y)
+    for (int x = 8; x < 40; ++x) shape.pixels[y * P + x] = 255;  // off-centre bar
+  PatternMask fine(P, true, 8, 4), half(P / 2, true, 8, 2), coarse(P / 8, true);
+  ZnccCorrelator hc(good_fft_size(48), good_fft_size(48), half), cc(good_fft_size(20), good_fft_size(20), coarse);
+  PatternBank bank;
+  std::string why;
+  ASSERT_TRUE(bank.build(pattern, shape, 0.0, 1, 10.0, fine, half, hc, 30.0, 8, coarse, cc, why)) << why;
+  ASSERT_TRUE(bank.has_shape());
+  for (int j : {0, 9, 18}) {  // 0°, 90°, 180°
+    std::vector<int> in(P * P, 0);
+    std::int64_t count = 0;
+    for (int k = 0; k < bank.support_band_count(j); ++k) {
+      const MaskBand& b = bank.support_bands(j)[k];
+      for (int y = b.y0; y <= b.y1; ++y)
+        for (int x = b.x0; x <= b.x1; ++x) in[y * P + x] = 1, ++count;
+    }
+    EXPECT_EQ(count, bank.support_count(j));
+    EXPECT_NEAR(count, 24 * 32, 24 * 32 / 10);  // the bar, turned, still inside the circle
+    double sum = 0, ss = 0;
+    for (int i = 0; i < P * P; ++i) {
+      const float v = bank.pattern(j)[i];
+      if (!in[i]) {
+        ASSERT_EQ(v, 0.0f) << "angle " << j << " pixel " << i;
+      }
+      sum += v;
+      ss += static_cast<double>(v) * v;
+    }
+    EXPECT_NEAR(sum, 0.0, 1e-4);
+    EXPECT_NEAR(ss, 1.0, 1e-4);
+  }
+  // The bar sits left of centre at 0°, right of it at 180°.
+  EXPECT_TRUE(bank.support_bands(0)[0].x0 < P / 2 - 8);
+  EXPECT_TRUE(bank.support_bands(18)[0].x1 > P / 2 + 8);
+}
+
+TEST(ShapeMask, WrongSizeOrEmptyMaskIsAClearError) {
+  constexpr int P = 32;
+  const std::vector<std::uint16_t> tex = texture(P, P, 4);
+  sempose::hal::Image pattern, shape;
+  pattern.width = pattern.height = P;
+  pattern.bits = 16;
+  pattern.pixels.assign(tex.begin(), tex.end());
+  shape.width = shape.height = P / 2;
+  shape.bits = 8;
+  shape.pixels.assign(P * P / 4, 255);
+  PatternMask fine(P, true, 8, 4), half(P / 2, true, 8, 2), coarse(P / 8, true);
+  ZnccCorrelator hc(good_fft_size(24), good_fft_size(24), half), cc(good_fft_size(8), good_fft_size(8), coarse);
+  PatternBank bank;
+  std::string why;
+  EXPECT_FALSE(bank.build(pattern, shape, 0.0, 1, 10.0, fine, half, hc, 30.0, 8, coarse, cc, why));
+  EXPECT_NE(why.find("16x16"), std::string::npos) << why;
+  shape.width = shape.height = P;
+  shape.pixels.assign(P * P, 0);  // nothing inside
+  why.clear();
+  EXPECT_FALSE(bank.build(pattern, shape, 0.0, 1, 10.0, fine, half, hc, 30.0, 8, coarse, cc, why));
+  EXPECT_NE(why.find("shape mask"), std::string::npos) << why;
 }
