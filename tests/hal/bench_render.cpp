@@ -23,7 +23,7 @@ int main() {
   hal::ScanLimits lim;
   config::SimConfig cfg;
   cfg.clock = "virtual";
-  cfg.targets[0].texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/needle_contact_eb.pgm";
+  cfg.targets[0].texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
   cfg.targets[1].enabled = true;  // both targets: the worst case of the default scene
   hal::SimSource src(lim, cfg);
   int failures = 0;

@@ -207,7 +207,7 @@ TEST(SourceFactory, MakesSimAndExplainsErrors) {
 TEST(SimPattern, DefaultNeedlePatternIsCentredAndAveragingReducesNoise) {
   ScanLimits lim;
   config::SimConfig c;
-  c.targets[0].texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/needle_contact_eb.pgm";
+  c.targets[0].texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
   const Image p1 = render_sim_pattern(c, lim, 0, 96, 1, 250, 5);
   const Image p10 = render_sim_pattern(c, lim, 0, 96, 10, 250, 5);
   config::SimConfig clean = c;
@@ -232,7 +232,7 @@ TEST(SimPattern, DefaultNeedlePatternIsCentredAndAveragingReducesNoise) {
 TEST(SimPattern, RecordsTheSameSceneTheSourceRenders) {
   ScanLimits lim;
   config::SimConfig c;
-  c.targets[0].texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/needle_contact_eb.pgm";
+  c.targets[0].texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
   c.seed = 3;
   c.noise = false;
   c.clock = "virtual";

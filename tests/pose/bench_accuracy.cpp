@@ -53,7 +53,7 @@ std::string fmt(double v, const char* f = "%.3f") {
 }
 
 Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) {
-  static const WarpScene scene = WarpScene::load(std::string(SEMPOSE_SHARED_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
+  static const WarpScene scene = WarpScene::load(std::string(SEMPOSE_TEST_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
   const double cx = 563.5, cy = 527.5;
   constexpr int fw = 384, fh = 320;
   std::vector<PatternSet> sets(1);
@@ -99,7 +99,7 @@ Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) 
 
 // The bound for warp_bias's frames (Poisson at dose), averaged over a few of its sub-pixel phases.
 CrlbMean warp_bound(const config::TrackerConfig& tc, double phi, double dose) {
-  static const WarpScene scene = WarpScene::load(std::string(SEMPOSE_SHARED_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
+  static const WarpScene scene = WarpScene::load(std::string(SEMPOSE_TEST_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
   const std::int64_t t0 = rt::now_ns();
   CrlbMean m;
   for (int k = 0; k < 12; k += 4) {

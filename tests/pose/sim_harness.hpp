@@ -59,7 +59,7 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     // The lamella's end on its post (real SEM texture): edges in two directions and surface
     // detail, shown as a 100 px square so the 128 px pattern holds its outline, not a flat interior.
     t.texture = config::TextureConfig{};
-    t.texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/lamella_on_post_eb.pgm";
+    t.texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/lamella_on_post_eb.pgm";
     t.texture.crop_x = 420;
     t.texture.crop_y = 460;
     t.texture.crop_w = 180;
@@ -73,7 +73,7 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     t.width_px = 100;
     t.height_px = 64;
   } else {
-    t.texture.path = std::string(SEMPOSE_SHARED_DATA) + "/sem/needle_contact_eb.pgm";
+    t.texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
   }
   t.x_px = s.start_x_px;
   t.y_px = s.start_y_px;

@@ -17,7 +17,7 @@ using namespace sempose::pose::testing;
 namespace {
 
 const WarpScene& lamella() {
-  static const WarpScene s = WarpScene::load(std::string(SEMPOSE_SHARED_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
+  static const WarpScene s = WarpScene::load(std::string(SEMPOSE_TEST_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
   return s;
 }
 

@@ -39,7 +39,7 @@ struct Rig {
   std::uint64_t seq = 0;
 
   Rig(const Target& t, const config::TrackerConfig& cfg) : target(t) {
-    scene = WarpScene::load(std::string(SEMPOSE_SHARED_DATA) + "/sem/" + t.file, 1.0);
+    scene = WarpScene::load(std::string(SEMPOSE_TEST_DATA) + "/sem/" + t.file, 1.0);
     std::vector<PatternSet> sets(1);
     sets[0].image = scene.pattern(t.cx, t.cy, cfg.pattern_size_px);
     hal::ScanLimits lim;
