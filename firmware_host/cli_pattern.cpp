@@ -1,6 +1,6 @@
 // `sempose pattern --frames DIR --center X,Y [--size 128] [--average 10] --out P.pgm`: a
 // pattern as the paper made it: the mean of the first N recorded frames, cropped so that the
-// pattern's centre pixel ((size-1)/2, (size-1)/2) lies at (X, Y) (DESIGN.md §2). A crop that
+// pattern's centre pixel ((size-1)/2, (size-1)/2) lies at (X, Y) (README: Conventions). A crop that
 // falls between pixels is bilinearly interpolated.
 #include <cmath>
 #include <cstdio>

@@ -1,6 +1,6 @@
 // `sempose replay --frames DIR --pattern P.pgm [--mask M.pgm] [--pattern Q.pgm ...] [--config FILE]
 //                 [--truth ground_truth.csv] --out poses.csv`
-// Tracks through a recorded sequence (DESIGN.md §11) exactly as on the microscope: every
+// Tracks through a recorded sequence (README: Replay and recording) exactly as on the microscope: every
 // target's tracker asks for its next ROI, gets it as a crop of the current full-field frame,
 // and starts with a full-field search (no start pose needed). Writes
 // frame,t_ns,x_px,y_px,phi_deg,score,status[,target] and ends with one line

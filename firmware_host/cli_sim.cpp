@@ -1,5 +1,5 @@
 // `sempose sim --out DIR [--frames N] [--config FILE] [--seed S] [--dwell NS]`: records a
-// simulated sequence in the replay format (DESIGN.md §11): full-field frames
+// simulated sequence in the replay format (README: Replay and recording): full-field frames
 // frame_000000.pgm..., frames.csv (frame,t_ns = scan start) and ground_truth.csv
 // (frame,x_px,y_px,phi_deg[,target], the pose at mid-scan in the §2 conventions).
 // Runs on the virtual clock: as fast as the CPU allows and reproducible from the seed.

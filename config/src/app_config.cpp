@@ -4,6 +4,7 @@
 #include <memory>
 #include <string>
 
+#include "sempose/config/data_path.hpp"
 #include "sempose/config/reader.hpp"
 
 namespace sempose::config {
@@ -40,6 +41,29 @@ std::string resolve(const std::string& config_path, const std::string& file) {
   return config_path.substr(0, slash + 1) + file;
 }
 
+// Simulator textures and backgrounds: relative paths are found as data_path.hpp says; when the
+// simulator is the source a missing or unusable file is a config error (key, path, places tried)
+// now, before anything starts, not an exception from the scene builder later.
+void resolve_sim_data(Section& root, const std::string& config_path, AppConfig& c) {
+  auto resolve_one = [&](std::string& path, const std::string& key) {
+    std::string resolved, problem;
+    if (find_data_file(path, config_path, resolved, problem)) {
+      path = resolved;
+    } else if (c.source == "sim") {
+      root.errors().add(root.mark(), key, path + ": " + problem);
+    }
+  };
+  for (std::size_t i = 0; i < c.sim.targets.size(); ++i) {
+    auto& t = c.sim.targets[i];
+    if (t.enabled && t.texture.source == "image" && !t.texture.path.empty()) {
+      resolve_one(t.texture.path, "sim.targets[" + std::to_string(i) + "].texture.path");
+    }
+  }
+  if (c.sim.background.source == "image" && !c.sim.background.path.empty()) {
+    resolve_one(c.sim.background.path, "sim.background.path");
+  }
+}
+
 }  // namespace
 
 bool load_app_config(const std::string& path, AppConfig& result, std::string& error_text) {
@@ -74,6 +98,7 @@ bool load_app_config(const std::string& path, AppConfig& result, std::string& er
     read_section(root, "can", read_can, out.can);
     read_section(root, "gpio", read_gpio, out.gpio);
     cross_check(root, out);
+    resolve_sim_data(root, path, out);
   }  // root's destructor reports unknown top-level sections
   error_text = errors.joined();
   result = std::move(out);

@@ -14,7 +14,7 @@ std::vector<SimTargetConfig> SimConfig::default_targets() {
   // 34 px behind the tip.
   SimTargetConfig& needle = t[0];
   needle.texture.source = "image";
-  needle.texture.path = "../shared/data/sem/needle_contact_eb.pgm";
+  needle.texture.path = "data/sem/needle_contact_eb.pgm";  // found as data_path.hpp says
   needle.texture.crop_x = 552;
   needle.texture.crop_y = 430;
   needle.texture.crop_w = 120;

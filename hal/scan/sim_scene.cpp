@@ -2,23 +2,20 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <stdexcept>
 
+#include "sempose/config/data_path.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/sim_rng.hpp"
 
-#ifndef SEMPOSE_REPO_DIR
-#define SEMPOSE_REPO_DIR "."
-#endif
-
 namespace sempose::hal {
 
-std::string resolve_data_path(const std::string& path) {
-  namespace fs = std::filesystem;
-  if (path.empty() || fs::path(path).is_absolute() || fs::exists(path)) return path;
-  const fs::path in_repo = fs::path(SEMPOSE_REPO_DIR) / path;
-  return fs::exists(in_repo) ? in_repo.lexically_normal().string() : path;
+std::string resolve_data_path(const std::string& path, const std::string& what) {
+  // A config read from a file already holds resolved paths; a config made in code (tests,
+  // benchmarks) is looked up in the data folders only.
+  std::string resolved, problem;
+  if (!config::find_data_file(path, "", resolved, problem)) throw std::runtime_error(what + ": " + path + ": " + problem);
+  return resolved;
 }
 
 void gaussian_blur(FloatImage& img, double sigma) {
@@ -172,7 +169,7 @@ SimLayer build_layer(const config::SimTargetConfig& t, std::size_t index, const 
   const std::string what = "sim.targets[" + std::to_string(index) + "].texture";
   FloatImage tex, alpha;
   if (t.texture.source == "image") {
-    const std::string path = resolve_data_path(t.texture.path);
+    const std::string path = resolve_data_path(t.texture.path, what + ".path");
     Image img;
     std::string error;
     if (!try_read_pgm(path, img, error)) throw std::runtime_error(what + ": " + error);
@@ -226,7 +223,7 @@ SimScene::SimScene(const config::SimConfig& cfg, const config::ScanLimits& limit
   const std::int32_t fw = limits.field_w, fh = limits.field_h;
   const auto& bg = cfg.background;
   if (bg.source == "image") {
-    const std::string path = resolve_data_path(bg.path);
+    const std::string path = resolve_data_path(bg.path, "sim.background.path");
     Image img;
     std::string error;
     if (!try_read_pgm(path, img, error)) throw std::runtime_error("sim.background: " + error);

@@ -111,7 +111,7 @@ void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_st
       for (std::size_t t = 0; t < n_targets; ++t) {
         if (!pose[t].active) continue;
         const SimLayer& L = layers[t];
-        // Inverse of the on-screen CCW rotation (DESIGN.md §2): scene offset -> texture.
+        // Inverse of the on-screen CCW rotation (README: Conventions): scene offset -> texture.
         const float X = qx - static_cast<float>(pose[t].cx), Y = qy - static_cast<float>(pose[t].cy);
         const float c = static_cast<float>(pose[t].c), s = static_cast<float>(pose[t].s);
         const float u = static_cast<float>(L.cx) + c * X - s * Y;

@@ -78,5 +78,53 @@ TEST(AppConfig, MissingFileIsAnError) {
   EXPECT_NE(e.find("/nonexistent/sempose.yaml: cannot open"), std::string::npos) << e;
 }
 
+// The built-in default target's texture (data/sem/needle_contact_eb.pgm) is found beside the
+// config file first: a config copied into a folder with its own data/ uses that copy.
+TEST(AppConfigData, DefaultTextureResolvesAgainstTheConfigFolder) {
+  AppConfig c;
+  std::string e;
+  ASSERT_TRUE(load_app_config(std::string(SEMPOSE_SOURCE_DIR) + "/config/default.yaml", c, e)) << e;
+  EXPECT_EQ(c.sim.targets[0].texture.path, std::string(SEMPOSE_SOURCE_DIR) + "/config/data/sem/needle_contact_eb.pgm");
+}
+
+// A config elsewhere (no data/ beside it) falls back to the data folders, not the working directory.
+TEST(AppConfigData, DefaultTextureFoundFromAnotherFolder) {
+  const auto path = write_yaml("elsewhere.yaml", "source: sim\n");
+  AppConfig c;
+  std::string e;
+  ASSERT_TRUE(load_app_config(path, c, e)) << e;
+  EXPECT_EQ(c.sim.targets[0].texture.path.front(), '/');
+  EXPECT_NE(c.sim.targets[0].texture.path.find("data/sem/needle_contact_eb.pgm"), std::string::npos);
+}
+
+TEST(AppConfigData, MissingTextureNamesKeyPathAndPlacesTried) {
+  const auto path = write_yaml("notex.yaml", "sim:\n  targets:\n    - texture: {path: nowhere/x.pgm}\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find("sim.targets[0].texture.path: nowhere/x.pgm: not found (tried: "), std::string::npos) << e;
+  EXPECT_NE(e.find(::testing::TempDir() + "nowhere/x.pgm"), std::string::npos) << e;
+}
+
+TEST(AppConfigData, TextureThatIsADirectoryIsNamed) {
+  const auto path = write_yaml("dirtex.yaml", "sim:\n  targets:\n    - texture: {path: " + ::testing::TempDir() + "}\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find("sim.targets[0].texture.path: "), std::string::npos) << e;
+  EXPECT_NE(e.find("is a directory, not a file"), std::string::npos) << e;
+}
+
+// With replay as the source the simulator's textures are not needed, so not checked.
+TEST(AppConfigData, MissingTextureIgnoredWhenNotSimulating) {
+  const auto path = write_yaml("replaytex.yaml",
+                               "source: replay\nreplay: {frames_dir: /tmp}\nsim:\n  targets:\n    - texture: {path: nowhere/x.pgm}\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_EQ(e.find("texture"), std::string::npos) << e;
+  load_app_config(path, c, e);
+  EXPECT_EQ(e.find("texture"), std::string::npos) << e;
+}
+
 }  // namespace
 }  // namespace sempose::config

@@ -1,4 +1,4 @@
-// A target placed at (x, y, φ) renders where DESIGN.md §2 says: positive φ turns the pattern
+// A target placed at (x, y, φ) renders where the README's conventions say: positive φ turns the pattern
 // counter-clockwise on screen (from +x toward −y, image y down) about its centre.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Detector statistics against dose (DESIGN.md §5): mean = λ, variance = λ(1 + 1/k) + σ_read²
+// Detector statistics against dose (README: The simulated SEM): mean = λ, variance = λ(1 + 1/k) + σ_read²
 // for Poisson electrons through a Gamma(k) gain cascade; SNR grows as √dwell.
 #include <gtest/gtest.h>
 

@@ -200,7 +200,7 @@ TEST(Zncc, TooSmallRegionIsRejected) {
 }
 
 TEST(Rotation, CounterClockwiseOnScreen) {
-  // A bright dot right of the centre (+x) must move up (−y) after +90° (DESIGN.md §2).
+  // A bright dot right of the centre (+x) must move up (−y) after +90° (README: Conventions).
   const int n = 21;
   std::vector<float> src(n * n, 0.0f), out(n * n);
   src[10 * n + 16] = 1.0f;

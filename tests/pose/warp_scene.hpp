@@ -1,6 +1,6 @@
 // A simulator-free ground truth for the tracker's geometry: a real SEM image seen through a
 // Gaussian PSF is the continuous scene (sampled in closed form, so no interpolation error); the pattern is an integer crop of it; a frame shows that crop placed at an exact
-// sub-pixel pose (x, y, φ) in the DESIGN.md §2 conventions: pattern pixel ((P−1)/2, (P−1)/2)
+// sub-pixel pose (x, y, φ) in the the README's conventions: pattern pixel ((P−1)/2, (P−1)/2)
 // lands on (x, y), rotated counter-clockwise on the screen by φ. Optional Poisson noise at
 // a dose in electrons per pixel. Test/benchmark helper only (allocates).
 #pragma once

@@ -19,7 +19,7 @@ struct ScanLimits {
   std::uint32_t line_flyback_ns = 2'000;
   std::uint8_t bits = 8;  // 8 or 16 bits per pixel, like the frame grabber
 
-  // w·h·dwell + h·flyback (DESIGN.md §5).
+  // w·h·dwell + h·flyback (README: The simulated SEM).
   std::int64_t scan_time_ns(std::int32_t w, std::int32_t h, std::uint32_t dwell_ns) const noexcept {
     return static_cast<std::int64_t>(w) * h * dwell_ns + static_cast<std::int64_t>(h) * line_flyback_ns;
   }

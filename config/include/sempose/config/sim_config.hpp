@@ -1,8 +1,9 @@
 // The simulated SEM (YAML section `sim:`) and the replay source (section `replay:`).
 // Defaults make a usable simulation with no `sim:` section at all: a 1024x768 field, a needle
-// tip textured from the real SEM image ../shared/data/sem/needle_contact_eb.pgm (its last
-// 120 px at 3/4 scale, so a 128 px pattern holds its outline) moving on a slow sine, a procedural gripper as a second (disabled) target, and a beam dose that gives
-// single-digit detected electrons per pixel at 250 ns dwell (DESIGN.md §5).
+// tip textured from the real SEM image data/sem/needle_contact_eb.pgm (config/data/sem; its last
+// 120 px at 3/4 scale, so a 128 px pattern holds its outline) moving on a slow sine, a
+// procedural gripper as a second (disabled) target, and a beam dose that gives
+// single-digit detected electrons per pixel at 250 ns dwell (README: The simulated SEM).
 #pragma once
 
 #include <cstdint>
@@ -44,7 +45,7 @@ struct SimTargetConfig {
   TextureConfig texture;
   std::int32_t width_px = 0, height_px = 0;  // size on the field; 0: the crop's size
   double brightness = 1.0;                   // multiplies the texture (0..1 scene brightness)
-  double x_px = 512, y_px = 384, phi_deg = 0;  // pose at t = 0 (DESIGN.md §2)
+  double x_px = 512, y_px = 384, phi_deg = 0;  // pose at t = 0 (README: Conventions)
   TrajectoryConfig trajectory;
 };
 

@@ -18,7 +18,7 @@ struct Roi {
   friend bool operator==(const Roi&, const Roi&) = default;
 };
 
-// Where a simulated target really was during the scan (DESIGN.md §2 conventions).
+// Where a simulated target really was during the scan (the README's conventions).
 struct TargetTruth {
   double x_px = 0;
   double y_px = 0;

@@ -1,5 +1,5 @@
 // Frame-sync input: a rising edge from the scan generator means "ROI scan complete".
-// libgpiod 1.6 v1 C API (DESIGN.md §9): the line's edge events are requested once at setup;
+// libgpiod 1.6 v1 C API (README: CAN and GPIO): the line's edge events are requested once at setup;
 // the RT side then only reads the event fd (non-blocking) with gpiod_line_event_read_fd,
 // which reads into a stack buffer — no allocation, no exceptions (the C++ binding has both).
 // Event timestamps are CLOCK_MONOTONIC, taken by the kernel in the IRQ handler.

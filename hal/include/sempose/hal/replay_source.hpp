@@ -1,4 +1,4 @@
-// Replay of a recorded sequence (DESIGN.md §11) as a ScanSource: every start() serves the
+// Replay of a recorded sequence (README: Replay and recording) as a ScanSource: every start() serves the
 // requested ROI as a crop of the current full-field frame and advances one frame; at the end
 // start() returns kEnded, or wraps around when loop is set.
 // All frames are loaded at setup (the loop does no I/O); the constructor refuses sequences

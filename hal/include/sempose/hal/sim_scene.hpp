@@ -47,8 +47,9 @@ class SimScene {
 };
 
 // Setup helpers (also used by tests).
-// A relative path is tried against the working directory, then the repository root.
-std::string resolve_data_path(const std::string& path);
+// The data file `path` (absolute, or relative to the data folders of config/data_path.hpp);
+// throws naming `what`, the path and every place tried if it is missing or unusable.
+std::string resolve_data_path(const std::string& path, const std::string& what);
 void gaussian_blur(FloatImage& img, double sigma);
 // Bilinear resample to w x h.
 FloatImage resample(const FloatImage& src, std::int32_t w, std::int32_t h);

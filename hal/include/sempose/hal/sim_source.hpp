@@ -1,4 +1,4 @@
-// The simulated SEM as a ScanSource (DESIGN.md §5). start() renders the whole ROI at once,
+// The simulated SEM as a ScanSource (README: The simulated SEM). start() renders the whole ROI at once,
 // line by line at each line's own time (targets move during the scan, like a real beam
 // scan), into the slot; poll() only compares the clock with the scan end.
 //   real clock:    poll() is kBusy until CLOCK_MONOTONIC >= start + scan time.

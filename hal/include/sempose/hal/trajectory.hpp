@@ -1,5 +1,5 @@
 // x(t), y(t), φ(t) of a simulated target (t in seconds since the source started), in the
-// DESIGN.md §2 conventions. Pure function of t and the seed, except random_walk, which keeps
+// the README's conventions. Pure function of t and the seed, except random_walk, which keeps
 // a cursor so that monotone time costs O(1) per call (going back in time replays from 0).
 #pragma once
 

@@ -61,7 +61,7 @@ class LatencyHistogram {
   std::atomic<std::int64_t> sum_ns_{0};
 };
 
-// cyclictest --histogram layout, one column per series (DESIGN.md §7):
+// cyclictest --histogram layout, one column per series (README: Latency histograms):
 //   "# Histogram", then per bucket "%06d " + TAB-joined "%06lu" counts, then the
 //   "# Total:", "# Min Latencies:", "# Avg Latencies:", "# Max Latencies:",
 //   "# Histogram Overflows:" lines. As in cyclictest, Total counts in-range samples.

@@ -1,4 +1,4 @@
-// Process-wide RT memory setup (DESIGN.md §6) and the /dev/cpu_dma_latency hold.
+// Process-wide RT memory setup (README: Real-time rules) and the /dev/cpu_dma_latency hold.
 #pragma once
 
 #include <cstddef>

@@ -1,4 +1,4 @@
-// Poses as CSV (DESIGN.md §11: frame,t_ns,x_px,y_px,phi_deg,score,status[,target]).
+// Poses as CSV (README: Replay and recording: frame,t_ns,x_px,y_px,phi_deg,score,status[,target]).
 // publish() (RT) copies the pose into a preallocated single-producer ring; the non-RT thread
 // calls write_pending() to format and write them. A full ring drops and counts, never blocks.
 #pragma once

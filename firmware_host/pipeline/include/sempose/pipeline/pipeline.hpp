@@ -1,4 +1,4 @@
-// The real-time pipeline (DESIGN.md §1): three stages on pinned SCHED_FIFO threads.
+// The real-time pipeline (README: How it works): three stages on pinned SCHED_FIFO threads.
 //
 //   acquisition ──frame ring (slot indices)──▶ correlation ──pose ring──▶ output ──▶ PoseSink
 //        ▲   └◀──────── free ring (slot indices) ───┘  │                     │

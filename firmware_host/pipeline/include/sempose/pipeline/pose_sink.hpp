@@ -10,7 +10,7 @@
 
 namespace sempose::pipeline {
 
-// One pose as it leaves the tracker (full-field pixels, DESIGN.md §2 conventions).
+// One pose as it leaves the tracker (full-field pixels, the README's conventions).
 struct PoseRecord {
   std::uint64_t frame_seq = 0;      // scan-source sequence number of the frame
   std::uint32_t pose_seq = 0;       // per target, +1 per pose; wraps; gaps = dropped poses

@@ -23,7 +23,7 @@
 namespace sempose::pose {
 
 // Rotates src (size×size, row-major) by phi_deg about its centre, counter-clockwise on the
-// screen (DESIGN.md §2), bicubic; samples falling outside are clamped to the border.
+// screen (README: Conventions), bicubic; samples falling outside are clamped to the border.
 void rotate_pattern(const float* src, int size, double phi_deg, float* out) noexcept;
 
 // Box-downsamples the central (size/factor·factor)² block of a size×size pattern.

@@ -1,4 +1,4 @@
-// Tracker state and the reasons a target is lost (DESIGN.md §2: TRACKING, ACQUIRING, LOST
+// Tracker state and the reasons a target is lost (README: Conventions: TRACKING, ACQUIRING, LOST
 // and why). Shared by pose estimation, the pipeline and the wire protocol mapping.
 #pragma once
 

@@ -20,7 +20,7 @@ namespace sempose::pose {
 struct PoseEstimate {
   TrackState state = TrackState::kAcquiring;
   std::uint8_t reason_bits = kReasonNone;  // LostReason bits
-  double x_px = 0;      // full-field px, DESIGN.md §2 (centre of the pattern)
+  double x_px = 0;      // full-field px, README: Conventions (centre of the pattern)
   double y_px = 0;
   double phi_deg = 0;   // (-180, 180]
   // This frame's own measurement; equal to x_px, y_px, phi_deg unless tracker.filter is on

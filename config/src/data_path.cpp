@@ -1,0 +1,69 @@
+#include "sempose/config/data_path.hpp"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#ifndef SEMPOSE_INSTALL_DATA_DIR
+#define SEMPOSE_INSTALL_DATA_DIR "/usr/share/sempose"
+#endif
+#ifndef SEMPOSE_SOURCE_CONFIG_DIR
+#define SEMPOSE_SOURCE_CONFIG_DIR ""
+#endif
+
+namespace sempose::config {
+namespace {
+
+// What is wrong with `path` as a data file to read, or "" if nothing.
+std::string file_problem(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return "not found";
+  if (S_ISDIR(st.st_mode)) return "is a directory, not a file";
+  if (!S_ISREG(st.st_mode)) return "is not a regular file (a FIFO, socket or device would block or never end)";
+  if (::access(path.c_str(), R_OK) != 0) return "is not readable";
+  return "";
+}
+
+}  // namespace
+
+std::vector<std::string> data_search_dirs(const std::string& config_path) {
+  std::vector<std::string> dirs;
+  if (!config_path.empty()) {
+    const auto slash = config_path.rfind('/');
+    dirs.push_back(slash == std::string::npos ? "." : config_path.substr(0, slash == 0 ? 1 : slash));
+  }
+  for (const char* d : {SEMPOSE_INSTALL_DATA_DIR, SEMPOSE_SOURCE_CONFIG_DIR}) {
+    if (*d != '\0') dirs.emplace_back(d);
+  }
+  return dirs;
+}
+
+bool find_data_file(const std::string& file, const std::string& config_path, std::string& resolved,
+                    std::string& problem) {
+  if (file.empty()) {
+    problem = "empty path";
+    return false;
+  }
+  if (file[0] == '/') {
+    problem = file_problem(file);
+    resolved = file;
+    return problem.empty();
+  }
+  std::string tried;
+  std::string first_problem;
+  for (const auto& dir : data_search_dirs(config_path)) {
+    const std::string candidate = (dir == "/" ? "" : dir) + "/" + file;
+    const std::string p = file_problem(candidate);
+    if (p.empty()) {
+      resolved = candidate;
+      problem.clear();
+      return true;
+    }
+    // A candidate that exists but is unusable is named; one that is simply absent only listed.
+    if (p != "not found" && first_problem.empty()) first_problem = candidate + " " + p;
+    tried += (tried.empty() ? "" : ", ") + candidate;
+  }
+  problem = first_problem.empty() ? "not found (tried: " + tried + ")" : first_problem + " (tried: " + tried + ")";
+  return false;
+}
+
+}  // namespace sempose::config
