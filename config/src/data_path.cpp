@@ -3,6 +3,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <filesystem>
+
 #ifndef SEMPOSE_INSTALL_DATA_DIR
 #define SEMPOSE_INSTALL_DATA_DIR "/usr/share/sempose"
 #endif
@@ -54,7 +56,8 @@ bool find_data_file(const std::string& file, const std::string& config_path, std
     const std::string candidate = (dir == "/" ? "" : dir) + "/" + file;
     const std::string p = file_problem(candidate);
     if (p.empty()) {
-      resolved = candidate;
+      // Absolute, so that nothing later resolves it a second time against another folder.
+      resolved = std::filesystem::absolute(candidate).lexically_normal().string();
       problem.clear();
       return true;
     }

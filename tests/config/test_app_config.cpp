@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
 
@@ -84,6 +85,17 @@ TEST(AppConfigData, DefaultTextureResolvesAgainstTheConfigFolder) {
   AppConfig c;
   std::string e;
   ASSERT_TRUE(load_app_config(std::string(SEMPOSE_SOURCE_DIR) + "/config/default.yaml", c, e)) << e;
+  EXPECT_EQ(c.sim.targets[0].texture.path, std::string(SEMPOSE_SOURCE_DIR) + "/config/data/sem/needle_contact_eb.pgm");
+}
+
+// A config named by a relative path (`sempose run --config config/default.yaml`) gives an
+// absolute texture path: the simulator must not resolve it a second time against another folder.
+TEST(AppConfigData, RelativeConfigPathGivesAbsoluteTexturePath) {
+  const auto rel = std::filesystem::relative(std::string(SEMPOSE_SOURCE_DIR) + "/config/default.yaml").string();
+  ASSERT_NE(rel.front(), '/');
+  AppConfig c;
+  std::string e;
+  ASSERT_TRUE(load_app_config(rel, c, e)) << e;
   EXPECT_EQ(c.sim.targets[0].texture.path, std::string(SEMPOSE_SOURCE_DIR) + "/config/data/sem/needle_contact_eb.pgm");
 }
 
