@@ -32,6 +32,17 @@ struct Bias {
 // (the bound changes a little with the angle and with the background under the mask).
 double g_bound_s = 0;  // time spent computing bounds (its share of the bench's run time is printed)
 
+// POSE_DUMP=<file> in the environment: every pose the bench computes, at full precision
+// (hex floats), one line each, tagged with its case: diffing two dumps shows whether a change
+// to the tracker moved any pose by even one bit.
+std::FILE* g_dump = nullptr;
+void dump_pose(const char* tag, const PoseEstimate& e) {
+  if (!g_dump) return;
+  std::fprintf(g_dump, "%s st%d s%d rb%02x steps%d %a %a %a %a %a %a %a %a\n", tag, static_cast<int>(e.state),
+               e.searched, e.reason_bits, e.angle_steps, e.x_px, e.y_px, e.phi_deg, e.meas_x_px, e.meas_y_px,
+               e.meas_phi_deg, static_cast<double>(e.score), static_cast<double>(e.psr));
+}
+
 CrlbMean run_bound(const Scenario& s, const config::TrackerConfig& tc, const std::vector<hal::TargetTruth>& truth) {
   const std::int64_t t0 = rt::now_ns();
   const SimMeanRenderer sim(make_sim_config(s), s.field_w, s.field_h, s.dwell_ns);
@@ -81,6 +92,9 @@ Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) 
       crop(field, fw, meta.roi, roi);
       e = tracker->update(meta, roi.data());
     }
+    char tag[64];
+    std::snprintf(tag, sizeof tag, "warp phi%g dose%g k%d", phi, dose, k);
+    dump_pose(tag, e);
     const double ex = e.x_px - x, ey = e.y_px - y;
     // Into the target's frame: its +x axis is (cos φ, −sin φ) on screen (CCW with y down).
     b.along += ex * c - ey * s;
@@ -129,6 +143,9 @@ Bias sim_bias(const config::TrackerConfig& tc, const std::string& target, double
     h.run();
     const auto& e = h.poses().back();
     const auto& tr = h.truth().back();
+    char tag[96];
+    std::snprintf(tag, sizeof tag, "simbias %s phi%g bg%d k%d", target.c_str(), phi, background, k);
+    dump_pose(tag, e);
     const double ex = e.x_px - tr.x_px, ey = e.y_px - tr.y_px;
     b.along += ex * c - ey * s;
     b.across += ex * s + ey * c;
@@ -154,6 +171,7 @@ int main(int argc, char** argv) {
   const std::string only_target = only ? argv[2] : "";
   const std::string only_motion = only && argc > 3 ? argv[3] : "";
   config::TrackerConfig tc;
+  if (const char* dump = std::getenv("POSE_DUMP")) g_dump = std::fopen(dump, "w");
   const int frames = quick ? 60 : 150;
   const std::int64_t bench_t0 = rt::now_ns();
   std::printf("accuracy on the simulated SEM: 640x480 field, pattern %d², ROI %d², 250 ns dwell, %d frames per run\n"
@@ -195,6 +213,11 @@ int main(int argc, char** argv) {
                         static_cast<int>(e.state), e.searched, e.reason_bits, e.x_px, e.y_px, e.phi_deg, t.x_px,
                         t.y_px, t.phi_deg, e.score);
           }
+        for (std::size_t f = 0; f < h.poses().size(); ++f) {
+          char tag[96];
+          std::snprintf(tag, sizeof tag, "run %s %s %g f%zu", target, motion, dose, f);
+          dump_pose(tag, h.poses()[f]);
+        }
         for (const auto& e : h.poses())
           if (!std::isfinite(e.x_px) || !std::isfinite(e.phi_deg) || !std::isfinite(e.score)) ++bad;
         char recov[16] = "-";
@@ -268,6 +291,9 @@ int main(int argc, char** argv) {
       h.run();
       const auto& e = h.poses().back();
       const auto& tr = h.truth().back();
+      char tag[64];
+      std::snprintf(tag, sizeof tag, "phase %s k%d", fit, k);
+      dump_pose(tag, e);
       const double ex = e.x_px - tr.x_px;
       std::printf(" f=%.1f:%+.3f", k / 10.0, ex);
       worst = std::max(worst, std::fabs(ex));
