@@ -22,10 +22,12 @@
 
 #include "cli.hpp"
 #include "sempose/config/app_config.hpp"
+#include "sempose/pipeline/pose_input.hpp"
 #include "sempose/config/reader.hpp"
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
+#include "sempose/pipeline/pose_input.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "sempose/rt/clock.hpp"
@@ -219,7 +221,7 @@ int run_replay(int argc, char** argv) {
       pose::Tracker& tr = *targets[k].tracker;
       hal::FrameMeta meta;
       meta.seq = f;
-      meta.roi = tr.next_roi();
+      meta.roi = pipeline::to_hal_roi(tr.next_roi());
       meta.field_w = frame.width;
       meta.field_h = frame.height;
       meta.bits = frame.bits;
@@ -231,7 +233,7 @@ int run_replay(int argc, char** argv) {
                     sizeof(hal::Pixel) * static_cast<std::size_t>(meta.roi.w));
       }
       const std::int64_t t0 = rt::now_ns();
-      const pose::PoseEstimate e = tr.update(meta, crop.data());
+      const pose::PoseEstimate e = tr.update(pipeline::to_pose_frame(meta, crop.data()));
       const double us = (rt::now_ns() - t0) * 1e-3;
       if (e.searched) {
         if (acquire_ms < 0) acquire_ms = us * 1e-3;

@@ -6,6 +6,24 @@
 
 namespace sempose::config {
 
+SettingProblem check_tracker_sizes(const TrackerConfig& c, int pattern_px) {
+  if (c.roi_size_px < pattern_px) {
+    return {"roi_size_px", "the pattern (" + std::to_string(pattern_px) + " px) is larger than tracker.roi_size_px (" +
+                               std::to_string(c.roi_size_px) + " px); the ROI must contain the pattern"};
+  }
+  if (c.search_downsample < 1 || pattern_px / c.search_downsample < 4) {
+    return {"search_downsample", std::to_string(c.search_downsample) + " leaves a coarse pattern of " +
+                                     std::to_string(c.search_downsample < 1 ? 0 : pattern_px / c.search_downsample) +
+                                     " px (pattern " + std::to_string(pattern_px) +
+                                     " px); allowed: pattern side / search_downsample >= 4"};
+  }
+  const double steps = 360.0 / c.angle_step_deg;
+  if (!(c.angle_step_deg > 0) || std::fabs(steps - std::round(steps)) > 1e-6) {
+    return {"angle_step_deg", std::to_string(c.angle_step_deg) + " does not divide 360"};
+  }
+  return {};
+}
+
 void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("pattern_size_px", c.pattern_size_px, 8, 512);
   s.opt("roi_size_px", c.roi_size_px, 8, 1024);
@@ -32,19 +50,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("predict_velocity", c.predict_velocity);
   s.opt_choice("subpixel", c.subpixel, {"gaussian", "quadratic"});
   s.opt("fit_noise_correction", c.fit_noise_correction);
-  if (c.roi_size_px < c.pattern_size_px) {
-    s.error("roi_size_px", std::to_string(c.roi_size_px) + " is smaller than pattern_size_px " +
-                               std::to_string(c.pattern_size_px) + " (the ROI must contain the pattern)");
-  }
-  if (c.pattern_size_px / c.search_downsample < 4) {
-    s.error("search_downsample", std::to_string(c.search_downsample) + " leaves a coarse pattern of " +
-                                     std::to_string(c.pattern_size_px / c.search_downsample) +
-                                     " px; allowed: pattern_size_px / search_downsample >= 4");
-  }
-  const double steps = 360.0 / c.angle_step_deg;
-  if (std::fabs(steps - std::round(steps)) > 1e-6) {
-    s.error("angle_step_deg", std::to_string(c.angle_step_deg) + " does not divide 360");
-  }
+  if (const SettingProblem problem = check_tracker_sizes(c, c.pattern_size_px)) s.error(problem.key.c_str(), problem.message);
 }
 
 void read_targets(Section& root, std::vector<TargetConfig>& out) {

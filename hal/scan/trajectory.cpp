@@ -11,13 +11,6 @@ namespace {
 constexpr double kTwoPi = 6.283185307179586;
 }
 
-double wrap_deg(double deg) noexcept {
-  double r = std::fmod(deg, 360.0);
-  if (r <= -180.0) r += 360.0;
-  if (r > 180.0) r -= 360.0;
-  return r;
-}
-
 Trajectory::Trajectory(const config::TrajectoryConfig& cfg, Pose2 start, std::int32_t field_w,
                        std::int32_t field_h, std::uint64_t seed) noexcept
     : cfg_(cfg), start_(start), seed_(seed), knot_(start) {

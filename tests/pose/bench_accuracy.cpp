@@ -68,7 +68,7 @@ Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) 
   const double cx = 563.5, cy = 527.5;
   constexpr int fw = 384, fh = 320;
   std::vector<PatternSet> sets(1);
-  sets[0].image = scene.pattern(cx, cy, tc.pattern_size_px);
+  sets[0].image = pipeline::to_pattern_image(scene.pattern(cx, cy, tc.pattern_size_px));
   hal::ScanLimits lim;
   lim.field_w = fw;
   lim.field_h = fh;
@@ -85,12 +85,12 @@ Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) 
     for (int f = 0; f < 3; ++f) {
       scene.render(cx, cy, x, y, phi, fw, fh, field, dose, 100 + static_cast<std::uint64_t>(k * 7 + f));
       hal::FrameMeta meta;
-      meta.roi = tracker->next_roi();
+      meta.roi = pipeline::to_hal_roi(tracker->next_roi());
       meta.field_w = fw;
       meta.field_h = fh;
       meta.bits = 16;
       crop(field, fw, meta.roi, roi);
-      e = tracker->update(meta, roi.data());
+      e = tracker->update(pipeline::to_pose_frame(meta, roi.data()));
     }
     char tag[64];
     std::snprintf(tag, sizeof tag, "warp phi%g dose%g k%d", phi, dose, k);

@@ -62,7 +62,7 @@ int main(int argc, char** argv) {
     Tracker& t = *h.tracker();
     // One ROI frame at the tracked pose, replayed (the tracker re-tracks it each time).
     hal::FrameMeta meta;
-    meta.roi = t.next_roi();
+    meta.roi = pipeline::to_hal_roi(t.next_roi());
     meta.field_w = s.field_w;
     meta.field_h = s.field_h;
     config::SimConfig sc = make_sim_config(s);
@@ -74,11 +74,11 @@ int main(int argc, char** argv) {
     sim.render(meta.roi, 250, hal::SimSource::kVirtualEpochNs, 1, px.data(), meta.truth);
     int tracked = 0;
     if (profile_roi) {
-      const Timing p = time_it(profile_reps, [&] { tracked += t.update(meta, px.data()).state == TrackState::kTracking; });
+      const Timing p = time_it(profile_reps, [&] { tracked += t.update(pipeline::to_pose_frame(meta, px.data())).state == TrackState::kTracking; });
       std::printf("%3d²   | %9.1f us %9.1f us | tracked %d/%d\n", roi, p.p50_us, p.p99_us, tracked, profile_reps);
       return 0;
     }
-    const Timing ours = time_it(400, [&] { tracked += t.update(meta, px.data()).state == TrackState::kTracking; });
+    const Timing ours = time_it(400, [&] { tracked += t.update(pipeline::to_pose_frame(meta, px.data())).state == TrackState::kTracking; });
 
     // The peer: three rotated 8-bit patterns against the 8-bit ROI.
     cv::Mat roi8(meta.roi.h, meta.roi.w, CV_8U);
@@ -135,7 +135,7 @@ int main(int argc, char** argv) {
     int found = 0;
     const Timing ts = time_it(15, [&] {
       t.request_reacquire();  // a full-field frame while tracking is otherwise tracked in its crop
-      const PoseEstimate e = t.update(meta, px.data());
+      const PoseEstimate e = t.update(pipeline::to_pose_frame(meta, px.data()));
       found += e.state == TrackState::kTracking && std::hypot(e.x_px - meta.truth[0].x_px, e.y_px - meta.truth[0].y_px) < 1.0;
     });
     std::printf("%4dx%-4d  p50 %7.2f ms  max %7.2f ms  found %d/15   (bank + buffers %.1f MB)\n", w, hgt,

@@ -15,6 +15,7 @@
 #include "sempose/config/sim_config.hpp"
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/hal/sim_source.hpp"
+#include "sempose/pipeline/pose_input.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "sempose/rt/alloc_counter.hpp"
 #include "sempose/rt/clock.hpp"
@@ -134,8 +135,9 @@ class SimHarness {
     pat_cfg.targets[0].x_px = s.field_w / 2.0;
     pat_cfg.targets[0].y_px = s.field_h / 2.0;
     std::vector<PatternSet> sets(1);
-    sets[0].image = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, 10, s.dwell_ns, 777);
-    if (s.shape_mask) sets[0].mask = hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px);
+    sets[0].image = pipeline::to_pattern_image(hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, 10, s.dwell_ns, 777));
+    if (s.shape_mask)
+      sets[0].mask = pipeline::to_pattern_image(hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px));
     sets[0].nm_per_px = 40;
     sim_ = std::make_unique<hal::SimSource>(limits_, sim_cfg_);
     tracker_ = Tracker::create(tc, std::move(sets), limits_, status_);
@@ -152,7 +154,7 @@ class SimHarness {
     for (int f = 0; f < s_.frames; ++f) {
       hal::FrameMeta meta;
       meta.seq = static_cast<std::uint64_t>(f);
-      meta.roi = tracker_->next_roi();
+      meta.roi = pipeline::to_hal_roi(tracker_->next_roi());
       meta.field_w = s_.field_w;
       meta.field_h = s_.field_h;
       meta.dwell_ns = s_.dwell_ns;
@@ -165,8 +167,8 @@ class SimHarness {
         // Heap calls made inside the tracker (the simulator's own are not its business).
         rt::alloc::ScopedArm arm;
         const std::uint64_t before = rt::alloc::this_thread_allocations();
-        out_[static_cast<std::size_t>(f)] = tracker_->update(meta, pixels_.data());
-        const hal::Roi next = tracker_->next_roi();
+        out_[static_cast<std::size_t>(f)] = tracker_->update(pipeline::to_pose_frame(meta, pixels_.data()));
+        const pose::Roi next = tracker_->next_roi();
         (void)next;
         tracker_allocations_ += rt::alloc::this_thread_allocations() - before;
       }

@@ -12,6 +12,7 @@
 #include <memory>
 #include <vector>
 
+#include "sempose/pipeline/pose_input.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "warp_scene.hpp"
 
@@ -41,7 +42,7 @@ struct Rig {
   Rig(const Target& t, const config::TrackerConfig& cfg) : target(t) {
     scene = WarpScene::load(std::string(SEMPOSE_TEST_DATA) + "/sem/" + t.file, 1.0);
     std::vector<PatternSet> sets(1);
-    sets[0].image = scene.pattern(t.cx, t.cy, cfg.pattern_size_px);
+    sets[0].image = pipeline::to_pattern_image(scene.pattern(t.cx, t.cy, cfg.pattern_size_px));
     hal::ScanLimits lim;
     lim.field_w = kFieldW;
     lim.field_h = kFieldH;
@@ -58,7 +59,7 @@ struct Rig {
     for (int f = 0; f <= frames; ++f) {
       hal::FrameMeta meta;
       meta.seq = seq++;
-      meta.roi = tracker->next_roi();
+      meta.roi = pipeline::to_hal_roi(tracker->next_roi());
       meta.field_w = kFieldW;
       meta.field_h = kFieldH;
       meta.bits = 16;
@@ -66,7 +67,7 @@ struct Rig {
       // which does not matter here).
       scene.render(target.cx, target.cy, x, y, phi, kFieldW, kFieldH, roi, dose, seed * 1000 + static_cast<std::uint64_t>(f),
                    meta.roi);
-      e = tracker->update(meta, roi.data());
+      e = tracker->update(pipeline::to_pose_frame(meta, roi.data()));
     }
     return e;
   }
@@ -150,7 +151,7 @@ TEST(Geometry, FullFieldFrameWhileTrackingIsNotSearchedAgain) {
   meta.field_w = kFieldW;
   meta.field_h = kFieldH;
   meta.bits = 16;
-  const PoseEstimate e = rig.tracker->update(meta, rig.field.data());
+  const PoseEstimate e = rig.tracker->update(pipeline::to_pose_frame(meta, rig.field.data()));
   EXPECT_FALSE(e.searched);
   EXPECT_EQ(e.state, TrackState::kTracking);
   EXPECT_LT(std::hypot(e.x_px - 200.3, e.y_px - 150.6), 0.1);

@@ -23,8 +23,8 @@ config::TrackerConfig small_config() {
   return c;
 }
 
-hal::Image flat_image(int w, int h, std::uint16_t v) {
-  hal::Image im;
+PatternImage flat_image(int w, int h, std::uint16_t v) {
+  PatternImage im;
   im.width = w;
   im.height = h;
   im.pixels.assign(static_cast<std::size_t>(w) * h, v);
@@ -136,32 +136,32 @@ TEST(Tracker, FlatBadAndOffFieldFramesAreLostNeverNan) {
   for (hal::Pixel level : {hal::Pixel{0}, hal::Pixel{255}, hal::Pixel{128}}) {
     std::fill(px.begin(), px.end(), level);
     hal::FrameMeta m;
-    m.roi = t.next_roi();
+    m.roi = pipeline::to_hal_roi(t.next_roi());
     m.field_w = 640;
     m.field_h = 480;
-    const PoseEstimate e = t.update(m, px.data());
+    const PoseEstimate e = t.update(pipeline::to_pose_frame(m, px.data()));
     EXPECT_NE(e.state, TrackState::kTracking);
     EXPECT_EQ(e.score, 0.0f);
     EXPECT_TRUE(std::isfinite(e.x_px) && std::isfinite(e.y_px) && std::isfinite(e.phi_deg));
   }
   // Now acquiring: next ROI is the full field; a blank full field stays ACQUIRING.
-  const hal::Roi full = t.next_roi();
+  const hal::Roi full = pipeline::to_hal_roi(t.next_roi());
   EXPECT_EQ(full.w, 640);
   EXPECT_EQ(full.h, 480);
   hal::FrameMeta m;
   m.roi = full;
   m.field_w = 640;
   m.field_h = 480;
-  EXPECT_EQ(t.update(m, px.data()).state, TrackState::kAcquiring);
+  EXPECT_EQ(t.update(pipeline::to_pose_frame(m, px.data())).state, TrackState::kAcquiring);
   m.status = hal::FrameStatus::kBad;
-  const PoseEstimate bad = t.update(m, px.data());
+  const PoseEstimate bad = t.update(pipeline::to_pose_frame(m, px.data()));
   EXPECT_EQ(bad.reason_bits & kReasonBadFrame, kReasonBadFrame);
   EXPECT_NE(bad.state, TrackState::kTracking);
-  EXPECT_NE(t.update(m, nullptr).state, TrackState::kTracking);
+  EXPECT_NE(t.update(pipeline::to_pose_frame(m, nullptr)).state, TrackState::kTracking);
   // A frame smaller than the pattern (e.g. clamped at the field edge).
   m.status = hal::FrameStatus::kOk;
   m.roi = {600, 450, 40, 30};
-  EXPECT_NE(t.update(m, px.data()).state, TrackState::kTracking);
+  EXPECT_NE(t.update(pipeline::to_pose_frame(m, px.data())).state, TrackState::kTracking);
 }
 
 TEST(Tracker, TargetLeavingTheFieldIsLost) {

@@ -10,8 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "sempose/pose/bicubic_rotate.hpp"
+#include "sempose/pose/exact_scorer.hpp"
+#include "sempose/pose/fft_correlator.hpp"
 #include "sempose/pose/pattern_bank.hpp"
-#include "sempose/pose/zncc.hpp"
 
 using namespace sempose::pose;
 
@@ -40,6 +42,18 @@ std::vector<std::uint16_t> texture(int w, int h, unsigned seed, int lo = 20, int
   std::vector<std::uint16_t> out(v.size());
   for (std::size_t i = 0; i < v.size(); ++i) out[i] = static_cast<std::uint16_t>(lo + (hi - lo) * b[i]);
   return out;
+}
+
+// The bank settings of the shape-mask tests: one prefilter pass, 10° steps, coarse 30° at ×8.
+PatternBankSpec bank_spec(const PatternImage& pattern, const PatternImage& shape) {
+  PatternBankSpec spec;
+  spec.pattern = pattern;
+  spec.shape = shape;
+  spec.prefilter_passes = 1;
+  spec.angle_step_deg = 10.0;
+  spec.coarse_step_deg = 30.0;
+  spec.coarse_factor = 8;
+  return spec;
 }
 
 double brute_zncc(const std::vector<std::uint16_t>& img, int w, const std::vector<float>& raw_pattern, int n,
@@ -109,8 +123,8 @@ TEST_P(ZnccBrute, MatchesBruteForceEverywhere) {
     for (int x = 0; x < n; ++x) raw[y * n + x] = 0.8f * img[(9 + y) * w + 11 + x] + 0.2f * other[y * n + x];
   std::vector<float> pat = raw;
   ASSERT_TRUE(normalize_pattern(pat.data(), mask));
-  ZnccCorrelator corr(good_fft_size(w), good_fft_size(h), mask);
-  std::vector<ZnccCorrelator::Complex> spec(corr.spectrum_len());
+  FftCorrelator corr(good_fft_size(w), good_fft_size(h), mask);
+  std::vector<FftCorrelator::Complex> spec(corr.spectrum_len());
   corr.make_spectrum(pat.data(), spec.data());
   ASSERT_TRUE(corr.load(img.data(), w, h, w));
   ASSERT_EQ(corr.valid_w(), w - n + 1);
@@ -124,7 +138,6 @@ TEST_P(ZnccBrute, MatchesBruteForceEverywhere) {
       const double ref = brute_zncc(img, w, raw, n, mask, ux, uy);
       const float got = map[uy * corr.valid_w() + ux];
       max_err = std::max(max_err, std::fabs(ref - got));
-      EXPECT_NEAR(corr.score_at(pat.data(), ux, uy), ref, 1e-4);
       EXPECT_GE(got, -1.0f);
       EXPECT_LE(got, 1.0f);
       if (got > map[best]) best = uy * corr.valid_w() + ux;
@@ -144,8 +157,8 @@ TEST(Zncc, SmallerRegionAndStrideAgree) {
     for (int x = 0; x < n; ++x) raw[y * n + x] = img[(20 + y) * W + 30 + x];
   auto pat = raw;
   ASSERT_TRUE(normalize_pattern(pat.data(), mask));
-  ZnccCorrelator corr(48, 48, mask);
-  std::vector<ZnccCorrelator::Complex> spec(corr.spectrum_len());
+  FftCorrelator corr(48, 48, mask);
+  std::vector<FftCorrelator::Complex> spec(corr.spectrum_len());
   corr.make_spectrum(pat.data(), spec.data());
   // A 30x25 sub-window starting at (15, 12) of the big image, read through the stride.
   ASSERT_TRUE(corr.load(img.data() + 12 * W + 15, 30, 25, W));
@@ -163,8 +176,8 @@ TEST(Zncc, FlatAndSaturatedScoreZeroNotNan) {
   const auto t = texture(n, n, 5);
   std::vector<float> pat(t.begin(), t.end());
   ASSERT_TRUE(normalize_pattern(pat.data(), mask));
-  ZnccCorrelator corr(48, 48, mask);
-  std::vector<ZnccCorrelator::Complex> spec(corr.spectrum_len());
+  FftCorrelator corr(48, 48, mask);
+  std::vector<FftCorrelator::Complex> spec(corr.spectrum_len());
   corr.make_spectrum(pat.data(), spec.data());
   for (std::uint16_t level : {std::uint16_t{0}, std::uint16_t{255}, std::uint16_t{65535}, std::uint16_t{77}}) {
     std::vector<std::uint16_t> img(48 * 48, level);
@@ -172,7 +185,6 @@ TEST(Zncc, FlatAndSaturatedScoreZeroNotNan) {
     std::vector<float> map(corr.valid_w() * corr.valid_h(), 5.0f);
     corr.correlate(spec.data(), map.data());
     for (float v : map) EXPECT_EQ(v, 0.0f);
-    EXPECT_EQ(corr.score_at(pat.data(), 3, 3), 0.0f);
   }
   // Half flat, half textured: the flat windows score 0, the rest stay finite and bounded.
   auto img = texture(48, 48, 11);
@@ -191,9 +203,61 @@ TEST(Zncc, FlatAndSaturatedScoreZeroNotNan) {
   EXPECT_FALSE(normalize_pattern(flat.data(), m2));
 }
 
+// The exact scorer the tracker runs (walk, fit, start search) against a brute-force ZNCC at
+// every displacement, circle and full square; a flat window scores 0, a window leaving the
+// ROI has no score.
+class ExactBrute : public ::testing::TestWithParam<bool> {};
+
+TEST_P(ExactBrute, MatchesBruteForceEverywhere) {
+  const bool circular = GetParam();
+  const int n = 16, w = 40, h = 34;
+  const auto img = texture(w, h, 7);
+  const auto other = texture(n, n, 99);
+  PatternImage pattern;
+  pattern.width = pattern.height = n;
+  pattern.pixels.resize(static_cast<std::size_t>(n) * n);
+  std::vector<float> raw(pattern.pixels.size());
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      pattern.pixels[y * n + x] = static_cast<std::uint16_t>((4 * img[(9 + y) * w + 11 + x] + other[y * n + x]) / 5);
+      raw[y * n + x] = pattern.pixels[y * n + x];
+    }
+  // No prefilter and a 0° copy: the bank's pattern 0 is the raw pattern (bicubic at 0° is exact).
+  const PatternMask fine(n, circular, 8, 0), half(n / 2, circular), coarse(n / 4, circular);
+  FftCorrelator hc(good_fft_size(32), good_fft_size(32), half), cc(good_fft_size(16), good_fft_size(16), coarse);
+  PatternBankSpec spec;
+  spec.pattern = pattern;
+  spec.angle_step_deg = 90;
+  spec.coarse_step_deg = 90;
+  spec.coarse_factor = 4;
+  std::string why;
+  const auto bank = PatternBank::build(spec, {fine, half, hc, coarse, cc}, why);
+  ASSERT_NE(bank, nullptr) << why;
+  ExactScorer scorer(fine, 64);
+  std::vector<std::int32_t> roi(img.begin(), img.end());
+  scorer.load(roi.data(), w, h);
+  double max_err = 0;
+  for (int uy = 0; uy <= h - n; ++uy)
+    for (int ux = 0; ux <= w - n; ++ux) {
+      const double ref = brute_zncc(img, w, raw, n, fine, ux, uy);
+      const float got = scorer.score(*bank, 0, ux, uy);
+      max_err = std::max(max_err, std::fabs(ref - got));
+    }
+  EXPECT_LT(max_err, 1e-5);
+  // The crop's own place scores highest.
+  EXPECT_GT(scorer.score(*bank, 0, 11, 9), 0.9f);
+  EXPECT_EQ(scorer.score(*bank, 0, w - n + 1, 0), -2.0f);
+  EXPECT_EQ(scorer.score(*bank, 0, -1, 0), -2.0f);
+  EXPECT_FALSE(scorer.parts(*bank, 0, 0, h - n + 1).inside);
+  std::vector<std::int32_t> flat(roi.size(), 77);
+  scorer.load(flat.data(), w, h);
+  EXPECT_EQ(scorer.score(*bank, 0, 3, 3), 0.0f);
+}
+INSTANTIATE_TEST_SUITE_P(CircleAndSquare, ExactBrute, ::testing::Values(true, false));
+
 TEST(Zncc, TooSmallRegionIsRejected) {
   const PatternMask mask(16, true);
-  ZnccCorrelator corr(32, 32, mask);
+  FftCorrelator corr(32, 32, mask);
   const auto img = texture(10, 40, 1);
   EXPECT_FALSE(corr.load(img.data(), 10, 40, 10));
   EXPECT_EQ(corr.valid_w(), 0);
@@ -233,19 +297,18 @@ TEST(ShapeMask, BandsCoverTheBitmapExactly) {
 TEST(ShapeMask, BankSupportTurnsWithThePattern) {
   constexpr int P = 64;
   const std::vector<std::uint16_t> tex = texture(P, P, 3);
-  sempose::hal::Image pattern, shape;
+  PatternImage pattern, shape;
   pattern.width = pattern.height = shape.width = shape.height = P;
-  pattern.bits = 16;
-  shape.bits = 8;
   pattern.pixels.assign(tex.begin(), tex.end());
   shape.pixels.assign(P * P, 0);
   for (int y = 20; y < 44; ++y)
     for (int x = 8; x < 40; ++x) shape.pixels[y * P + x] = 255;  // off-centre bar
   PatternMask fine(P, true, 8, 4), half(P / 2, true, 8, 2), coarse(P / 8, true);
-  ZnccCorrelator hc(good_fft_size(48), good_fft_size(48), half), cc(good_fft_size(20), good_fft_size(20), coarse);
-  PatternBank bank;
+  FftCorrelator hc(good_fft_size(48), good_fft_size(48), half), cc(good_fft_size(20), good_fft_size(20), coarse);
   std::string why;
-  ASSERT_TRUE(bank.build(pattern, shape, 0.0, 1, 10.0, fine, half, hc, 30.0, 8, coarse, cc, why)) << why;
+  const auto built = PatternBank::build(bank_spec(pattern, shape), {fine, half, hc, coarse, cc}, why);
+  ASSERT_NE(built, nullptr) << why;
+  const PatternBank& bank = *built;
   ASSERT_TRUE(bank.has_shape());
   for (int j : {0, 9, 18}) {  // 0°, 90°, 180°
     std::vector<int> in(P * P, 0);
@@ -277,22 +340,19 @@ TEST(ShapeMask, BankSupportTurnsWithThePattern) {
 TEST(ShapeMask, WrongSizeOrEmptyMaskIsAClearError) {
   constexpr int P = 32;
   const std::vector<std::uint16_t> tex = texture(P, P, 4);
-  sempose::hal::Image pattern, shape;
+  PatternImage pattern, shape;
   pattern.width = pattern.height = P;
-  pattern.bits = 16;
   pattern.pixels.assign(tex.begin(), tex.end());
   shape.width = shape.height = P / 2;
-  shape.bits = 8;
   shape.pixels.assign(P * P / 4, 255);
   PatternMask fine(P, true, 8, 4), half(P / 2, true, 8, 2), coarse(P / 8, true);
-  ZnccCorrelator hc(good_fft_size(24), good_fft_size(24), half), cc(good_fft_size(8), good_fft_size(8), coarse);
-  PatternBank bank;
+  FftCorrelator hc(good_fft_size(24), good_fft_size(24), half), cc(good_fft_size(8), good_fft_size(8), coarse);
   std::string why;
-  EXPECT_FALSE(bank.build(pattern, shape, 0.0, 1, 10.0, fine, half, hc, 30.0, 8, coarse, cc, why));
+  EXPECT_EQ(PatternBank::build(bank_spec(pattern, shape), {fine, half, hc, coarse, cc}, why), nullptr);
   EXPECT_NE(why.find("16x16"), std::string::npos) << why;
   shape.width = shape.height = P;
   shape.pixels.assign(P * P, 0);  // nothing inside
   why.clear();
-  EXPECT_FALSE(bank.build(pattern, shape, 0.0, 1, 10.0, fine, half, hc, 30.0, 8, coarse, cc, why));
+  EXPECT_EQ(PatternBank::build(bank_spec(pattern, shape), {fine, half, hc, coarse, cc}, why), nullptr);
   EXPECT_NE(why.find("shape mask"), std::string::npos) << why;
 }

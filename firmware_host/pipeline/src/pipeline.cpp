@@ -1,4 +1,5 @@
 #include "sempose/pipeline/pipeline.hpp"
+#include "sempose/pipeline/pose_input.hpp"
 
 #include <poll.h>
 
@@ -96,7 +97,7 @@ void Pipeline::idle_wait(std::int64_t until_ns) const noexcept {
 }
 
 void Pipeline::publish_plan(std::uint8_t target, bool enabled) noexcept {
-  const hal::Roi roi = trackers_[target]->next_roi();
+  const hal::Roi roi = to_hal_roi(trackers_[target]->next_roi());
   const hal::ScanLimits& l = source_.limits();
   const bool full_field = roi.w > l.max_roi_w || roi.h > l.max_roi_h;
   ScanPlan plan{};
@@ -356,7 +357,7 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
 
   const std::int64_t t_start = virtual_time_ ? std::max(m.t_seen_ns, prev_pose_done_ns_) : rt::now_ns();
   const std::int64_t wall0 = rt::now_ns();
-  const pose::PoseEstimate est = tracker.update(m, s.pixels);
+  const pose::PoseEstimate est = tracker.update(to_pose_frame(m, s.pixels));
   const std::int64_t wall1 = rt::now_ns();
   std::int64_t compute_ns = wall1 - wall0;
   if (virtual_time_ && config_.virtual_compute_ns != 0) compute_ns = config_.virtual_compute_ns;

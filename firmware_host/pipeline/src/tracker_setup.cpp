@@ -5,6 +5,7 @@
 
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/sim_source.hpp"
+#include "sempose/pipeline/pose_input.hpp"
 #include "sempose/pose/tracker.hpp"
 
 namespace sempose::pipeline {
@@ -22,9 +23,12 @@ constexpr double kSimNmPerPx = 40.0;  // the paper's scale (~40 nm per pixel)
 
 rt::Status load_pattern_set(const config::PatternSetConfig& ps, pose::PatternSet& out) {
   std::string error;
-  if (!hal::try_read_pgm(ps.file, out.image, error)) return rt::Status::failure("pattern file '" + ps.file + "': " + error);
-  if (!ps.mask.empty() && !hal::try_read_pgm(ps.mask, out.mask, error))
+  hal::Image image, mask;
+  if (!hal::try_read_pgm(ps.file, image, error)) return rt::Status::failure("pattern file '" + ps.file + "': " + error);
+  if (!ps.mask.empty() && !hal::try_read_pgm(ps.mask, mask, error))
     return rt::Status::failure("mask file '" + ps.mask + "': " + error);
+  out.image = to_pattern_image(std::move(image));
+  out.mask = to_pattern_image(std::move(mask));
   out.nm_per_px = ps.nm_per_px;
   return rt::Status::success();
 }
@@ -52,12 +56,14 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
       if (!cfg.sim.targets[i].enabled) continue;
       pose::PatternSet set;
       try {
-        set.image = hal::render_sim_pattern(cfg.sim, limits, static_cast<int>(i), cfg.tracker.pattern_size_px,
-                                            kPatternFrames, dwell, cfg.sim.seed + 1000 + i);
+        set.image = to_pattern_image(hal::render_sim_pattern(cfg.sim, limits, static_cast<int>(i),
+                                                             cfg.tracker.pattern_size_px, kPatternFrames, dwell,
+                                                             cfg.sim.seed + 1000 + i));
         // The simulator knows the target's outline: its shape mask, as an operator would draw
         // it — opt-in (sim.use_shape_masks), it costs robustness at a few e⁻/px (README).
         if (cfg.sim.use_shape_masks)
-          set.mask = hal::render_sim_pattern_mask(cfg.sim, limits, static_cast<int>(i), cfg.tracker.pattern_size_px);
+          set.mask = to_pattern_image(
+              hal::render_sim_pattern_mask(cfg.sim, limits, static_cast<int>(i), cfg.tracker.pattern_size_px));
       } catch (const std::exception& e) {
         return rt::Status::failure(cfg.path + ": sim.targets[" + std::to_string(i) + "]: cannot record its pattern: " +
                                    e.what());

@@ -1,5 +1,7 @@
 #include "sempose/pose/pattern_bank.hpp"
 
+#include "sempose/pose/bicubic_rotate.hpp"
+#include "sempose/pose/box_downsample.hpp"
 #include "sempose/pose/prefilter.hpp"
 
 #include <fftw3.h>
@@ -12,103 +14,31 @@
 
 namespace sempose::pose {
 
-namespace {
-// Keys cubic convolution kernel, a = −0.5.
-inline double keys(double t) noexcept {
-  t = std::fabs(t);
-  if (t < 1) return (1.5 * t - 2.5) * t * t + 1;
-  if (t < 2) return ((-0.5 * t + 2.5) * t - 4) * t + 2;
-  return 0;
-}
-}  // namespace
-
 void FftwFree::operator()(void* p) const noexcept { fftwf_free(p); }
-
-void rotate_pattern(const float* src, int n, double phi_deg, float* out) noexcept {
-  const double c = (n - 1) / 2.0;
-  const double rad = phi_deg * M_PI / 180.0;
-  const double cs = std::cos(rad), sn = std::sin(rad);
-  auto at = [&](int x, int y) {
-    x = std::clamp(x, 0, n - 1);
-    y = std::clamp(y, 0, n - 1);
-    return static_cast<double>(src[y * n + x]);
-  };
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) {
-      // Inverse map: output offset d comes from source offset R(−φ)·d. A CCW screen rotation
-      // by φ maps (dx, dy) to (dx cos + dy sin, −dx sin + dy cos) (y points down).
-      const double dx = x - c, dy = y - c;
-      const double sx = c + dx * cs - dy * sn;
-      const double sy = c + dx * sn + dy * cs;
-      const int ix = static_cast<int>(std::floor(sx)), iy = static_cast<int>(std::floor(sy));
-      const double fx = sx - ix, fy = sy - iy;
-      double acc = 0;
-      for (int j = -1; j <= 2; ++j) {
-        const double wy = keys(j - fy);
-        double row = 0;
-        for (int i = -1; i <= 2; ++i) row += keys(i - fx) * at(ix + i, iy + j);
-        acc += wy * row;
-      }
-      out[y * n + x] = static_cast<float>(acc);
-    }
-  }
-}
 
 void downsample_pattern(const float* src, int n, int factor, float* out) noexcept {
   const int m = n / factor;
   const int off = (n - m * factor) / 2;
-  for (int y = 0; y < m; ++y) {
-    for (int x = 0; x < m; ++x) {
-      double acc = 0;
-      for (int j = 0; j < factor; ++j) {
-        for (int i = 0; i < factor; ++i) acc += src[(off + y * factor + j) * n + off + x * factor + i];
-      }
-      out[y * m + x] = static_cast<float>(acc);
-    }
-  }
+  box_downsample<float, double, float>(src, n, off, off, factor, m, m, out);
 }
 
-namespace {
-// The shape mask turned by phi_deg (same interpolation as the pattern), cut to `within`.
-// Returns the number of pixels inside.
-std::int64_t turned_support(const std::vector<float>& shape, int n, double phi_deg, const std::uint8_t* within,
-                            std::vector<float>& scratch, std::vector<std::uint8_t>& out) {
-  rotate_pattern(shape.data(), n, phi_deg, scratch.data());
-  std::int64_t count = 0;
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    out[i] = within[i] && scratch[i] >= 0.5f;
-    count += out[i];
-  }
-  return count;
-}
-// Grows a 0/1 mask by a disk of radius r px: the target's outline and a thin ring of what
-// surrounds it stay in the support (a silhouette's position lives in its edges; the
-// interior alone can be nearly flat).
-void dilate_disk(std::vector<float>& mask, int n, double r) {
-  if (r <= 0) return;
-  const int ri = static_cast<int>(std::floor(r));
-  const std::vector<float> src = mask;
-  for (int y = 0; y < n; ++y)
-    for (int x = 0; x < n; ++x) {
-      if (src[static_cast<std::size_t>(y) * n + x] != 0.0f) continue;
-      bool hit = false;
-      for (int dy = -ri; dy <= ri && !hit; ++dy)
-        for (int dx = -ri; dx <= ri && !hit; ++dx) {
-          const int xx = x + dx, yy = y + dy;
-          hit = dx * dx + dy * dy <= r * r && xx >= 0 && yy >= 0 && xx < n && yy < n &&
-                src[static_cast<std::size_t>(yy) * n + xx] != 0.0f;
-        }
-      if (hit) mask[static_cast<std::size_t>(y) * n + x] = 1.0f;
-    }
+std::unique_ptr<const PatternBank> PatternBank::build(const PatternBankSpec& spec, const BankLevels& levels,
+                                                     std::string& why) {
+  std::unique_ptr<PatternBank> bank(new PatternBank());
+  if (!bank->fill(spec, levels, why)) return nullptr;
+  return bank;
 }
 
-}  // namespace
-
-bool PatternBank::build(const hal::Image& pattern, const hal::Image& shape_image, double shape_margin_px,
-                        int prefilter_passes, double step_deg,
-                        const PatternMask& fine_mask,
-                        const PatternMask& half_mask, ZnccCorrelator& half, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
-                        ZnccCorrelator& coarse, std::string& why) {
+bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, std::string& why) {
+  const PatternImage& pattern = spec.pattern;
+  const PatternImage& shape_image = spec.shape;
+  const PatternMask& fine_mask = levels.fine_mask;
+  const PatternMask& half_mask = levels.half_mask;
+  const PatternMask& coarse_mask = levels.coarse_mask;
+  FftCorrelator& half = levels.half;
+  FftCorrelator& coarse = levels.coarse;
+  const double step_deg = spec.angle_step_deg, coarse_step_deg = spec.coarse_step_deg;
+  const int factor = spec.coarse_factor;
   size_ = pattern.width;
   const int n = size_;
   angles_ = static_cast<int>(std::lround(360.0 / step_deg));
@@ -124,7 +54,7 @@ bool PatternBank::build(const hal::Image& pattern, const hal::Image& shape_image
   for (std::size_t i = 0; i < src.size(); ++i) src[i] = static_cast<float>(pattern.pixels[i]);
   // The frame is low-passed the same way (Prefilter); filtering before rotating is the same
   // as after for this near-isotropic kernel and keeps one interpolation for all angles.
-  prefilter_pattern(src.data(), n, prefilter_passes);
+  prefilter_pattern(src.data(), n, spec.prefilter_passes);
   spatial_.assign(static_cast<std::size_t>(angles_) * n * n, 0.0f);
   spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len_ * angles_)));
   coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)));
@@ -139,7 +69,7 @@ bool PatternBank::build(const hal::Image& pattern, const hal::Image& shape_image
       return false;
     }
     for (std::size_t i = 0; i < shape.size(); ++i) shape[i] = shape_image.pixels[i] != 0 ? 1.0f : 0.0f;
-    dilate_disk(shape, n, shape_margin_px);
+    dilate_disk(shape, n, spec.shape_margin_px);
   }
   std::vector<std::uint8_t> fine_in(src.size());
   support_.clear();

@@ -1,5 +1,7 @@
 #include "sempose/pose/pose_filter.hpp"
 
+#include "sempose/rt/angle.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -33,10 +35,6 @@ constexpr double kNoiseRaisePerFrame = 1.5;
 constexpr double kNoiseDecayPerFrame = 0.98;
 constexpr double kMaxNoiseScale = 1e4;
 
-double wrap_deg(double a) noexcept {
-  double w = std::remainder(a, 360.0);  // [-180, 180]
-  return w <= -180.0 ? w + 360.0 : w;
-}
 
 bool finite(const PoseSample& s) noexcept {
   return std::isfinite(s.t_s) && std::isfinite(s.x_px) && std::isfinite(s.y_px) && std::isfinite(s.phi_deg);
@@ -128,7 +126,7 @@ void PoseFilter::reset() noexcept {
 
 PoseSample PoseFilter::start_from(const PoseSample& m, PoseFilterEvent event) noexcept {
   PoseSample out = m;
-  out.phi_deg = wrap_deg(m.phi_deg);
+  out.phi_deg = rt::wrap_deg(m.phi_deg);
   const Vec3 z{out.x_px, out.y_px, out.phi_deg};
   for (int i = 0; i < 3; ++i) {
     AxisState& a = axes_[static_cast<std::size_t>(i)];
@@ -162,7 +160,7 @@ PoseSample PoseFilter::update(const PoseSample& m) noexcept {
   if (!(dt > 0.0) || dt > config_.max_gap_s) return start_from(m, PoseFilterEvent::kGapReset);
 
   for (std::size_t i = 0; i < 3; ++i) predict(axes_[i], dt, jerk_psd_[i] * noise_scale_[i]);
-  axes_[kAxisPhi].x[0] = wrap_deg(axes_[kAxisPhi].x[0]);
+  axes_[kAxisPhi].x[0] = rt::wrap_deg(axes_[kAxisPhi].x[0]);
 
   // Innovations of all three axes first: one broken axis re-initialises the whole pose (a
   // jump or a torn frame spoils x, y and φ together).
@@ -172,7 +170,7 @@ PoseSample PoseFilter::update(const PoseSample& m) noexcept {
   for (std::size_t i = 0; i < 3; ++i) {
     const AxisState& a = axes_[i];
     innovation[i] = z[i] - a.x[0];
-    if (i == kAxisPhi) innovation[i] = wrap_deg(innovation[i]);
+    if (i == kAxisPhi) innovation[i] = rt::wrap_deg(innovation[i]);
     const double S = a.P[0][0] + meas_var_[i];
     nis[i] = innovation[i] * innovation[i] / S;
     if (nis[i] > config_.gate_sigma * config_.gate_sigma) return start_from(m, PoseFilterEvent::kGateReset);
@@ -185,7 +183,7 @@ PoseSample PoseFilter::update(const PoseSample& m) noexcept {
                           ? std::min(kMaxNoiseScale, noise_scale_[i] * kNoiseRaisePerFrame)
                           : std::max(1.0, noise_scale_[i] * kNoiseDecayPerFrame);
   }
-  axes_[kAxisPhi].x[0] = wrap_deg(axes_[kAxisPhi].x[0]);
+  axes_[kAxisPhi].x[0] = rt::wrap_deg(axes_[kAxisPhi].x[0]);
 
   const PoseSample out{m.t_s, axes_[kAxisX].x[0], axes_[kAxisY].x[0], axes_[kAxisPhi].x[0]};
   // Cannot happen with finite input and a bounded dt; if arithmetic ever overflows, the

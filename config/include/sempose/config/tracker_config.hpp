@@ -69,6 +69,18 @@ struct TargetConfig {
   std::vector<PatternSetConfig> pattern_sets;  // index = magnification step
 };
 
+// A rule between settings that is broken: the key to blame and why (empty key: none).
+struct SettingProblem {
+  std::string key;
+  std::string message;
+  explicit operator bool() const noexcept { return !key.empty(); }
+};
+
+// The tracker settings' rules that depend on the pattern's side: the config reader checks them
+// with pattern_size_px, Tracker::create with the side of the pattern actually given. One
+// implementation, so the two can never disagree.
+SettingProblem check_tracker_sizes(const TrackerConfig& c, int pattern_px);
+
 // Reads the `tracker:` mapping (section may be absent: defaults stay). Errors go to the
 // section's Errors (file:line, key, value, allowed range).
 void read_tracker(Section& tracker, TrackerConfig& out);

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 
+#include "sempose/rt/angle.hpp"
 #include "sempose/config/sim_config.hpp"
 
 namespace sempose::hal {
@@ -36,7 +37,7 @@ class Trajectory {
   Pose2 knot_{};
 };
 
-// Wraps degrees into (-180, 180].
-double wrap_deg(double deg) noexcept;
+// Wraps degrees into (-180, 180] (the one wrap, shared with the pose engine).
+using rt::wrap_deg;
 
 }  // namespace sempose::hal

@@ -1,8 +1,9 @@
-// The rotated pattern bank of one pattern set: every angle step's rotated copy (one
-// interpolation — bicubic, Keys a = −0.5 — for every angle including 0°), prefiltered,
-// masked, zero-mean, unit norm, kept at full resolution for the exact local ZNCC; the same
-// copy 2×2-binned with its spectrum at the half-resolution FFT size (where the whole ROI is
-// correlated); plus the coarse copies (box ×8) and their spectra for the start search.
+// The rotated pattern bank of one pattern set, built once from a PatternBankSpec and immutable
+// after: every angle step's rotated copy (one interpolation — bicubic, Keys a = −0.5 — for
+// every angle including 0°), prefiltered, masked, zero-mean, unit norm, kept at full
+// resolution for the exact scorer; the same copy 2×2-binned with its spectrum at the
+// half-resolution FFT size (where the whole ROI is correlated); plus the coarse copies (box
+// ×search_downsample) and their spectra for the start search.
 // With a shape mask (the target's own pixels, e.g. a needle without the background around
 // it), every full-resolution copy's support is the mask turned with it, inside the circle:
 // static clutter under the pattern's rim then stays out of the exact scores and the fit (it
@@ -17,14 +18,11 @@
 #include <string>
 #include <vector>
 
-#include "sempose/hal/image.hpp"
-#include "sempose/pose/zncc.hpp"
+#include "sempose/pose/fft_correlator.hpp"
+#include "sempose/pose/pattern_image.hpp"
+#include "sempose/pose/pattern_support.hpp"
 
 namespace sempose::pose {
-
-// Rotates src (size×size, row-major) by phi_deg about its centre, counter-clockwise on the
-// screen (README: Conventions), bicubic; samples falling outside are clamped to the border.
-void rotate_pattern(const float* src, int size, double phi_deg, float* out) noexcept;
 
 // Box-downsamples the central (size/factor·factor)² block of a size×size pattern.
 void downsample_pattern(const float* src, int size, int factor, float* out) noexcept;
@@ -33,20 +31,37 @@ struct FftwFree {
   void operator()(void* p) const noexcept;
 };
 
+// What a bank is built from.
+struct PatternBankSpec {
+  PatternImage pattern;          // square
+  PatternImage shape;            // pattern-sized, non-zero = the target's pixels; empty = the whole circle
+  double shape_margin_px = 0;    // the shape grown by this much
+  int prefilter_passes = 0;      // the frame's prefilter, applied to the pattern too
+  double angle_step_deg = 1.0;   // must divide 360
+  double coarse_step_deg = 20;   // start-search angles
+  int coarse_factor = 8;         // start-search downsample
+};
+
+// The masks and FFT correlators a bank's copies are cut and transformed for (the tracker's).
+struct BankLevels {
+  const PatternMask& fine_mask;
+  const PatternMask& half_mask;
+  FftCorrelator& half;
+  const PatternMask& coarse_mask;
+  FftCorrelator& coarse;
+};
+
 class PatternBank {
  public:
-  using Complex = ZnccCorrelator::Complex;
-  // Returns false (and why) when the pattern is flat under the mask at some angle.
-  // shape: pattern-sized, non-zero = the target's pixels, grown by shape_margin_px; empty =
-  // the whole circle.
-  bool build(const hal::Image& pattern, const hal::Image& shape, double shape_margin_px, int prefilter_passes,
-             double angle_step_deg,
-             const PatternMask& fine_mask,
-             const PatternMask& half_mask, ZnccCorrelator& half, double coarse_step_deg, int factor, const PatternMask& coarse_mask,
-             ZnccCorrelator& coarse, std::string& why);
+  using Complex = FftCorrelator::Complex;
+  // Setup: nullptr (and why) when the pattern is flat under the mask at some angle or the
+  // shape does not fit the pattern.
+  static std::unique_ptr<const PatternBank> build(const PatternBankSpec& spec, const BankLevels& levels,
+                                                  std::string& why);
 
   int angles() const noexcept { return angles_; }
   int coarse_angles() const noexcept { return coarse_angles_; }
+  int size_px() const noexcept { return size_; }
   const float* pattern(int j) const noexcept { return spatial_.data() + static_cast<std::size_t>(j) * size_ * size_; }
   const Complex* spectrum(int j) const noexcept { return spectra_.get() + static_cast<std::size_t>(j) * spectrum_len_; }
   const Complex* coarse_spectrum(int k) const noexcept {
@@ -63,6 +78,9 @@ class PatternBank {
   std::size_t memory_bytes() const noexcept;
 
  private:
+  PatternBank() = default;
+  bool fill(const PatternBankSpec& spec, const BankLevels& levels, std::string& why);
+
   int size_ = 0, angles_ = 0, coarse_angles_ = 0;
   double coarse_step_deg_ = 20;
   std::size_t spectrum_len_ = 0, coarse_len_ = 0;

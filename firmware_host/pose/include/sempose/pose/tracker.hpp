@@ -1,17 +1,17 @@
-// One target's pose tracker: ZNCC via FFT against a rotated pattern bank, the paper's
-// orientation walk, a full-field start search, loss detection and constant-velocity ROI
-// prediction. create() is setup (allocates, plans FFTs); every other method is RT-safe:
-// noexcept, no heap allocation, no locks, no I/O.
+// One target's pose tracker: the pose engine's stages in sequence (README: How a pose is
+// found). create() is setup (allocates, plans FFTs); every other method is RT-safe: noexcept,
+// no heap allocation, no locks, no I/O.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
+#include "sempose/config/scan_config.hpp"
 #include "sempose/config/tracker_config.hpp"
-#include "sempose/hal/frame.hpp"
-#include "sempose/hal/image.hpp"
-#include "sempose/hal/scan_source.hpp"
+#include "sempose/pose/pattern_image.hpp"
+#include "sempose/pose/pose_frame.hpp"
 #include "sempose/pose/track_state.hpp"
 #include "sempose/rt/result.hpp"
 
@@ -35,26 +35,27 @@ struct PoseEstimate {
 
 // One pattern per magnification step.
 struct PatternSet {
-  hal::Image image;
+  PatternImage image;
   double nm_per_px = 1.0;
   // Optional shape mask, pattern-sized, non-zero = the target's own pixels (the rest, e.g.
   // the substrate around a needle, is left out of the exact scores). Empty = the circle.
-  hal::Image mask;
+  PatternImage mask;
 };
 
 class Tracker {
  public:
-  // Setup: pattern bank, FFTW plans (FFTW_MEASURE), spectra. nullptr + message on error.
+  // Setup: pattern banks, FFTW plans (FFTW_MEASURE), spectra. nullptr + message on error.
+  // limits: the scan field (field_w × field_h).
   static std::unique_ptr<Tracker> create(const config::TrackerConfig& config, std::vector<PatternSet> sets,
-                                         const hal::ScanLimits& limits, rt::Status& status);
+                                         const config::ScanLimits& limits, rt::Status& status);
   ~Tracker();
   Tracker(const Tracker&) = delete;
   Tracker& operator=(const Tracker&) = delete;
 
   // Full field while acquiring / lost, else the ROI at the predicted pose clamped to the field.
-  hal::Roi next_roi() const noexcept;
-  // One finished frame for this target (meta.roi says where it was scanned).
-  PoseEstimate update(const hal::FrameMeta& meta, const hal::Pixel* pixels) noexcept;
+  Roi next_roi() const noexcept;
+  // One finished frame for this target (frame.roi says where it was scanned).
+  PoseEstimate update(const PoseFrame& frame) noexcept;
   // Switches the magnification step; out of range: ignored, returns false.
   bool select_pattern_set(std::uint8_t set) noexcept;
   std::uint8_t pattern_set() const noexcept;
@@ -63,9 +64,8 @@ class Tracker {
   // Bank + spectra + FFT buffers, bytes (printed at start).
   std::size_t memory_bytes() const noexcept;
 
-  struct Impl;
-
  private:
+  struct Impl;
   explicit Tracker(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };

@@ -1,0 +1,36 @@
+// The start search's best places: the strongest positive local maxima of the coarse ZNCC maps
+// (one map per coarse angle), at most `capacity`, sorted by score, no two closer than
+// `separation_px` in both x and y (the better one keeps the place). Setup allocates; the rest
+// is RT.
+#pragma once
+
+#include <vector>
+
+namespace sempose::pose {
+
+struct StartCandidate {
+  int ux = 0, uy = 0;  // displacement in the coarse map
+  int k = 0;           // coarse angle index
+  float score = 0;
+};
+
+class CandidateList {
+ public:
+  CandidateList(int capacity, int separation_px);
+
+  void clear() noexcept { size_ = 0; }
+  int size() const noexcept { return size_; }
+  const StartCandidate& operator[](int i) const noexcept { return items_[static_cast<std::size_t>(i)]; }
+
+  // RT: every positive local maximum (3×3) of a map_w×map_h map at coarse angle k.
+  void add_local_maxima(const float* map, int map_w, int map_h, int k) noexcept;
+  // RT: one candidate (replaces a weaker one at the same place, or the weakest when full).
+  void insert(const StartCandidate& c) noexcept;
+
+ private:
+  std::vector<StartCandidate> items_;
+  int size_ = 0;
+  int separation_px_;
+};
+
+}  // namespace sempose::pose

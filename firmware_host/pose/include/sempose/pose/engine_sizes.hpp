@@ -1,0 +1,37 @@
+// Every size the tracker's stages are built for, derived once at setup from the settings, the
+// pattern and the scan field.
+#pragma once
+
+#include <algorithm>
+
+#include "sempose/config/tracker_config.hpp"
+#include "sempose/pose/fft_correlator.hpp"
+
+namespace sempose::pose {
+
+struct EngineSizes {
+  int pattern_px = 0;         // square pattern side
+  int roi_px = 0;             // ROI side: tracker.roi_size_px, at most the field
+  int roi_fft_px = 0;         // largest ROI side loaded (FFT-friendly, >= roi_px)
+  int half_fft_px = 0;        // FFT side of the 2×2-binned ROI level
+  int search_factor = 8;      // start-search downsample
+  int coarse_pattern_px = 0;  // pattern side at the coarse level
+  int coarse_offset_px = 0;   // the coarse pattern's top-left inside the full pattern
+  int coarse_max_w = 0, coarse_max_h = 0;  // largest coarse full-field frame
+
+  static EngineSizes of(const config::TrackerConfig& cfg, int pattern_px, int field_w, int field_h) noexcept {
+    EngineSizes s;
+    s.pattern_px = pattern_px;
+    s.roi_px = std::min({cfg.roi_size_px, field_w, field_h});
+    s.roi_fft_px = good_fft_size(s.roi_px);
+    s.half_fft_px = good_fft_size(s.roi_fft_px / 2);
+    s.search_factor = cfg.search_downsample;
+    s.coarse_pattern_px = pattern_px / s.search_factor;
+    s.coarse_offset_px = (pattern_px - s.coarse_pattern_px * s.search_factor) / 2;
+    s.coarse_max_w = std::max(s.coarse_pattern_px, field_w / s.search_factor);
+    s.coarse_max_h = std::max(s.coarse_pattern_px, field_h / s.search_factor);
+    return s;
+  }
+};
+
+}  // namespace sempose::pose

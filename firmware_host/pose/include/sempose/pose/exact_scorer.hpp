@@ -1,0 +1,54 @@
+// The one exact scorer of the pose engine: the ZNCC of one bank angle at one integer
+// displacement of the loaded ROI, at full resolution, over that angle's support. The window's
+// mean and variance come from the ROI's summed-area tables (four look-ups per support band),
+// Σ t·f from one dot product (the pattern is zero-mean and unit norm under its support). The
+// orientation walk, the fit and the start search all score through this class; its unit test
+// checks it against a brute-force ZNCC.
+// Construction is setup; load() and the scores are RT.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "sempose/pose/pattern_bank.hpp"
+#include "sempose/pose/pattern_support.hpp"
+#include "sempose/pose/summed_area_table.hpp"
+
+namespace sempose::pose {
+
+// The parts of one exact score: tf = Σ t·f, var = Σ f² − (Σ f)²/n over the support, n.
+struct ScoreParts {
+  bool inside = false;  // false: the window leaves the ROI (no score)
+  double tf = 0, var = 0, count = 0;
+};
+
+class ExactScorer {
+ public:
+  // fine_mask: the full-resolution circle (the dot product runs over it, widened to vector
+  // chunks); max_roi_px: the largest ROI side loaded.
+  ExactScorer(const PatternMask& fine_mask, int max_roi_px);
+
+  // RT: keeps the prefiltered ROI (w×h, row stride w) minus its mean, and its tables.
+  void load(const std::int32_t* filtered, int w, int h) noexcept;
+  int roi_w() const noexcept { return roi_w_; }
+  int roi_h() const noexcept { return roi_h_; }
+
+  // RT: the parts at angle j of the bank, pattern top-left at (ux, uy) of the ROI.
+  ScoreParts parts(const PatternBank& bank, int j, int ux, int uy) const noexcept;
+  // ZNCC from the parts; a flat window (std under half a filtered unit) scores 0.
+  static float zncc(const ScoreParts& p) noexcept;
+  // RT: the score itself, -2 outside the ROI.
+  float score(const PatternBank& bank, int j, int ux, int uy) const noexcept;
+
+  std::size_t memory_bytes() const noexcept;
+
+ private:
+  int pattern_px_;
+  std::vector<MaskBand> chunk_bands_;  // the circle widened to 16-float chunks
+  int roi_w_ = 0, roi_h_ = 0;
+  std::vector<float> roi_;             // prefiltered ROI minus its mean (row stride roi_w_)
+  SummedAreaTables tables_;
+};
+
+}  // namespace sempose::pose

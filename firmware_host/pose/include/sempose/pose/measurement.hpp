@@ -1,0 +1,19 @@
+// One frame's measurement of a target as the stages pass it along: the integer grid point
+// (angle index, displacement of the pattern's top-left in the loaded ROI), the sub-pixel /
+// sub-step offsets of the fit, the exact score there and the position peak's PSR.
+#pragma once
+
+namespace sempose::pose {
+
+struct Measurement {
+  bool valid = false;
+  int j = 0;                      // angle index in the bank
+  int ux = 0, uy = 0;             // integer displacement in the loaded ROI
+  double dx = 0, dy = 0, dj = 0;  // sub-pixel / sub-step offsets
+  float score = 0, psr = 0;
+  bool psr_valid = false;
+  int steps = 0;                  // correlations and exact scores spent
+  bool unsettled = false;         // the walk hit its per-frame bound
+};
+
+}  // namespace sempose::pose

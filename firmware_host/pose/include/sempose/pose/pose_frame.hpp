@@ -1,0 +1,27 @@
+// What the pose engine takes per frame, in its own small types (it does not depend on the
+// hardware layer; the pipeline and the offline runner convert their frames to this).
+#pragma once
+
+#include <cstdint>
+
+namespace sempose::pose {
+
+// A rectangle of the scan field, in full-field pixels; (x, y) is its top-left pixel.
+struct Roi {
+  std::int32_t x = 0;
+  std::int32_t y = 0;
+  std::int32_t w = 0;
+  std::int32_t h = 0;
+  friend bool operator==(const Roi&, const Roi&) = default;
+};
+
+struct PoseFrame {
+  const std::uint16_t* pixels = nullptr;  // roi.w × roi.h, row-major, row stride roi.w
+  Roi roi;                                // where it was scanned
+  std::int32_t field_w = 0, field_h = 0;  // the full scan field (0: unchanged)
+  std::uint8_t bits = 8;                  // significant bits per pixel
+  bool bad = false;                       // the source flagged the frame (overrun, torn, missed sync)
+  std::int64_t t_scan_start_ns = 0, t_scan_end_ns = 0;  // the pose is timed at mid-scan
+};
+
+}  // namespace sempose::pose
