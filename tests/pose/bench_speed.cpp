@@ -11,7 +11,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "sempose/pose/pattern_bank.hpp"
+#include "sempose/pose/bicubic_rotate.hpp"
 #include "sim_harness.hpp"
 
 using namespace sempose;

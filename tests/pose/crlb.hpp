@@ -20,7 +20,7 @@
 
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/hal/sim_source.hpp"
-#include "sempose/pose/zncc.hpp"
+#include "sempose/pose/pattern_support.hpp"
 #include "sim_harness.hpp"
 #include "warp_scene.hpp"
 

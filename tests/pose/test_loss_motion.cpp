@@ -1,0 +1,94 @@
+// The loss policy's state decision and the motion model's prediction on synthetic poses.
+#pragma GCC diagnostic ignored "-Wnull-dereference"  // GCC 12 false positive inside gtest.h
+#include <gtest/gtest.h>
+
+#include "sempose/pose/loss_policy.hpp"
+#include "sempose/pose/motion_model.hpp"
+#include "sempose/pose/track_state.hpp"
+
+using namespace sempose;
+using namespace sempose::pose;
+
+namespace {
+Measurement scored(float score, float psr = 10.0f) {
+  Measurement m;
+  m.valid = true;
+  m.score = score;
+  m.psr = psr;
+  m.psr_valid = true;
+  return m;
+}
+}  // namespace
+
+TEST(LossPolicy, AbsoluteRelativeAndPsrThresholds) {
+  config::TrackerConfig c;
+  c.score_threshold = 0.3;
+  c.relative_score_threshold = 0.7;
+  c.psr_threshold = 5;
+  c.lost_after_frames = 1;
+  LossPolicy loss(c);
+  EXPECT_TRUE(loss.weak(Measurement{}));  // invalid
+  EXPECT_EQ(loss.weak_reasons(Measurement{}), kReasonLowScore);
+  EXPECT_TRUE(loss.weak(scored(0.29f)));
+  EXPECT_FALSE(loss.weak(scored(0.5f)));   // no recent mean yet: only the absolute threshold
+  EXPECT_TRUE(loss.weak(scored(0.5f, 4.0f)));
+  EXPECT_EQ(loss.weak_reasons(scored(0.5f, 4.0f)), kReasonLowPsr);
+  loss.accepted(0.9f);
+  EXPECT_TRUE(loss.weak(scored(0.6f)));    // < 0.7 × 0.9
+  EXPECT_EQ(loss.weak_reasons(scored(0.6f)), kReasonLowScore);
+  EXPECT_FALSE(loss.weak(scored(0.65f)));
+  loss.reset();
+  EXPECT_FALSE(loss.weak(scored(0.6f)));   // the recent mean is forgotten with the target
+  EXPECT_TRUE(loss.found(scored(0.6f)));
+  EXPECT_FALSE(loss.found(Measurement{}));
+}
+
+TEST(LossPolicy, LostAfterKWeakFramesInARow) {
+  config::TrackerConfig c;
+  c.lost_after_frames = 3;
+  LossPolicy loss(c);
+  EXPECT_EQ(loss.judge(scored(0.9f)), FrameVerdict::kAccept);
+  loss.accepted(0.9f);
+  EXPECT_EQ(loss.judge(scored(0.1f)), FrameVerdict::kCoast);
+  EXPECT_EQ(loss.judge(scored(0.1f)), FrameVerdict::kCoast);
+  loss.accepted(0.9f);  // a good frame restarts the count
+  EXPECT_EQ(loss.judge(scored(0.1f)), FrameVerdict::kCoast);
+  EXPECT_EQ(loss.judge(scored(0.1f)), FrameVerdict::kCoast);
+  EXPECT_EQ(loss.judge(scored(0.1f)), FrameVerdict::kLost);
+}
+
+TEST(MotionModel, ConstantVelocityAcrossTheAngleWrap) {
+  MotionModel mm(true);
+  mm.accept(100, 50, 178, true);
+  EXPECT_EQ(mm.predicted_x_px(), 100);  // fresh: no velocity
+  EXPECT_EQ(mm.predicted_phi_deg(), 178);
+  mm.accept(103, 48, -179, false);      // +3°, across ±180
+  EXPECT_DOUBLE_EQ(mm.predicted_x_px(), 106);
+  EXPECT_DOUBLE_EQ(mm.predicted_y_px(), 46);
+  EXPECT_DOUBLE_EQ(mm.predicted_phi_deg(), -176);
+  EXPECT_TRUE(mm.last_angle().known);
+  EXPECT_EQ(mm.last_angle().phi_deg, -179);
+  mm.coast();                            // the prediction stands in for the pose
+  EXPECT_DOUBLE_EQ(mm.x_px(), 106);
+  EXPECT_DOUBLE_EQ(mm.predicted_x_px(), 109);
+  mm.reset();                            // lost: no velocity; the angle prior stays
+  mm.accept(10, 10, 0, false);
+  EXPECT_EQ(mm.predicted_x_px(), 10);
+  EXPECT_TRUE(mm.last_angle().known);
+  MotionModel still(false);
+  still.accept(1, 1, 0, true);
+  still.accept(5, 5, 10, false);
+  EXPECT_EQ(still.predicted_x_px(), 5);  // predict_velocity off: the last pose
+}
+
+TEST(MotionModel, WindowAtThePredictionStaysInTheField) {
+  MotionModel mm(true);
+  mm.accept(320.2, 240.7, 0, true);
+  const Roi r = mm.window_at_prediction(192, 192, 640, 480);
+  EXPECT_EQ(r, (Roi{225, 145, 192, 192}));  // centre pixel (w−1)/2 at the prediction, rounded
+  mm.accept(5, 470, 0, true);
+  EXPECT_EQ(mm.window_at_prediction(192, 192, 640, 480), (Roi{0, 288, 192, 192}));
+  EXPECT_FALSE(mm.prediction_outside(640, 480));
+  mm.accept(640, 10, 0, true);
+  EXPECT_TRUE(mm.prediction_outside(640, 480));
+}

@@ -1,0 +1,153 @@
+// The walk, the fit, the sweep and the start search wired as the tracker wires them, on a
+// synthetic noise-free scene: a smooth analytic texture rendered exactly at a known pose (no
+// interpolation), so each stage's answer is known.
+#pragma GCC diagnostic ignored "-Wnull-dereference"  // GCC 12 false positive inside gtest.h
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sempose/pose/angle_sweep.hpp"
+#include "sempose/pose/engine_sizes.hpp"
+#include "sempose/pose/orientation_walk.hpp"
+#include "sempose/pose/roi_loader.hpp"
+#include "sempose/pose/start_search.hpp"
+
+using namespace sempose;
+using namespace sempose::pose;
+
+namespace {
+
+constexpr int kPattern = 32;
+constexpr double kStepDeg = 2.0;
+
+// The target's texture in its own frame (u right, v down, origin at its centre).
+double texture(double u, double v) {
+  return 1000 + 400 * std::exp(-((u - 5) * (u - 5) + (v + 3) * (v + 3)) / 30) +
+         300 * std::sin(0.35 * u + 0.1 * v) * std::cos(0.22 * v) + 250 * std::exp(-((u + 8) * (u + 8) + (v - 6) * (v - 6)) / 10);
+}
+
+// A w×h image with the target's centre at (cx, cy), turned by phi_deg (CCW on screen).
+std::vector<std::uint16_t> render(int w, int h, double cx, double cy, double phi_deg) {
+  const double c = std::cos(phi_deg * M_PI / 180), s = std::sin(phi_deg * M_PI / 180);
+  std::vector<std::uint16_t> out(static_cast<std::size_t>(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double dx = x - cx, dy = y - cy;
+      out[static_cast<std::size_t>(y) * w + x] = static_cast<std::uint16_t>(std::lround(texture(dx * c - dy * s, dx * s + dy * c)));
+    }
+  return out;
+}
+
+// The tracker's stages for a 32 px pattern, 64 px ROI, 160×128 field, 2° steps, no prefilter.
+struct Stages {
+  config::TrackerConfig cfg;
+  EngineSizes sizes;
+  AngleGrid angles{180, kStepDeg};
+  PatternMask fine{kPattern, true, 8, 2}, half_mask{kPattern / 2, true, 8, 1}, coarse_mask{kPattern / 4, true};
+  std::unique_ptr<FftCorrelator> half, coarse;
+  std::unique_ptr<ExactScorer> scorer;
+  std::unique_ptr<RoiLoader> loader;
+  std::unique_ptr<CorrelationMaps> maps;
+  SubpixelFit fit{true, true};
+  std::unique_ptr<OrientationWalk> walk;
+  std::unique_ptr<AngleSweep> sweep;
+  std::unique_ptr<StartSearch> search;
+  std::unique_ptr<const PatternBank> bank;
+
+  Stages() {
+    cfg.pattern_size_px = kPattern;
+    cfg.roi_size_px = 64;
+    cfg.angle_step_deg = kStepDeg;
+    cfg.prefilter_passes = 0;
+    cfg.search_downsample = 4;
+    sizes = EngineSizes::of(cfg, kPattern, 160, 128);
+    half = std::make_unique<FftCorrelator>(sizes.half_fft_px, sizes.half_fft_px, half_mask);
+    coarse = std::make_unique<FftCorrelator>(good_fft_size(sizes.coarse_max_w), good_fft_size(sizes.coarse_max_h), coarse_mask);
+    scorer = std::make_unique<ExactScorer>(fine, sizes.roi_fft_px);
+    loader = std::make_unique<RoiLoader>(0, sizes.roi_fft_px, *scorer, *half);
+    maps = std::make_unique<CorrelationMaps>(static_cast<std::size_t>(sizes.half_fft_px) * sizes.half_fft_px);
+    walk = std::make_unique<OrientationWalk>(*scorer, fit, angles);
+    sweep = std::make_unique<AngleSweep>(*half, *walk, angles, *maps);
+    search = std::make_unique<StartSearch>(cfg, sizes, angles, *coarse, *half, *loader, *walk, *sweep, *maps);
+    PatternBankSpec spec;
+    const std::vector<std::uint16_t> pattern = render(kPattern, kPattern, (kPattern - 1) / 2.0, (kPattern - 1) / 2.0, 0);
+    spec.pattern = {kPattern, kPattern, pattern};
+    spec.angle_step_deg = kStepDeg;
+    spec.coarse_step_deg = cfg.search_angle_step_deg;
+    spec.coarse_factor = cfg.search_downsample;
+    std::string why;
+    bank = PatternBank::build(spec, {fine, half_mask, *half, coarse_mask, *coarse}, why);
+    EXPECT_NE(bank, nullptr) << why;
+  }
+};
+
+// The pose a measurement stands for, given the ROI's top-left in the field.
+double pose_x(const Measurement& m, int roi_x) { return roi_x + m.ux + m.dx + (kPattern - 1) / 2.0; }
+double pose_y(const Measurement& m, int roi_y) { return roi_y + m.uy + m.dy + (kPattern - 1) / 2.0; }
+double pose_phi(const Measurement& m) { return (m.j + m.dj) * kStepDeg; }
+
+}  // namespace
+
+TEST(OrientationWalk, WalksFromAWrongAngleToTheTargetAndFits) {
+  Stages st;
+  const double cx = 13 + 15.5 + 0.3, cy = 9 + 15.5 - 0.2, phi = 20.6;
+  const auto roi = render(64, 64, cx, cy, phi);
+  ASSERT_TRUE(st.loader->load(roi.data(), 64, 64, 64, 16));
+  const int j_start = 7;  // 14°: 6.6° off
+  st.half->correlate(st.bank->spectrum(j_start), st.maps->work());
+  const Peak pk = find_peak(st.maps->work(), st.half->valid_w(), st.half->valid_h());
+  const Measurement m = st.walk->measure(*st.bank, j_start, pk, 8);
+  ASSERT_TRUE(m.valid);
+  EXPECT_FALSE(m.unsettled);
+  EXPECT_EQ(m.j, 10);
+  EXPECT_NEAR(pose_x(m, 0), cx, 0.1);
+  EXPECT_NEAR(pose_y(m, 0), cy, 0.1);
+  EXPECT_NEAR(pose_phi(m), phi, 0.3);
+  EXPECT_GT(m.score, 0.95f);
+  EXPECT_GT(m.steps, 19);  // at least the fit's 19 exact scores
+  // A walk bounded to 2 moves cannot get there: reported unsettled.
+  EXPECT_TRUE(st.walk->measure(*st.bank, j_start, pk, 2).unsettled);
+}
+
+TEST(AngleSweep, FindsTheAngleFarOutsideTheWalksReach) {
+  Stages st;
+  const double cx = 30.5, cy = 33.5, phi = -40.0;
+  const auto roi = render(64, 64, cx, cy, phi);
+  ASSERT_TRUE(st.loader->load(roi.data(), 64, 64, 64, 16));
+  const Measurement m = st.sweep->sweep(*st.bank, st.angles.index_of(-10.0), 40, 6, 4);
+  EXPECT_NEAR(pose_phi(m) - 360.0, phi, 0.3);
+  EXPECT_NEAR(pose_x(m, 0), cx, 0.1);
+  EXPECT_NEAR(pose_y(m, 0), cy, 0.1);
+}
+
+TEST(StartSearch, FindsTheTargetOnTheFullField) {
+  Stages st;
+  const double cx = 97.3, cy = 52.8, phi = 64.0;
+  const auto field = render(160, 128, cx, cy, phi);
+  int rx = -1, ry = -1;
+  const Measurement m = st.search->search(*st.bank, field.data(), 160, 128, 16, {}, rx, ry);
+  ASSERT_TRUE(m.valid);
+  EXPECT_NEAR(pose_x(m, rx), cx, 0.15);
+  EXPECT_NEAR(pose_y(m, ry), cy, 0.15);
+  EXPECT_NEAR(pose_phi(m), phi, 0.3);
+  // A flat field has nothing to find.
+  const std::vector<std::uint16_t> flat(160 * 128, 500);
+  EXPECT_FALSE(st.search->search(*st.bank, flat.data(), 160, 128, 16, {}, rx, ry).valid);
+}
+
+TEST(StartSearch, AScoreTieGoesToTheAngleNearTheLastTrackedOne) {
+  Stages st;
+  Measurement coarse_choice, opposite;
+  coarse_choice.score = 0.80f;
+  coarse_choice.j = 10;   // 20°
+  opposite.score = 0.81f; // within the tie band
+  opposite.j = 100;       // 200°
+  EXPECT_FALSE(st.search->prefer_opposite(coarse_choice, opposite, {}));
+  EXPECT_TRUE(st.search->prefer_opposite(coarse_choice, opposite, {true, -150.0}));
+  EXPECT_FALSE(st.search->prefer_opposite(coarse_choice, opposite, {true, 25.0}));
+  opposite.score = 0.85f;  // a clear lead wins regardless
+  EXPECT_TRUE(st.search->prefer_opposite(coarse_choice, opposite, {true, 25.0}));
+}
