@@ -196,8 +196,7 @@ Image render_sim_pattern(const config::SimConfig& cfg_in, const ScanLimits& limi
   t.phi_deg = 0;
   t.trajectory = config::TrajectoryConfig{};
   ScanLimits lim = limits;
-  const std::uint32_t step = lim.dwell_step_ns ? lim.dwell_step_ns : 1;
-  dwell_ns = std::clamp((dwell_ns + step / 2) / step * step, lim.min_dwell_ns, lim.max_dwell_ns);
+  dwell_ns = static_cast<std::uint32_t>(std::clamp<std::uint64_t>(lim.round_dwell_ns(dwell_ns), lim.min_dwell_ns, lim.max_dwell_ns));
   SimSource src(lim, cfg);
   const std::size_t n = static_cast<std::size_t>(size_px) * size_px;
   std::vector<Pixel> frame(n);

@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include "sempose/rt/single_writer_counter.hpp"
 
 namespace sempose::pipeline {
 namespace {
@@ -39,7 +40,7 @@ PublishResult CsvPoseSink::publish(const PoseRecord& pose, std::int64_t t_now_ns
   (void)t_now_ns;
   const std::size_t tail = tail_.load(std::memory_order_relaxed);
   if (tail - head_.load(std::memory_order_acquire) >= capacity_) {
-    dropped_.store(dropped_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+    rt::add_single_writer(dropped_);
     return PublishResult::kDropped;
   }
   ring_[tail & mask_] = pose;

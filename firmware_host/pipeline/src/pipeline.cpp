@@ -54,9 +54,7 @@ Pipeline::Pipeline(const config::PipelineConfig& pipeline, const config::Governo
     if (t == nullptr) throw std::invalid_argument("pipeline: a target has no tracker");
   }
   // The dwell of full-field (start search) scans: the governor's initial dwell, quantized.
-  config::GovernorConfig fixed = governor;
-  fixed.enabled = false;
-  acquire_dwell_ns_ = ScanSpeedGovernor(fixed, source.limits(), 1).next_dwell_ns(0, 1, 1);
+  acquire_dwell_ns_ = governor_.initial_dwell_ns();
   if (pipeline.schedule.size() > kMaxSchedule) {
     throw std::invalid_argument("pipeline.schedule: at most " + std::to_string(kMaxSchedule) + " entries");
   }
@@ -99,7 +97,7 @@ void Pipeline::idle_wait(std::int64_t until_ns) const noexcept {
 void Pipeline::publish_plan(std::uint8_t target, bool enabled) noexcept {
   const hal::Roi roi = to_hal_roi(trackers_[target]->next_roi());
   const hal::ScanLimits& l = source_.limits();
-  const bool full_field = roi.w > l.max_roi_w || roi.h > l.max_roi_h;
+  const bool full_field = l.is_full_field(roi.x, roi.y, roi.w, roi.h);
   ScanPlan plan{};
   plan.x = roi.x;
   plan.y = roi.y;
@@ -268,7 +266,7 @@ void Pipeline::acquisition_loop() noexcept {
       schedule_pos = (schedule_pos + 1) % schedule_len_;
       const std::uint32_t version = plans_[target].version();
       plan = plans_[target].read();
-      const bool full_field = plan.w > source_.limits().max_roi_w || plan.h > source_.limits().max_roi_h;
+      const bool full_field = source_.limits().is_full_field(plan.x, plan.y, plan.w, plan.h);
       found = plan.enabled != 0 && !(full_field && full_field_version_[target] == version);
       if (found && full_field) full_field_version_[target] = version;
     }

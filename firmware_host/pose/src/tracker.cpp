@@ -60,7 +60,7 @@ struct Tracker::Impl {
   std::vector<double> nm_per_px;
 
   bool tracking = false;
-  int field_w = 0, field_h = 0;
+  config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
   std::atomic<bool> reacquire{false};
   std::atomic<std::uint8_t> active{0};
 
@@ -83,9 +83,10 @@ struct Tracker::Impl {
         refinement(scorer),
         loss(cfg),
         motion(c.predict_velocity),
-        filter(c.filter),
-        field_w(field_width),
-        field_h(field_height) {}
+        filter(c.filter) {
+    field.field_w = field_width;
+    field.field_h = field_height;
+  }
 
   PoseEstimate update(const PoseFrame& frame) noexcept;
   Measurement track(const PatternBank& bank) noexcept;
@@ -157,8 +158,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   e.y_px = motion.y_px();
   e.phi_deg = motion.phi_deg();
   if (frame.field_w > 0 && frame.field_h > 0) {
-    field_w = frame.field_w;
-    field_h = frame.field_h;
+    field.field_w = frame.field_w;
+    field.field_h = frame.field_h;
   }
   const Roi& roi = frame.roi;
   const std::uint16_t* px = frame.pixels;
@@ -168,7 +169,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     return e;
   }
   const PatternBank& bank = *banks[set];
-  const bool full_field = roi.x == 0 && roi.y == 0 && roi.w >= field_w && roi.h >= field_h;
+  const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
     go_lost();
     if (!full_field) {
@@ -214,7 +215,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   const Measurement m = track(bank);
   to_estimate(m, scored.x, scored.y, e);
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
-  if (motion.prediction_outside(field_w, field_h)) e.reason_bits |= kReasonOutOfField;
+  if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
   switch (loss.judge(m)) {
     case FrameVerdict::kAccept:
       accept(e, frame, false);
@@ -296,9 +297,10 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
 
 Roi Tracker::next_roi() const noexcept {
   const Impl& t = *impl_;
-  if (!t.tracking || t.reacquire.load(std::memory_order_relaxed)) return {0, 0, t.field_w, t.field_h};
-  return t.motion.window_at_prediction(std::min(t.sizes.roi_px, t.field_w), std::min(t.sizes.roi_px, t.field_h),
-                                       t.field_w, t.field_h);
+  const int field_w = t.field.field_w, field_h = t.field.field_h;
+  if (!t.tracking || t.reacquire.load(std::memory_order_relaxed)) return {0, 0, field_w, field_h};
+  return t.motion.window_at_prediction(std::min(t.sizes.roi_px, field_w), std::min(t.sizes.roi_px, field_h), field_w,
+                                       field_h);
 }
 
 PoseEstimate Tracker::update(const PoseFrame& frame) noexcept { return impl_->update(frame); }

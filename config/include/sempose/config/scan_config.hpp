@@ -24,6 +24,16 @@ struct ScanLimits {
     return static_cast<std::int64_t>(w) * h * dwell_ns + static_cast<std::int64_t>(h) * line_flyback_ns;
   }
   std::uint16_t max_value() const noexcept { return bits == 16 ? 65535 : 255; }
+  // The dwell the generator runs for a requested one: the nearest multiple of dwell_step_ns
+  // (halves round up; a step of 0 means any dwell). Range checks are the caller's.
+  std::uint64_t round_dwell_ns(std::uint64_t dwell_ns) const noexcept {
+    const std::uint64_t step = dwell_step_ns == 0 ? 1 : dwell_step_ns;
+    return (dwell_ns + step / 2) / step * step;
+  }
+  // A scan of the whole field (the start search), which is allowed above max_roi_w/h.
+  bool is_full_field(std::int32_t x, std::int32_t y, std::int32_t w, std::int32_t h) const noexcept {
+    return x == 0 && y == 0 && w >= field_w && h >= field_h;
+  }
 };
 
 // Reads the `scan:` section (keys as the struct fields), checks ranges and consistency

@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include "sempose/rt/single_writer_counter.hpp"
 
 namespace sempose::hal {
 
@@ -53,7 +54,7 @@ struct CanChannelCounters {
   std::atomic<std::uint8_t> bus_state{0};  // CanBusState
 
   static void bump(std::atomic<std::uint64_t>& c) noexcept {
-    c.store(c.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);  // single writer
+    rt::add_single_writer(c);
   }
 };
 

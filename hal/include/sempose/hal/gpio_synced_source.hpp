@@ -17,6 +17,7 @@
 
 #include "sempose/hal/gpio_frame_sync.hpp"
 #include "sempose/hal/scan_source.hpp"
+#include "sempose/rt/single_writer_counter.hpp"
 
 namespace sempose::hal {
 
@@ -47,7 +48,7 @@ class GpioSyncedSource final : public ScanSource {
   // Reads pending edges; returns how many; remembers the first one's timestamp.
   int take_edges() noexcept;
   static void bump(std::atomic<std::uint64_t>& c, std::uint64_t n = 1) noexcept {
-    c.store(c.load(std::memory_order_relaxed) + n, std::memory_order_relaxed);
+    rt::add_single_writer(c, n);
   }
 
   ScanSource& inner_;

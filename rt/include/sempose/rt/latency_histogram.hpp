@@ -11,6 +11,7 @@
 #include <span>
 #include <string>
 #include <vector>
+#include "sempose/rt/single_writer_counter.hpp"
 
 namespace sempose::rt {
 
@@ -49,7 +50,7 @@ class LatencyHistogram {
 
  private:
   static void bump(std::atomic<std::uint64_t>& c) noexcept {
-    c.store(c.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+    add_single_writer(c);
   }
   std::string name_;
   std::size_t bucket_count_;

@@ -16,6 +16,7 @@
 #include "sempose/ipc/protocol.hpp"
 #include "sempose/pipeline/pose_sink.hpp"
 #include "sempose/rt/spsc_ring.hpp"
+#include "sempose/rt/single_writer_counter.hpp"
 
 namespace sempose::can_output {
 
@@ -62,7 +63,7 @@ class CanPoseSink final : public pipeline::PoseSink {
   void send_heartbeat(const pipeline::PipelineStatus& status, std::int64_t t_now_ns) noexcept;
   void read_commands() noexcept;
   static void bump(std::atomic<std::uint64_t>& c) noexcept {
-    c.store(c.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+    rt::add_single_writer(c);
   }
 
   hal::CanChannel& channel_;

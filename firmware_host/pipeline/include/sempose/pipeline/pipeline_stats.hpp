@@ -11,13 +11,14 @@
 
 #include "sempose/hal/frame.hpp"
 #include "sempose/rt/latency_histogram.hpp"
+#include "sempose/rt/single_writer_counter.hpp"
 
 namespace sempose::pipeline {
 
 // Single-writer counter.
 class Counter {
  public:
-  void add(std::uint64_t n = 1) noexcept { v_.store(v_.load(std::memory_order_relaxed) + n, std::memory_order_relaxed); }
+  void add(std::uint64_t n = 1) noexcept { rt::add_single_writer(v_, n); }
   void set(std::uint64_t n) noexcept { v_.store(n, std::memory_order_relaxed); }
   std::uint64_t get() const noexcept { return v_.load(std::memory_order_relaxed); }
 

@@ -41,6 +41,9 @@ class ScanSpeedGovernor {
 
   std::int64_t compute_estimate_ns() const noexcept { return estimate_ns_; }
   double quality_factor(std::uint8_t target) const noexcept { return targets_[clamp_target(target)].quality; }
+  // governor.initial_dwell_ns on the generator's step inside the governor's range: the first
+  // ROI's dwell, and every full-field (start search) scan's.
+  std::uint32_t initial_dwell_ns() const noexcept { return quantize_up(static_cast<double>(config_.initial_dwell_ns)); }
   std::uint32_t min_dwell_ns() const noexcept { return min_dwell_ns_; }
   std::uint32_t max_dwell_ns() const noexcept { return max_dwell_ns_; }
 
