@@ -221,7 +221,7 @@ int run_replay(int argc, char** argv) {
       pose::Tracker& tr = *targets[k].tracker;
       hal::FrameMeta meta;
       meta.seq = f;
-      meta.roi = pipeline::to_hal_roi(tr.next_roi());
+      meta.roi = tr.next_roi();
       meta.field_w = frame.width;
       meta.field_h = frame.height;
       meta.bits = frame.bits;

@@ -31,12 +31,6 @@ char* put_hex(char* p, std::uint32_t v, int digits) noexcept {
   return p;
 }
 
-std::size_t round_up_pow2(std::size_t v) {
-  std::size_t p = 4096;
-  while (p < v) p <<= 1;
-  return p;
-}
-
 }  // namespace
 
 std::size_t CandumpLogChannel::format_line(const CanFrame& f, std::int64_t t_ns, const char* channel,
@@ -85,8 +79,8 @@ std::unique_ptr<CandumpLogChannel> CandumpLogChannel::open(const CandumpLogOptio
   ch->channel_ = o.channel_name;
   ch->fd_ = o.fd;
   ch->wall_clock_ = o.wall_clock;
-  ch->ring_.assign(round_up_pow2(o.buffer_bytes < kMaxLine * 4 ? kMaxLine * 4 : o.buffer_bytes), '\0');
-  ch->mask_ = ch->ring_.size() - 1;
+  // At least 4 KiB and four lines; a power of two.
+  ch->ring_.allocate(std::max<std::size_t>({4096, kMaxLine * 4, o.buffer_bytes}));
   ch->file_ = ::open(o.path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (ch->file_ < 0) {
     status = rt::Status::failure("can.log_file '" + o.path + "': cannot create: " + std::strerror(errno));
@@ -113,15 +107,10 @@ CanSendResult CandumpLogChannel::send(const CanFrame& f, std::int64_t t_ns) noex
   }
   char line[kMaxLine];
   const std::size_t n = format_line(f, t_ns, channel_.c_str(), line);
-  const std::size_t tail = tail_.load(std::memory_order_relaxed);
-  const std::size_t head = head_.load(std::memory_order_acquire);
-  if (ring_.size() - (tail - head) < n) {
+  if (!ring_.try_push(line, n)) {
     CanChannelCounters::bump(counters_.tx_dropped);
     return CanSendResult::kDropped;
   }
-  char* ring = ring_.data();
-  for (std::size_t i = 0; i < n; ++i) ring[(tail + i) & mask_] = line[i];
-  tail_.store(tail + n, std::memory_order_release);
   CanChannelCounters::bump(counters_.tx_frames);
   return CanSendResult::kSent;
 }
@@ -129,18 +118,13 @@ CanSendResult CandumpLogChannel::send(const CanFrame& f, std::int64_t t_ns) noex
 void CandumpLogChannel::flush() {
   std::lock_guard<std::mutex> lock(flush_mutex_);
   if (file_ < 0) return;
-  std::size_t head = head_.load(std::memory_order_relaxed);
-  const std::size_t tail = tail_.load(std::memory_order_acquire);
-  while (head != tail) {
-    const std::size_t start = head & mask_;
-    const std::size_t contiguous = std::min(tail - head, ring_.size() - start);
-    const ssize_t w = ::write(file_, ring_.data() + start, contiguous);
+  for (auto pending = ring_.readable(); !pending.empty(); pending = ring_.readable()) {
+    const ssize_t w = ::write(file_, pending.data(), pending.size());
     if (w < 0) {
       if (errno == EINTR) continue;
       break;  // disk full etc.: keep the data; the ring fills and send() counts drops
     }
-    head += static_cast<std::size_t>(w);
-    head_.store(head, std::memory_order_release);
+    ring_.consume(static_cast<std::size_t>(w));
     written_.fetch_add(static_cast<std::uint64_t>(w), std::memory_order_relaxed);
   }
 }

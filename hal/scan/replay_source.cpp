@@ -62,7 +62,7 @@ std::vector<std::vector<double>> read_csv(const std::string& path, std::size_t m
 }  // namespace
 
 ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig& cfg)
-    : limits_(limits), loop_(cfg.loop), timer_(cfg.clock != "real") {
+    : TimedScanSource(cfg.clock != "real"), limits_(limits), loop_(cfg.loop) {
   const std::vector<std::string> names = list_pgm_frames(cfg.frames_dir);
   // Memory check before loading: all frames stay resident.
   Image first = read_pgm(names.front());

@@ -29,9 +29,9 @@ inline float sample_clamped(const FloatImage& img, float x, float y) noexcept {
 }  // namespace
 
 SimSource::SimSource(const ScanLimits& limits, const config::SimConfig& cfg)
-    : limits_(limits),
+    : TimedScanSource(cfg.clock == "virtual"),
+      limits_(limits),
       scene_(cfg, limits),
-      timer_(cfg.clock == "virtual"),
       epoch_ns_(timer_.is_virtual() ? kVirtualEpochNs : rt::now_ns()) {
   if (limits.bits != 8 && limits.bits != 16) throw std::runtime_error("scan.bits must be 8 or 16");
   for (std::size_t i = 0; i < cfg.targets.size(); ++i) {

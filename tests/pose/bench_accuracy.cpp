@@ -85,7 +85,7 @@ Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) 
     for (int f = 0; f < 3; ++f) {
       scene.render(cx, cy, x, y, phi, fw, fh, field, dose, 100 + static_cast<std::uint64_t>(k * 7 + f));
       hal::FrameMeta meta;
-      meta.roi = pipeline::to_hal_roi(tracker->next_roi());
+      meta.roi = tracker->next_roi();
       meta.field_w = fw;
       meta.field_h = fh;
       meta.bits = 16;

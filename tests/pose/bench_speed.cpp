@@ -62,7 +62,7 @@ int main(int argc, char** argv) {
     Tracker& t = *h.tracker();
     // One ROI frame at the tracked pose, replayed (the tracker re-tracks it each time).
     hal::FrameMeta meta;
-    meta.roi = pipeline::to_hal_roi(t.next_roi());
+    meta.roi = t.next_roi();
     meta.field_w = s.field_w;
     meta.field_h = s.field_h;
     config::SimConfig sc = make_sim_config(s);

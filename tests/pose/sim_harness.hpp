@@ -154,7 +154,7 @@ class SimHarness {
     for (int f = 0; f < s_.frames; ++f) {
       hal::FrameMeta meta;
       meta.seq = static_cast<std::uint64_t>(f);
-      meta.roi = pipeline::to_hal_roi(tracker_->next_roi());
+      meta.roi = tracker_->next_roi();
       meta.field_w = s_.field_w;
       meta.field_h = s_.field_h;
       meta.dwell_ns = s_.dwell_ns;

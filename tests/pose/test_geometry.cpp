@@ -59,7 +59,7 @@ struct Rig {
     for (int f = 0; f <= frames; ++f) {
       hal::FrameMeta meta;
       meta.seq = seq++;
-      meta.roi = pipeline::to_hal_roi(tracker->next_roi());
+      meta.roi = tracker->next_roi();
       meta.field_w = kFieldW;
       meta.field_h = kFieldH;
       meta.bits = 16;

@@ -136,7 +136,7 @@ TEST(Tracker, FlatBadAndOffFieldFramesAreLostNeverNan) {
   for (hal::Pixel level : {hal::Pixel{0}, hal::Pixel{255}, hal::Pixel{128}}) {
     std::fill(px.begin(), px.end(), level);
     hal::FrameMeta m;
-    m.roi = pipeline::to_hal_roi(t.next_roi());
+    m.roi = t.next_roi();
     m.field_w = 640;
     m.field_h = 480;
     const PoseEstimate e = t.update(pipeline::to_pose_frame(m, px.data()));
@@ -145,7 +145,7 @@ TEST(Tracker, FlatBadAndOffFieldFramesAreLostNeverNan) {
     EXPECT_TRUE(std::isfinite(e.x_px) && std::isfinite(e.y_px) && std::isfinite(e.phi_deg));
   }
   // Now acquiring: next ROI is the full field; a blank full field stays ACQUIRING.
-  const hal::Roi full = pipeline::to_hal_roi(t.next_roi());
+  const hal::Roi full = t.next_roi();
   EXPECT_EQ(full.w, 640);
   EXPECT_EQ(full.h, 480);
   hal::FrameMeta m;

@@ -95,7 +95,7 @@ void Pipeline::idle_wait(std::int64_t until_ns) const noexcept {
 }
 
 void Pipeline::publish_plan(std::uint8_t target, bool enabled) noexcept {
-  const hal::Roi roi = to_hal_roi(trackers_[target]->next_roi());
+  const hal::Roi roi = trackers_[target]->next_roi();
   const hal::ScanLimits& l = source_.limits();
   const bool full_field = l.is_full_field(roi.x, roi.y, roi.w, roi.h);
   ScanPlan plan{};

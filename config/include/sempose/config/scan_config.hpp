@@ -8,6 +8,16 @@ namespace sempose::config {
 
 class Section;
 
+// A rectangle of the scan field, in full-field pixels; (x, y) is its top-left pixel. The one
+// ROI type of the scan source (hal::Roi) and the pose engine (pose::Roi).
+struct Roi {
+  std::int32_t x = 0;
+  std::int32_t y = 0;
+  std::int32_t w = 0;
+  std::int32_t h = 0;
+  friend bool operator==(const Roi&, const Roi&) = default;
+};
+
 struct ScanLimits {
   std::int32_t field_w = 1024;  // full scan field, pixels
   std::int32_t field_h = 768;

@@ -17,6 +17,7 @@
 
 #include "sempose/hal/can_channel.hpp"
 #include "sempose/rt/result.hpp"
+#include "sempose/rt/spsc_buffer.hpp"
 
 namespace sempose::hal {
 
@@ -53,10 +54,7 @@ class CandumpLogChannel final : public CanChannel {
   int file_ = -1;
   bool fd_ = false;
   bool wall_clock_ = false;
-  std::vector<char> ring_;
-  std::size_t mask_ = 0;
-  alignas(64) std::atomic<std::size_t> head_{0};  // consumer (flush)
-  alignas(64) std::atomic<std::size_t> tail_{0};  // producer (send)
+  rt::SpscBuffer<char> ring_;  // send (RT) → flush (non-RT)
   std::atomic<std::uint64_t> written_{0};
   std::mutex flush_mutex_;  // non-RT side only: two non-RT callers of flush() never interleave
 };

@@ -3,20 +3,15 @@
 
 #include <cstdint>
 
+#include "sempose/config/scan_config.hpp"
 #include "sempose/rt/frame_pool.hpp"
 
 namespace sempose::hal {
 
 inline constexpr int kMaxTargets = 4;
 
-// A rectangle of the scan field, in full-field pixels; (x, y) is its top-left pixel.
-struct Roi {
-  std::int32_t x = 0;
-  std::int32_t y = 0;
-  std::int32_t w = 0;
-  std::int32_t h = 0;
-  friend bool operator==(const Roi&, const Roi&) = default;
-};
+// A rectangle of the scan field (one definition, in config, shared with the pose engine).
+using Roi = config::Roi;
 
 // Where a simulated target really was during the scan (the README's conventions).
 struct TargetTruth {

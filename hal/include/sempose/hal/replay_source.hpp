@@ -21,18 +21,13 @@
 
 namespace sempose::hal {
 
-class ReplaySource final : public ScanSource {
+class ReplaySource final : public TimedScanSource {
  public:
   // Setup: throws std::runtime_error naming the directory/file and the problem.
   ReplaySource(const ScanLimits& limits, const config::ReplayConfig& cfg);
 
   const ScanLimits& limits() const noexcept override { return limits_; }
   StartResult start(const ScanRequest& req, FrameSlot& slot) noexcept override;
-  PollResult poll() noexcept override { return timer_.poll(); }
-  std::int64_t now_ns() const noexcept override { return timer_.now_ns(); }
-  std::int64_t expected_done_ns() const noexcept override { return timer_.expected_done_ns(); }
-  bool is_virtual_time() const noexcept override { return timer_.is_virtual(); }
-  void advance_virtual_ns(std::int64_t ns) noexcept override { timer_.advance_virtual_ns(ns); }
 
   std::size_t frame_count() const noexcept { return frames_.size(); }
   std::size_t next_frame() const noexcept { return index_; }
@@ -40,7 +35,6 @@ class ReplaySource final : public ScanSource {
  private:
   ScanLimits limits_;
   bool loop_;
-  ScanTimer timer_;
   std::vector<Image> frames_;
   std::vector<std::int64_t> t_ns_;  // per frame, or empty
   std::vector<std::array<TargetTruth, kMaxTargets>> truth_;  // per frame, or empty

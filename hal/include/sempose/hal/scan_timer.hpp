@@ -65,4 +65,19 @@ class ScanTimer {
   std::int64_t end_ns_ = 0;
 };
 
+// A scan source whose frames complete on a ScanTimer (the simulator, replay): the timing half
+// of ScanSource, written once. Derived sources implement limits() and start().
+class TimedScanSource : public ScanSource {
+ public:
+  PollResult poll() noexcept override { return timer_.poll(); }
+  std::int64_t now_ns() const noexcept override { return timer_.now_ns(); }
+  std::int64_t expected_done_ns() const noexcept override { return timer_.expected_done_ns(); }
+  bool is_virtual_time() const noexcept override { return timer_.is_virtual(); }
+  void advance_virtual_ns(std::int64_t ns) noexcept override { timer_.advance_virtual_ns(ns); }
+
+ protected:
+  explicit TimedScanSource(bool virtual_time) noexcept : timer_(virtual_time) {}
+  ScanTimer timer_;
+};
+
 }  // namespace sempose::hal

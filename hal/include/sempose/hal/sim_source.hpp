@@ -22,7 +22,7 @@
 
 namespace sempose::hal {
 
-class SimSource final : public ScanSource {
+class SimSource final : public TimedScanSource {
  public:
   static constexpr std::int64_t kVirtualEpochNs = ScanTimer::kVirtualEpochNs;
 
@@ -31,11 +31,6 @@ class SimSource final : public ScanSource {
 
   const ScanLimits& limits() const noexcept override { return limits_; }
   StartResult start(const ScanRequest& req, FrameSlot& slot) noexcept override;
-  PollResult poll() noexcept override { return timer_.poll(); }
-  std::int64_t now_ns() const noexcept override { return timer_.now_ns(); }
-  std::int64_t expected_done_ns() const noexcept override { return timer_.expected_done_ns(); }
-  bool is_virtual_time() const noexcept override { return timer_.is_virtual(); }
-  void advance_virtual_ns(std::int64_t ns) noexcept override { timer_.advance_virtual_ns(ns); }
 
   // Renders roi as scanned from t_start_ns (the source's clock) into out (roi.w·roi.h
   // pixels) and fills truth[0..target count) with the poses at mid-scan. RT-safe.
@@ -54,7 +49,6 @@ class SimSource final : public ScanSource {
 
   ScanLimits limits_;
   SimScene scene_;
-  ScanTimer timer_;
   std::int64_t epoch_ns_;
   std::array<Trajectory, kMaxTargets> trajectories_{};
   std::array<float, 64> lag_px_{};  // beam position lag for the first pixels of a line

@@ -11,6 +11,7 @@
 
 #include "sempose/pipeline/pose_sink.hpp"
 #include "sempose/rt/result.hpp"
+#include "sempose/rt/spsc_buffer.hpp"
 
 namespace sempose::pipeline {
 
@@ -31,12 +32,8 @@ class CsvPoseSink final : public PoseSink {
 
  private:
   std::string path_;
-  std::size_t capacity_;
-  std::size_t mask_;
   bool with_target_;
-  std::unique_ptr<PoseRecord[]> ring_;
-  alignas(64) std::atomic<std::size_t> head_{0};  // consumer (writer thread)
-  alignas(64) std::atomic<std::size_t> tail_{0};  // producer (output stage)
+  rt::SpscBuffer<PoseRecord> ring_;  // output stage → writer thread
   std::atomic<std::uint64_t> dropped_{0};
   std::FILE* file_ = nullptr;
   std::uint64_t written_ = 0;

@@ -1,4 +1,4 @@
-// The one place where the hardware layer's frames, ROIs and images become the pose engine's
+// The one place where the hardware layer's frames and images become the pose engine's
 // own input types (the pose engine does not depend on hal). Header-only, RT-safe: plain copies.
 #pragma once
 
@@ -14,7 +14,7 @@ namespace sempose::pipeline {
 inline pose::PoseFrame to_pose_frame(const hal::FrameMeta& meta, const hal::Pixel* pixels) noexcept {
   pose::PoseFrame f;
   f.pixels = pixels;
-  f.roi = {meta.roi.x, meta.roi.y, meta.roi.w, meta.roi.h};
+  f.roi = meta.roi;
   f.field_w = meta.field_w;
   f.field_h = meta.field_h;
   f.bits = meta.bits;
@@ -23,8 +23,6 @@ inline pose::PoseFrame to_pose_frame(const hal::FrameMeta& meta, const hal::Pixe
   f.t_scan_end_ns = meta.t_scan_end_ns;
   return f;
 }
-
-inline hal::Roi to_hal_roi(const pose::Roi& roi) noexcept { return {roi.x, roi.y, roi.w, roi.h}; }
 
 inline pose::PatternImage to_pattern_image(hal::Image image) {
   return {image.width, image.height, std::move(image.pixels)};

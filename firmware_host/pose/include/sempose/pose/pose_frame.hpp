@@ -4,16 +4,12 @@
 
 #include <cstdint>
 
+#include "sempose/config/scan_config.hpp"
+
 namespace sempose::pose {
 
-// A rectangle of the scan field, in full-field pixels; (x, y) is its top-left pixel.
-struct Roi {
-  std::int32_t x = 0;
-  std::int32_t y = 0;
-  std::int32_t w = 0;
-  std::int32_t h = 0;
-  friend bool operator==(const Roi&, const Roi&) = default;
-};
+// A rectangle of the scan field, in full-field pixels (the scan vocabulary's one ROI type).
+using Roi = config::Roi;
 
 struct PoseFrame {
   const std::uint16_t* pixels = nullptr;  // roi.w × roi.h, row-major, row stride roi.w
