@@ -12,6 +12,7 @@
 #include <memory>
 #include <vector>
 
+#include "sempose/hal/scan_source.hpp"
 #include "sempose/pipeline/pose_input.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "warp_scene.hpp"
