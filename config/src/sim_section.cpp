@@ -1,3 +1,5 @@
+#include <algorithm>
+#include <cmath>
 #include <string>
 
 #include "sempose/config/reader.hpp"
@@ -72,6 +74,31 @@ void read_trajectory(Section& s, TrajectoryConfig& t) {
   s.opt("margin_px", t.margin_px, 0.0, 8192.0);
 }
 
+// A TimeProfile as a mapping {from, to, start_s, ramp_s, amplitude, period_s}; `value` alone
+// sets from = to (a constant). Values (and value ± amplitude) must stay within [lo, hi].
+void read_profile(Section& parent, const char* key, TimeProfile& p, double lo, double hi) {
+  Section s = parent.child(key);
+  if (!s.present()) return;
+  double value = p.from;
+  if (s.has("value")) {
+    s.opt("value", value, lo, hi);
+    p.from = p.to = value;
+  } else {
+    s.opt("value", value, lo, hi);
+  }
+  s.opt("from", p.from, lo, hi);
+  s.opt("to", p.to, lo, hi);
+  if (!s.has("to") && s.has("from") && !s.has("value")) p.to = p.from;
+  s.opt("start_s", p.start_s, 0.0, 1e6);
+  s.opt("ramp_s", p.ramp_s, 0.0, 1e6);
+  s.opt("amplitude", p.amplitude, -(hi - lo), hi - lo);
+  s.opt("period_s", p.period_s, 1e-3, 1e6);
+  const double a = std::fabs(p.amplitude);
+  if (std::min(p.from, p.to) - a < lo || std::max(p.from, p.to) + a > hi) {
+    s.error("amplitude", "from/to ± amplitude leaves the allowed range " + describe_range(lo, hi));
+  }
+}
+
 void read_target(Section& s, SimTargetConfig& t) {
   s.opt("enabled", t.enabled);
   Section tex = s.child("texture");
@@ -99,6 +126,11 @@ void read_target(Section& s, SimTargetConfig& t) {
   }
   Section traj = s.child("trajectory");
   read_trajectory(traj, t.trajectory);
+  read_profile(s, "scale", t.scale, 0.25, 4.0);
+  read_profile(s, "jaws", t.jaws, -64.0, 64.0);
+  if (!t.jaws.is_constant() || t.jaws.from != 0) {
+    if (t.texture.source != "gripper") s.error("jaws", "jaws move only on a procedural gripper (texture source 'gripper')");
+  }
 }
 
 }  // namespace
@@ -133,6 +165,13 @@ void read_sim(Section& s, SimConfig& c) {
   }
   s.opt("brightness_drift", c.brightness_drift, 0.0, 0.9);
   s.opt("brightness_drift_period_s", c.brightness_drift_period_s, 1e-3, 1e6);
+  {
+    Section ch = s.child("charging");
+    read_profile(ch, "gain", c.charging_gain, 0.0, 10.0);
+    read_profile(ch, "offset", c.charging_offset, -1.0, 1.0);
+  }
+  read_profile(s, "defocus_px", c.defocus_px, 0.0, 8.0);
+  s.opt("detector_tau_ns", c.detector_tau_ns, 0.0, 1e6);
   Section bg = s.child("background");
   bg.opt_choice("source", c.background.source, {"procedural", "image"});
   bg.opt("path", c.background.path);

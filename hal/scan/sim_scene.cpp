@@ -1,6 +1,7 @@
 #include "sempose/hal/sim_scene.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 
@@ -40,6 +41,32 @@ void gaussian_blur(FloatImage& img, double sigma) {
       float acc = 0;
       for (int i = -r; i <= r; ++i) acc += k[i + r] * tmp[static_cast<std::size_t>(std::clamp(y + i, 0, img.h - 1)) * img.w + x];
       img.v[static_cast<std::size_t>(y) * img.w + x] = acc;
+    }
+  }
+}
+
+void gaussian_blur_in_place(float* img, int w, int h, double sigma, float* tmp) noexcept {
+  if (sigma <= 0.05 || w <= 0 || h <= 0) return;
+  sigma = std::min(sigma, kMaxBlurSigma);
+  const int r = static_cast<int>(std::ceil(3.0 * sigma));
+  std::array<float, 2 * 30 + 1> k{};
+  double sum = 0;
+  for (int i = -r; i <= r; ++i) sum += k[static_cast<std::size_t>(i + r)] = static_cast<float>(std::exp(-0.5 * i * i / (sigma * sigma)));
+  for (int i = 0; i <= 2 * r; ++i) k[static_cast<std::size_t>(i)] = static_cast<float>(k[static_cast<std::size_t>(i)] / sum);
+  for (int y = 0; y < h; ++y) {
+    const float* row = img + static_cast<std::size_t>(y) * w;
+    for (int x = 0; x < w; ++x) {
+      float acc = 0;
+      for (int i = -r; i <= r; ++i) acc += k[static_cast<std::size_t>(i + r)] * row[std::clamp(x + i, 0, w - 1)];
+      tmp[static_cast<std::size_t>(y) * w + x] = acc;
+    }
+  }
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      float acc = 0;
+      for (int i = -r; i <= r; ++i)
+        acc += k[static_cast<std::size_t>(i + r)] * tmp[static_cast<std::size_t>(std::clamp(y + i, 0, h - 1)) * w + x];
+      img[static_cast<std::size_t>(y) * w + x] = acc;
     }
   }
 }
@@ -192,29 +219,60 @@ SimLayer build_layer(const config::SimTargetConfig& t, std::size_t index, const 
     const std::int32_t w = t.width_px > 0 ? t.width_px : 128, h = t.height_px > 0 ? t.height_px : 96;
     procedural(t.texture.source, w, h, cfg.seed * 31 + index, tex, alpha);
   }
-  // Pad so the PSF spreads beyond the mask edge, then premultiply and blur.
-  const int pad = static_cast<int>(std::ceil(3.0 * cfg.psf_sigma_px)) + 2;
+  // Pad so the PSF spreads beyond the mask edge (and the jaws have room to open), then
+  // premultiply and blur. A gripper whose jaws move is split into body and jaws: the jaws
+  // are the parts right of 45 % of the width, above and below the middle.
+  const bool jaws_move = t.texture.source == "gripper" && (!t.jaws.is_constant() || t.jaws.from != 0);
+  const int pad = static_cast<int>(std::ceil(3.0 * cfg.psf_sigma_px)) + 2 +
+                  (jaws_move ? static_cast<int>(std::ceil(t.jaws.max_abs())) : 0);
   SimLayer layer;
   layer.enabled = t.enabled;
   const std::int32_t w = tex.w + 2 * pad, h = tex.h + 2 * pad;
-  layer.premul = FloatImage{w, h, std::vector<float>(static_cast<std::size_t>(w) * h, 0.0f)};
-  layer.alpha = layer.premul;
-  for (int y = 0; y < tex.h; ++y) {
-    for (int x = 0; x < tex.w; ++x) {
-      const auto s = static_cast<std::size_t>(y) * tex.w + x;
-      const auto d = static_cast<std::size_t>(y + pad) * w + (x + pad);
-      const float b = static_cast<float>(std::clamp(tex.v[s] * t.brightness, 0.0, 1.0));
-      layer.alpha.v[d] = alpha.v[s];
-      layer.premul.v[d] = b * alpha.v[s];
+  const int n_parts = jaws_move ? 3 : 1;
+  for (int part = 0; part < n_parts; ++part) {
+    SimPart P;
+    P.jaw_dir = part == 1 ? -1.0f : part == 2 ? 1.0f : 0.0f;
+    P.premul = FloatImage{w, h, std::vector<float>(static_cast<std::size_t>(w) * h, 0.0f)};
+    P.alpha = P.premul;
+    for (int y = 0; y < tex.h; ++y) {
+      for (int x = 0; x < tex.w; ++x) {
+        if (jaws_move) {
+          const bool jaw = x >= 0.45 * tex.w;
+          const int which = !jaw ? 0 : y < tex.h / 2 ? 1 : 2;
+          if (which != part) continue;
+        }
+        const auto s = static_cast<std::size_t>(y) * tex.w + x;
+        const auto d = static_cast<std::size_t>(y + pad) * w + (x + pad);
+        const float b = static_cast<float>(std::clamp(tex.v[s] * t.brightness, 0.0, 1.0));
+        P.alpha.v[d] = alpha.v[s];
+        P.premul.v[d] = b * alpha.v[s];
+      }
     }
+    gaussian_blur(P.premul, cfg.psf_sigma_px);
+    gaussian_blur(P.alpha, cfg.psf_sigma_px);
+    layer.parts.push_back(std::move(P));
   }
-  gaussian_blur(layer.premul, cfg.psf_sigma_px);
-  gaussian_blur(layer.alpha, cfg.psf_sigma_px);
   layer.cx = pad + (tex.w - 1) / 2.0;
   layer.cy = pad + (tex.h - 1) / 2.0;
   layer.radius = std::hypot(w / 2.0 + 1, h / 2.0 + 1);
   return layer;
 }
+
+// Bilinear sample with the coordinates clamped to the image (the scene continues like its
+// border beyond the field, e.g. under drift).
+inline float sample_clamped(const FloatImage& img, float x, float y) noexcept {
+  x = std::clamp(x, 0.0f, static_cast<float>(img.w - 1));
+  y = std::clamp(y, 0.0f, static_cast<float>(img.h - 1));
+  const int x0 = std::min(static_cast<int>(x), img.w - 2 < 0 ? 0 : img.w - 2);
+  const int y0 = std::min(static_cast<int>(y), img.h - 2 < 0 ? 0 : img.h - 2);
+  const float ax = x - x0, ay = y - y0;
+  const float* p = &img.v[static_cast<std::size_t>(y0) * img.w + x0];
+  const float top = p[0] + ax * (p[1] - p[0]);
+  const float bot = p[img.w] + ax * (p[img.w + 1] - p[img.w]);
+  return top + ay * (bot - top);
+}
+
+constexpr double kDegToRad = 6.283185307179586 / 360.0;
 
 }  // namespace
 
@@ -244,6 +302,83 @@ SimScene::SimScene(const config::SimConfig& cfg, const config::ScanLimits& limit
   }
   gaussian_blur(background_, cfg.psf_sigma_px);
   for (std::size_t i = 0; i < cfg.targets.size(); ++i) targets_.push_back(build_layer(cfg.targets[i], i, cfg));
+}
+
+LinePose SimScene::line_pose(std::size_t t, const SimTargetPose& p, float qy) const noexcept {
+  LinePose lp;
+  const SimLayer& L = targets_[t];
+  if (!L.enabled || !p.active || !(p.scale > 0)) return lp;
+  if (std::fabs(qy - p.y_px) > L.radius * (p.scale > 1.0 ? p.scale : 1.0)) return lp;
+  // Inverse of the on-screen CCW rotation (README: Conventions) and of the scale: field -> texture.
+  const double c = std::cos(p.phi_deg * kDegToRad), s = std::sin(p.phi_deg * kDegToRad);
+  lp = {true, p.x_px, p.y_px, p.scale == 1.0 ? c : c / p.scale, p.scale == 1.0 ? s : s / p.scale,
+        static_cast<float>(p.jaw_open_px)};
+  return lp;
+}
+
+void SimScene::compose_line(const LinePose* poses, float qx0, float qy, const float* lag, int lag_n, int lag_offset,
+                            int n, float* out, float* coverage) const noexcept {
+  const std::size_t n_targets = targets_.size();
+  for (int i = 0; i < n; ++i) {
+    const int li = i + lag_offset;
+    const float qx = qx0 + static_cast<float>(i) - (li >= 0 && li < lag_n ? lag[li] : 0.0f);
+    float b = sample_clamped(background_, qx, qy);
+    float cover = 0.0f;
+    for (std::size_t t = 0; t < n_targets; ++t) {
+      if (!poses[t].active) continue;
+      const SimLayer& L = targets_[t];
+      const float X = qx - static_cast<float>(poses[t].cx), Y = qy - static_cast<float>(poses[t].cy);
+      const float c = static_cast<float>(poses[t].c), s = static_cast<float>(poses[t].s);
+      const float u = static_cast<float>(L.cx) + c * X - s * Y;
+      const float v_body = static_cast<float>(L.cy) + s * X + c * Y;
+      for (const SimPart& part : L.parts) {
+        // A jaw opened by o shows, at v, what its rest position shows at v ∓ o.
+        const float v = part.jaw_dir == 0.0f ? v_body : v_body - part.jaw_dir * poses[t].jaw;
+        const FloatImage& A_img = part.alpha;
+        if (!(u >= 0.0f && v >= 0.0f && u < static_cast<float>(A_img.w - 1) && v < static_cast<float>(A_img.h - 1))) continue;
+        const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
+        const float au = u - u0, av = v - v0;
+        const std::size_t o = static_cast<std::size_t>(v0) * A_img.w + u0;
+        const float w00 = (1 - au) * (1 - av), w10 = au * (1 - av), w01 = (1 - au) * av, w11 = au * av;
+        const float* A = &A_img.v[o];
+        const float* P = &part.premul.v[o];
+        const std::size_t st = static_cast<std::size_t>(A_img.w);
+        const float a = w00 * A[0] + w10 * A[1] + w01 * A[st] + w11 * A[st + 1];
+        const float pm = w00 * P[0] + w10 * P[1] + w01 * P[st] + w11 * P[st + 1];
+        b = b * (1.0f - a) + pm;
+        cover = std::max(cover, a);
+      }
+    }
+    out[i] = b;
+    if (coverage) coverage[i] = cover;
+  }
+}
+
+void SimScene::render_mean(const Roi& roi, const SimTargetPose* poses, double gain, double offset, double defocus_px,
+                           std::vector<float>& out, std::vector<float>* coverage) const {
+  const double sigma = std::clamp(defocus_px, 0.0, kMaxBlurSigma);
+  const int m = sigma > 0.05 ? static_cast<int>(std::ceil(3.0 * sigma)) : 0;
+  const int W = roi.w + 2 * m, H = roi.h + 2 * m;
+  std::vector<float> buf(static_cast<std::size_t>(W) * H), cov(coverage ? buf.size() : 0), tmp(m ? buf.size() : 0);
+  std::vector<LinePose> lp(targets_.size());
+  for (int r = 0; r < H; ++r) {
+    const float qy = static_cast<float>(roi.y + r - m);
+    for (std::size_t t = 0; t < targets_.size(); ++t) lp[t] = line_pose(t, poses[t], qy);
+    compose_line(lp.data(), static_cast<float>(roi.x - m), qy, nullptr, 0, 0, W, &buf[static_cast<std::size_t>(r) * W],
+                 coverage ? &cov[static_cast<std::size_t>(r) * W] : nullptr);
+  }
+  if (m) {
+    gaussian_blur_in_place(buf.data(), W, H, sigma, tmp.data());
+    if (coverage) gaussian_blur_in_place(cov.data(), W, H, sigma, tmp.data());
+  }
+  out.resize(static_cast<std::size_t>(roi.w) * roi.h);
+  if (coverage) coverage->resize(out.size());
+  for (int y = 0; y < roi.h; ++y)
+    for (int x = 0; x < roi.w; ++x) {
+      const std::size_t s = static_cast<std::size_t>(y + m) * W + (x + m), d = static_cast<std::size_t>(y) * roi.w + x;
+      out[d] = static_cast<float>(std::max(0.0, buf[s] * gain + offset));
+      if (coverage) (*coverage)[d] = cov[s];
+    }
 }
 
 }  // namespace sempose::hal

@@ -12,20 +12,6 @@ namespace sempose::hal {
 namespace {
 constexpr double kTwoPi = 6.283185307179586;
 constexpr double kDegToRad = kTwoPi / 360.0;
-
-// Bilinear sample with the coordinates clamped to the image (the scene continues like its
-// border beyond the field, e.g. under drift).
-inline float sample_clamped(const FloatImage& img, float x, float y) noexcept {
-  x = std::clamp(x, 0.0f, static_cast<float>(img.w - 1));
-  y = std::clamp(y, 0.0f, static_cast<float>(img.h - 1));
-  const int x0 = std::min(static_cast<int>(x), img.w - 2 < 0 ? 0 : img.w - 2);
-  const int y0 = std::min(static_cast<int>(y), img.h - 2 < 0 ? 0 : img.h - 2);
-  const float ax = x - x0, ay = y - y0;
-  const float* p = &img.v[static_cast<std::size_t>(y0) * img.w + x0];
-  const float top = p[0] + ax * (p[1] - p[0]);
-  const float bot = p[img.w] + ax * (p[img.w + 1] - p[img.w]);
-  return top + ay * (bot - top);
-}
 }  // namespace
 
 SimSource::SimSource(const ScanLimits& limits, const config::SimConfig& cfg)
@@ -41,6 +27,76 @@ SimSource::SimSource(const ScanLimits& limits, const config::SimConfig& cfg)
   }
   for (std::size_t i = 0; i < lag_px_.size(); ++i) {
     lag_px_[i] = static_cast<float>(cfg.beam_lag_px * std::exp(-static_cast<double>(i) / cfg.beam_lag_len_px));
+  }
+  line_.assign(static_cast<std::size_t>(limits.field_w), 0.0f);
+  if (!cfg.defocus_px.is_constant() || cfg.defocus_px.from > 0) {
+    const double worst = std::min(cfg.defocus_px.max_abs(), kMaxBlurSigma);
+    defocus_margin_max_ = static_cast<int>(std::ceil(3.0 * worst));
+    const std::size_t n = static_cast<std::size_t>(limits.field_w + 2 * defocus_margin_max_) *
+                          static_cast<std::size_t>(limits.field_h + 2 * defocus_margin_max_);
+    defocus_buf_.assign(n, 0.0f);
+    defocus_tmp_.assign(n, 0.0f);
+  }
+}
+
+SimTargetPose SimSource::target_pose(std::size_t t, double t_s) noexcept {
+  SimTargetPose p;
+  if (t >= scene_.targets().size()) return {false};
+  const config::SimTargetConfig& tc = scene_.config().targets[t];
+  const Pose2 q = trajectories_[t].at(t_s);
+  p.active = scene_.targets()[t].enabled;
+  p.x_px = q.x_px, p.y_px = q.y_px, p.phi_deg = q.phi_deg;
+  p.scale = tc.scale.is_constant() ? tc.scale.from : tc.scale.at(t_s);
+  p.jaw_open_px = tc.jaws.is_constant() ? tc.jaws.from : tc.jaws.at(t_s);
+  return p;
+}
+
+void SimSource::line_poses(double t_line, float qy, std::array<LinePose, kMaxTargets>& pose) noexcept {
+  const std::size_t n_targets = scene_.targets().size();
+  for (std::size_t t = 0; t < n_targets; ++t) {
+    pose[t] = LinePose{};
+    if (!scene_.targets()[t].enabled) continue;
+    pose[t] = scene_.line_pose(t, target_pose(t, t_line), qy);
+  }
+}
+
+void SimSource::detect_line(const float* b, int n, double gain, double offset, std::uint32_t dwell_ns,
+                            Pixel* dst) noexcept {
+  const config::SimConfig& cfg = scene_.config();
+  // Expected electrons for brightness 1; output counts per electron so that brightness 1
+  // at the mean gain lands on output_white of full scale, whatever the dwell (the operator's
+  // contrast setting): a shorter dwell gives the same mean and more noise.
+  const double n_white = std::max(1e-9, cfg.electrons_per_pixel(dwell_ns));
+  const double maxv = limits_.max_value();
+  const double counts_per_e = cfg.output_white * maxv / n_white;
+  const double offset_counts = cfg.output_offset * maxv + 0.5;  // + 0.5: round to nearest
+  const double k = cfg.detector_gain_shape, inv_k = 1.0 / k;
+  const bool noise = cfg.noise;
+  const double read_noise = cfg.read_noise_e;
+  // Detector bandwidth: a first-order low-pass sampled at the end of each dwell, exact for a
+  // signal constant over the dwell: y_i = y_(i−1) + a·(x_i − y_(i−1)), a = 1 − exp(−dwell/τ).
+  // The filter starts settled on the line's first pixel (the flyback's blanking is not modelled).
+  const bool low_pass = cfg.detector_tau_ns > 0;
+  const double a_lp = low_pass ? 1.0 - std::exp(-static_cast<double>(dwell_ns) / cfg.detector_tau_ns) : 1.0;
+  double y_lp = 0;
+  for (int i = 0; i < n; ++i) {
+    const double mean_e = std::max(0.0, b[i] * gain + offset) * n_white;
+    double e;
+    if (noise) {
+      // Detector cascade: Poisson electrons, each with a Gamma(k, 1/k) gain (mean 1):
+      // their sum is Gamma(n·k)/k. Then Gaussian read noise.
+      const std::uint32_t ne = rng_.poisson(mean_e);
+      e = ne > 0 ? rng_.fast_gamma(ne * k) * inv_k : 0.0;
+      if (read_noise > 0) e += read_noise * rng_.fast_normal();
+    } else {
+      e = mean_e;
+    }
+    if (low_pass) {
+      y_lp = i == 0 ? e : y_lp + a_lp * (e - y_lp);
+      e = y_lp;
+    }
+    const double counts = offset_counts + e * counts_per_e;
+    dst[i] = static_cast<Pixel>(counts <= 0.0 ? 0.0 : counts >= maxv ? maxv : counts);
   }
 }
 
@@ -69,91 +125,74 @@ StartResult SimSource::start(const ScanRequest& req, FrameSlot& slot) noexcept {
 void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_start_ns, std::uint64_t seq,
                        Pixel* out, TargetTruth* truth) noexcept {
   const config::SimConfig& cfg = scene_.config();
-  const auto& layers = scene_.targets();
-  const std::size_t n_targets = layers.size();
+  const std::size_t n_targets = scene_.targets().size();
   rng_.reseed(cfg.seed, seq);
-
-  // Expected electrons for brightness 1; output counts per electron so that brightness 1
-  // at the mean gain lands on output_white of full scale, whatever the dwell (the operator's
-  // contrast setting): a shorter dwell gives the same mean and more noise.
-  const double n_white = std::max(1e-9, cfg.electrons_per_pixel(dwell_ns));
-  const double maxv = limits_.max_value();
-  const double counts_per_e = cfg.output_white * maxv / n_white;
-  const double offset_counts = cfg.output_offset * maxv + 0.5;  // + 0.5: round to nearest
-  const double k = cfg.detector_gain_shape, inv_k = 1.0 / k;
-  const bool noise = cfg.noise;
-  const double read_noise = cfg.read_noise_e;
   const double line_ns = static_cast<double>(roi.w) * dwell_ns + limits_.line_flyback_ns;
-  const FloatImage& bg = scene_.background();
+  const double t_mid = seconds(t_start_ns) + 0.5 * static_cast<double>(limits_.scan_time_ns(roi.w, roi.h, dwell_ns)) * 1e-9;
   const int lag_n = static_cast<int>(lag_px_.size());
-
-  std::array<LinePose, kMaxTargets> pose{};
-  for (int row = 0; row < roi.h; ++row) {
-    // The beam scans this line at its own time: targets and drift are evaluated per line.
-    const double t_line = seconds(t_start_ns) + (row * line_ns + 0.5 * roi.w * dwell_ns) * 1e-9;
-    double dx = 0, dy = 0;
-    drift_at(t_line, dx, dy);
-    const double gain = 1.0 + cfg.brightness_drift * std::sin(kTwoPi * t_line / cfg.brightness_drift_period_s);
-    const double jitter = cfg.noise ? cfg.line_jitter_px * rng_.normal() : 0.0;
-    const float qy = static_cast<float>(roi.y + row - dy);
-    for (std::size_t t = 0; t < n_targets; ++t) {
-      pose[t].active = false;
-      if (!layers[t].enabled) continue;
-      const Pose2 p = trajectories_[t].at(t_line);
-      if (std::fabs(qy - p.y_px) > layers[t].radius) continue;
-      pose[t] = {true, p.x_px, p.y_px, std::cos(p.phi_deg * kDegToRad), std::sin(p.phi_deg * kDegToRad)};
+  const bool charging = !cfg.charging_gain.is_constant() || cfg.charging_gain.from != 1.0 ||
+                        !cfg.charging_offset.is_constant() || cfg.charging_offset.from != 0.0;
+  // Per line: the time the beam scans it, and the brightness gain/offset at that time.
+  auto line_time = [&](int row) { return seconds(t_start_ns) + (row * line_ns + 0.5 * roi.w * dwell_ns) * 1e-9; };
+  auto photometry = [&](double t_line, double& gain, double& offset) {
+    gain = 1.0 + cfg.brightness_drift * std::sin(kTwoPi * t_line / cfg.brightness_drift_period_s);
+    offset = 0.0;
+    if (charging) {
+      gain *= cfg.charging_gain.at(t_line);
+      offset = cfg.charging_offset.at(t_line);
     }
-    Pixel* dst = out + static_cast<std::size_t>(row) * roi.w;
-    const float qx0 = static_cast<float>(roi.x + jitter - dx);
-    for (int i = 0; i < roi.w; ++i) {
-      const float qx = qx0 + static_cast<float>(i) - (i < lag_n ? lag_px_[i] : 0.0f);
-      float b = sample_clamped(bg, qx, qy);
-      for (std::size_t t = 0; t < n_targets; ++t) {
-        if (!pose[t].active) continue;
-        const SimLayer& L = layers[t];
-        // Inverse of the on-screen CCW rotation (README: Conventions): scene offset -> texture.
-        const float X = qx - static_cast<float>(pose[t].cx), Y = qy - static_cast<float>(pose[t].cy);
-        const float c = static_cast<float>(pose[t].c), s = static_cast<float>(pose[t].s);
-        const float u = static_cast<float>(L.cx) + c * X - s * Y;
-        const float v = static_cast<float>(L.cy) + s * X + c * Y;
-        if (!(u >= 0.0f && v >= 0.0f && u < static_cast<float>(L.alpha.w - 1) && v < static_cast<float>(L.alpha.h - 1))) continue;
-        const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
-        const float au = u - u0, av = v - v0;
-        const std::size_t o = static_cast<std::size_t>(v0) * L.alpha.w + u0;
-        const float w00 = (1 - au) * (1 - av), w10 = au * (1 - av), w01 = (1 - au) * av, w11 = au * av;
-        const float* A = &L.alpha.v[o];
-        const float* P = &L.premul.v[o];
-        const std::size_t st = static_cast<std::size_t>(L.alpha.w);
-        const float a = w00 * A[0] + w10 * A[1] + w01 * A[st] + w11 * A[st + 1];
-        const float pm = w00 * P[0] + w10 * P[1] + w01 * P[st] + w11 * P[st + 1];
-        b = b * (1.0f - a) + pm;
-      }
-      const double mean_e = std::max(0.0, b * gain) * n_white;
-      double e;
-      if (noise) {
-        // Detector cascade: Poisson electrons, each with a Gamma(k, 1/k) gain (mean 1):
-        // their sum is Gamma(n·k)/k. Then Gaussian read noise.
-        const std::uint32_t n = rng_.poisson(mean_e);
-        e = n > 0 ? rng_.fast_gamma(n * k) * inv_k : 0.0;
-        if (read_noise > 0) e += read_noise * rng_.fast_normal();
-      } else {
-        e = mean_e;
-      }
-      const double counts = offset_counts + e * counts_per_e;
-      dst[i] = static_cast<Pixel>(counts <= 0.0 ? 0.0 : counts >= maxv ? maxv : counts);
+  };
+  std::array<LinePose, kMaxTargets> pose{};
+  const double defocus = defocus_buf_.empty() ? 0.0 : std::min(std::max(0.0, cfg.defocus_px.at(t_mid)), kMaxBlurSigma);
+  if (defocus <= 0.05) {
+    // Line by line: the beam scans each line at its own time (targets and drift per line).
+    for (int row = 0; row < roi.h; ++row) {
+      const double t_line = line_time(row);
+      double dx = 0, dy = 0, gain = 1, offset = 0;
+      drift_at(t_line, dx, dy);
+      photometry(t_line, gain, offset);
+      const double jitter = cfg.noise ? cfg.line_jitter_px * rng_.normal() : 0.0;
+      const float qy = static_cast<float>(roi.y + row - dy);
+      line_poses(t_line, qy, pose);
+      scene_.compose_line(pose.data(), static_cast<float>(roi.x + jitter - dx), qy, lag_px_.data(), lag_n, 0, roi.w,
+                          line_.data(), nullptr);
+      detect_line(line_.data(), roi.w, gain, offset, dwell_ns, out + static_cast<std::size_t>(row) * roi.w);
+    }
+  } else {
+    // Defocus: the beam spot is wider, so a pixel sees its neighbours on other lines too. The
+    // ROI and a 3σ margin are composed first (jitter from its own stream), blurred, then detected.
+    const int m = std::min(defocus_margin_max_, static_cast<int>(std::ceil(3.0 * defocus)));
+    const int W = roi.w + 2 * m, H = roi.h + 2 * m;
+    jitter_rng_.reseed(cfg.seed ^ 0x6A69747465720000ull, seq);
+    for (int r = 0; r < H; ++r) {
+      const double t_line = line_time(r - m);
+      double dx = 0, dy = 0;
+      drift_at(t_line, dx, dy);
+      const double jitter = cfg.noise ? cfg.line_jitter_px * jitter_rng_.normal() : 0.0;
+      const float qy = static_cast<float>(roi.y + r - m - dy);
+      line_poses(t_line, qy, pose);
+      scene_.compose_line(pose.data(), static_cast<float>(roi.x - m + jitter - dx), qy, lag_px_.data(), lag_n, -m, W,
+                          &defocus_buf_[static_cast<std::size_t>(r) * W], nullptr);
+    }
+    gaussian_blur_in_place(defocus_buf_.data(), W, H, defocus, defocus_tmp_.data());
+    for (int row = 0; row < roi.h; ++row) {
+      double gain = 1, offset = 0;
+      photometry(line_time(row), gain, offset);
+      detect_line(&defocus_buf_[static_cast<std::size_t>(row + m) * W + m], roi.w, gain, offset, dwell_ns,
+                  out + static_cast<std::size_t>(row) * roi.w);
     }
   }
   // Truth: each target's pose at mid-scan as it appears (drift included, jitter not).
-  const double t_mid = seconds(t_start_ns) + 0.5 * static_cast<double>(limits_.scan_time_ns(roi.w, roi.h, dwell_ns)) * 1e-9;
   double dx = 0, dy = 0;
   drift_at(t_mid, dx, dy);
   for (std::size_t t = 0; t < n_targets && t < static_cast<std::size_t>(kMaxTargets); ++t) {
-    const Pose2 p = trajectories_[t].at(t_mid);
+    const SimTargetPose p = target_pose(t, t_mid);
     TargetTruth& tr = truth[t];
     tr.x_px = p.x_px + dx;
     tr.y_px = p.y_px + dy;
     tr.phi_deg = p.phi_deg;
-    tr.present = layers[t].enabled && tr.x_px >= 0 && tr.y_px >= 0 && tr.x_px <= limits_.field_w - 1 &&
+    tr.scale = p.scale;
+    tr.present = scene_.targets()[t].enabled && tr.x_px >= 0 && tr.y_px >= 0 && tr.x_px <= limits_.field_w - 1 &&
                  tr.y_px <= limits_.field_h - 1;
   }
   for (std::size_t t = n_targets; t < static_cast<std::size_t>(kMaxTargets); ++t) truth[t] = TargetTruth{};
@@ -235,11 +274,15 @@ Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& li
     for (int x = 0; x < size_px; ++x) {
       // The target at rest (φ = 0) centred on the crop: texture = layer centre + offset (as render()).
       const double u = layer.cx + (x - half), v = layer.cy + (y - half);
-      if (!(u >= 0 && v >= 0 && u < layer.alpha.w - 1 && v < layer.alpha.h - 1)) continue;
+      if (!(u >= 0 && v >= 0 && u < layer.w() - 1 && v < layer.h() - 1)) continue;
       const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
       const double au = u - u0, av = v - v0;
-      const double a = (1 - au) * (1 - av) * layer.alpha.at(u0, v0) + au * (1 - av) * layer.alpha.at(u0 + 1, v0) +
-                       (1 - au) * av * layer.alpha.at(u0, v0 + 1) + au * av * layer.alpha.at(u0 + 1, v0 + 1);
+      double a = 0;  // every part at rest (jaws at their configured start opening are not shifted here)
+      for (const SimPart& part : layer.parts) {
+        const FloatImage& A = part.alpha;
+        a = std::max(a, (1 - au) * (1 - av) * A.at(u0, v0) + au * (1 - av) * A.at(u0 + 1, v0) +
+                            (1 - au) * av * A.at(u0, v0 + 1) + au * av * A.at(u0 + 1, v0 + 1));
+      }
       if (a >= 0.5) img.pixels[static_cast<std::size_t>(y) * size_px + x] = 255;
     }
   }

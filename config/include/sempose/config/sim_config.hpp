@@ -6,6 +6,7 @@
 // single-digit detected electrons per pixel at 250 ns dwell (README: The simulated SEM).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -13,6 +14,35 @@
 namespace sempose::config {
 
 class Section;
+
+// A quantity over time (t in seconds since the source started): `from` until start_s, then a
+// straight ramp to `to` over ramp_s seconds (0: a step at start_s), held after; plus
+// amplitude·sin(2π·t / period_s). Scale, jaw opening, charging gain/offset and defocus use it.
+struct TimeProfile {
+  double from = 0, to = 0;
+  double start_s = 0, ramp_s = 0;
+  double amplitude = 0, period_s = 1;
+
+  static TimeProfile constant(double v) noexcept {
+    TimeProfile p;
+    p.from = p.to = v;
+    return p;
+  }
+  bool is_constant() const noexcept { return from == to && amplitude == 0; }
+  // The largest |value| the profile can take (buffers and padding are sized for it at setup).
+  double max_abs() const noexcept {
+    return (std::fabs(from) > std::fabs(to) ? std::fabs(from) : std::fabs(to)) + std::fabs(amplitude);
+  }
+  double at(double t_s) const noexcept {
+    double v = from;
+    if (t_s >= start_s) {
+      const double f = ramp_s > 0 ? (t_s - start_s) / ramp_s : 1.0;
+      v = from + (to - from) * (f < 1.0 ? f : 1.0);
+    }
+    if (amplitude != 0) v += amplitude * std::sin(6.283185307179586 * t_s / period_s);
+    return v;
+  }
+};
 
 // x(t), y(t), φ(t) of one target; t in seconds since the source started.
 struct TrajectoryConfig {
@@ -47,6 +77,12 @@ struct SimTargetConfig {
   double brightness = 1.0;                   // multiplies the texture (0..1 scene brightness)
   double x_px = 512, y_px = 384, phi_deg = 0;  // pose at t = 0 (README: Conventions)
   TrajectoryConfig trajectory;
+  // Size on the field relative to size_px over time (a magnification ramp or a working
+  // distance change), about the pose point; 1 = as configured.
+  TimeProfile scale = TimeProfile::constant(1.0);
+  // Procedural gripper only: each jaw's opening in px over time, outward from the rest
+  // position (negative: closing); the body, which carries the pose point, does not move.
+  TimeProfile jaws = TimeProfile::constant(0.0);
 };
 
 struct DriftTerm {  // one sinusoid of the slow image drift
@@ -82,6 +118,17 @@ struct SimConfig {
   std::vector<DriftTerm> drift{{0.4, 23.0, 30.0, 0.0}, {0.25, 7.0, 120.0, 90.0}};
   double brightness_drift = 0.03;        // relative amplitude (charging)
   double brightness_drift_period_s = 40.0;
+  // Charging steps and ramps: scene brightness b becomes gain(t)·b + offset(t) before the
+  // detector (so the electron count and its noise follow). Off: gain 1, offset 0.
+  TimeProfile charging_gain = TimeProfile::constant(1.0);
+  TimeProfile charging_offset = TimeProfile::constant(0.0);
+  // Defocus: an extra Gaussian blur of this σ (px) on top of psf_sigma_px, over time (taken
+  // at each frame's mid-scan). Off: 0.
+  TimeProfile defocus_px = TimeProfile::constant(0.0);
+  // Detector bandwidth: time constant of a first-order low-pass on the signal along each line
+  // (the scintillator/PMT/amplifier chain). It smears a pixel into the next ~tau/dwell pixels:
+  // 75 ns gives ~0.9 px at 100 ns dwell, ~0.4 px at 250 ns. 0: infinite bandwidth (off).
+  double detector_tau_ns = 0.0;
   SimBackgroundConfig background;
   std::vector<SimTargetConfig> targets = default_targets();
 

@@ -19,6 +19,7 @@ struct TargetTruth {
   double y_px = 0;
   double phi_deg = 0;
   bool present = false;  // false: the target is outside the field / not in the scene
+  double scale = 1.0;    // size relative to the configured one (simulated scale trajectories)
 };
 
 enum class FrameStatus : std::uint8_t {

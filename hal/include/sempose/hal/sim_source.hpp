@@ -11,6 +11,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "sempose/config/sim_config.hpp"
 #include "sempose/hal/image.hpp"
@@ -39,20 +40,30 @@ class SimSource final : public TimedScanSource {
   std::uint8_t target_count() const noexcept { return static_cast<std::uint8_t>(scene_.targets().size()); }
   const SimScene& scene() const noexcept { return scene_; }
 
- private:
-  struct LinePose {
-    bool active = false;
-    double cx = 0, cy = 0, c = 1, s = 0;
-  };
+  // Target t's pose and shape at t_s seconds after the source started (trajectory, scale,
+  // jaws; drift not included). Tests and benchmarks use it with SimScene::render_mean.
+  SimTargetPose target_pose(std::size_t t, double t_s) noexcept;
+  // Seconds since the source started, for a time on its clock.
   double seconds(std::int64_t t_ns) const noexcept { return static_cast<double>(t_ns - epoch_ns_) * 1e-9; }
+
+ private:
   void drift_at(double t_s, double& dx, double& dy) const noexcept;
+  // One line's scene brightness -> detector -> output counts: charging gain/offset, Poisson
+  // electrons × Gamma gain + read noise (or the mean), the bandwidth low-pass, quantisation.
+  void detect_line(const float* b, int n, double gain, double offset, std::uint32_t dwell_ns, Pixel* dst) noexcept;
+  void line_poses(double t_line, float qy, std::array<LinePose, kMaxTargets>& pose) noexcept;
 
   ScanLimits limits_;
   SimScene scene_;
   std::int64_t epoch_ns_;
   std::array<Trajectory, kMaxTargets> trajectories_{};
   std::array<float, 64> lag_px_{};  // beam position lag for the first pixels of a line
+  std::vector<float> line_;         // one line's scene brightness (field width)
+  // Defocus (only when configured): the ROI plus a 3σ margin rendered first, then blurred.
+  std::vector<float> defocus_buf_, defocus_tmp_;
+  int defocus_margin_max_ = 0;
   SimRng rng_{0, 0};
+  SimRng jitter_rng_{0, 0};  // line jitter when defocus renders all lines before the noise
   std::uint64_t seq_ = 0;
 };
 
