@@ -1,14 +1,20 @@
-// The Cramér–Rao lower bound on a single frame's pose θ = (x_px, y_px, φ_deg): the smallest
-// covariance any unbiased estimator can reach from the pixels the tracker uses (its pattern
-// mask, a circle of radius P/2 − inset centred on the target). Fisher information
-//   F = Σ_mask J Jᵀ / var,   J = ∂λ/∂θ (λ: mean detected electrons of a pixel),
-// J by central differences of noise-free renders at θ ± δ, var from the detector model:
-//   var = λ·excess + read_noise²   (Poisson electrons × Gamma(k, 1/k) gain: excess = 1 + 1/k;
-//                                   pure Poisson: excess = 1, read_noise = 0).
-// The bound is C = F⁻¹. It assumes a known, noise-free template and no prior, so it is
-// what a perfect single-frame estimator could reach; motion blur within the scan, drift,
-// line jitter and the recorded pattern's own noise only add to it.
-// Test/benchmark helper (allocates).
+// The Cramér–Rao lower bound on a single frame's pose (x_px, y_px, φ_deg): the smallest
+// covariance any unbiased estimator can reach from every pixel the target affects.
+//   λ_i = D·(g·b_i(θ) + o)                mean detected electrons of pixel i
+//   F   = Σ_support J Jᵀ / var,  J = ∂λ/∂(x, y, φ, [scale], [jaw opening], g, o)
+//   var = λ·excess + read_noise²         (Poisson electrons × Gamma(k, 1/k) gain: excess = 1 + 1/k;
+//                                         pure Poisson: excess = 1, read_noise = 0)
+// b_i(θ) is the noise-free render (the simulator's own SimScene::render_mean, or the warped
+// real SEM scene), D the electrons per pixel at brightness 1, g and o the photometric gain and
+// offset. Gain and offset are always nuisance parameters (a frame's contrast and brightness
+// are unknown: charging, detector drift); scale and the jaws' opening are too where they vary.
+// The pose block of C = F⁻¹ is the bound: nuisances can only raise it (they take information
+// the pose would otherwise use). The support is the target's blurred footprint (its coverage
+// > 1e-3 after PSF and defocus), not the tracker's mask: every pixel the target changes.
+// It assumes a known, noise-free appearance and no prior, so it is what a perfect
+// single-frame estimator could reach; motion within the scan, drift, line jitter, the
+// detector's low-pass (an invertible filter: no information lost) and the recorded pattern's
+// own noise are not in it. Test/benchmark helper (allocates).
 #pragma once
 
 #include <algorithm>
@@ -20,17 +26,20 @@
 
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/hal/sim_source.hpp"
-#include "sempose/pose/pattern_support.hpp"
 #include "sim_harness.hpp"
 #include "warp_scene.hpp"
 
 namespace sempose::pose::testing {
 
+constexpr int kCrlbMaxParams = 7;  // x, y, φ, scale, jaw, gain, offset
+using CrlbMatrix = std::array<std::array<double, kCrlbMaxParams>, kCrlbMaxParams>;
+
 struct Crlb {
-  bool valid = false;                 // F finite and invertible (a flat scene has no bound)
-  std::array<std::array<double, 3>, 3> fisher{};  // per px², px·deg, deg²
-  std::array<std::array<double, 3>, 3> cov{};     // F⁻¹: px², px·deg, deg²
-  int pixels = 0;                     // pixels summed (the mask)
+  bool valid = false;  // F finite and invertible (a flat scene has no bound)
+  int n_params = 0;    // 3 pose parameters first, then the nuisances
+  CrlbMatrix fisher{};  // per px², px·deg, deg², ...
+  CrlbMatrix cov{};     // F⁻¹
+  int pixels = 0;       // pixels summed (the support)
   double var_pos_px2() const noexcept {
     return valid ? cov[0][0] + cov[1][1] : std::numeric_limits<double>::infinity();
   }
@@ -48,124 +57,135 @@ struct CrlbNoise {
 };
 
 struct CrlbStep {
-  double pos_px = 0.05, phi_deg = 0.05;  // central-difference steps
+  double pos_px = 0.05, phi_deg = 0.05, scale = 0.002, jaw_px = 0.05;  // central-difference steps
 };
 
-// Symmetric 3×3 inverse by cofactors; false when F is singular (relative to its scale) or not finite.
-inline bool invert_sym3(const std::array<std::array<double, 3>, 3>& a, std::array<std::array<double, 3>, 3>& inv) {
-  const double c00 = a[1][1] * a[2][2] - a[1][2] * a[2][1];
-  const double c01 = a[1][2] * a[2][0] - a[1][0] * a[2][2];
-  const double c02 = a[1][0] * a[2][1] - a[1][1] * a[2][0];
-  const double det = a[0][0] * c00 + a[0][1] * c01 + a[0][2] * c02;
-  // Singular when det is negligible against the product of the diagonal (scale-free test).
-  const double scale = std::fabs(a[0][0] * a[1][1] * a[2][2]);
-  if (!std::isfinite(det) || !(scale > 0) || !(det > 1e-12 * scale)) return false;
-  inv[0][0] = c00 / det;
-  inv[0][1] = inv[1][0] = c01 / det;
-  inv[0][2] = inv[2][0] = c02 / det;
-  inv[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) / det;
-  inv[1][2] = inv[2][1] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) / det;
-  inv[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) / det;
-  for (const auto& r : inv)
-    for (double v : r)
-      if (!std::isfinite(v)) return false;
-  return inv[0][0] > 0 && inv[1][1] > 0 && inv[2][2] > 0;
+// Which nuisance parameters are estimated with the pose.
+struct CrlbNuisance {
+  bool photometric = true;  // gain and offset
+  bool scale = false;       // where the scale varies
+  bool jaws = false;        // where the gripper's jaws move
+};
+
+// Inverse of a symmetric positive definite n×n matrix (Cholesky on the matrix scaled to unit
+// diagonal, so the singularity test is scale-free); false when singular or not finite.
+inline bool invert_spd(const CrlbMatrix& a, int n, CrlbMatrix& inv) {
+  std::array<double, kCrlbMaxParams> d{};
+  for (int i = 0; i < n; ++i) {
+    if (!(a[i][i] > 0) || !std::isfinite(a[i][i])) return false;
+    d[i] = 1.0 / std::sqrt(a[i][i]);
+  }
+  CrlbMatrix L{};
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double s = a[i][j] * d[i] * d[j];
+      for (int k = 0; k < j; ++k) s -= L[i][k] * L[j][k];
+      if (i == j) {
+        if (!(s > 1e-12)) return false;  // (near) linearly dependent parameters
+        L[i][i] = std::sqrt(s);
+      } else {
+        L[i][j] = s / L[j][j];
+      }
+    }
+  // inv(R) for R = L Lᵀ, column by column, then undo the scaling.
+  for (int c = 0; c < n; ++c) {
+    std::array<double, kCrlbMaxParams> y{}, x{};
+    for (int i = 0; i < n; ++i) {
+      double s = i == c ? 1.0 : 0.0;
+      for (int k = 0; k < i; ++k) s -= L[i][k] * y[k];
+      y[i] = s / L[i][i];
+    }
+    for (int i = n - 1; i >= 0; --i) {
+      double s = y[i];
+      for (int k = i + 1; k < n; ++k) s -= L[k][i] * x[k];
+      x[i] = s / L[i][i];
+    }
+    for (int i = 0; i < n; ++i) inv[i][c] = x[i] * d[i] * d[c];
+  }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      if (!std::isfinite(inv[i][j])) return false;
+  return true;
 }
 
-// The core: mean electrons λ and the renders at θ ± δ (plus[i], minus[i] for x, y, φ), all
-// over the same n pixels; use[i] != 0 selects the pixels summed.
-inline Crlb crlb_from_renders(const std::vector<double>& mean_e, const std::array<std::vector<double>, 3>& plus,
-                              const std::array<std::vector<double>, 3>& minus, const std::array<double, 3>& step,
-                              const std::vector<std::uint8_t>& use, const CrlbNoise& noise) {
+// The core: mean electrons λ and the derivatives ∂λ/∂θ_k (one vector per parameter, the pose's
+// three first) over the same pixels; use[i] != 0 selects the pixels summed.
+inline Crlb crlb_from_jacobian(const std::vector<double>& mean_e, const std::vector<std::vector<double>>& jac,
+                               const std::vector<std::uint8_t>& use, const CrlbNoise& noise) {
   Crlb r;
+  r.n_params = static_cast<int>(jac.size());
+  const int n = r.n_params;
   const double read2 = noise.read_noise_e * noise.read_noise_e;
   for (std::size_t i = 0; i < mean_e.size(); ++i) {
     if (!use[i]) continue;
     ++r.pixels;
-    double j[3];
-    for (int k = 0; k < 3; ++k) {
-      // Differences at rounding level are no signal (a flat scene must have no bound).
-      const double d = plus[k][i] - minus[k][i];
-      j[k] = std::fabs(d) <= 1e-9 * std::max(std::fabs(plus[k][i]), std::fabs(minus[k][i])) ? 0.0 : d / (2 * step[k]);
-    }
-    if (j[0] == 0 && j[1] == 0 && j[2] == 0) continue;
     // λ → 0 without read noise: Poisson information J²/λ grows without bound; a floor keeps
     // it finite (such pixels are black and rare in SEM scenes).
     const double var = std::max(std::max(0.0, mean_e[i]) * noise.excess + read2, 1e-9);
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) r.fisher[a][b] += j[a] * j[b] / var;
+    for (int a = 0; a < n; ++a) {
+      const double ja = jac[static_cast<std::size_t>(a)][i];
+      if (ja == 0) continue;
+      for (int b = 0; b < n; ++b) r.fisher[a][b] += ja * jac[static_cast<std::size_t>(b)][i] / var;
+    }
   }
   // A bound beyond 1000 px or 1000° means the pose is not observable from these pixels.
-  r.valid = invert_sym3(r.fisher, r.cov) && r.cov[0][0] < 1e6 && r.cov[1][1] < 1e6 && r.cov[2][2] < 1e6;
+  r.valid = n >= 3 && invert_spd(r.fisher, n, r.cov) && r.cov[0][0] > 0 && r.cov[1][1] > 0 && r.cov[2][2] > 0 &&
+            r.cov[0][0] < 1e6 && r.cov[1][1] < 1e6 && r.cov[2][2] < 1e6;
   return r;
 }
 
-// The tracker's mask for a P×P pattern whose centre pixel ((P−1)/2, (P−1)/2) sits on the
-// target: same radius and inset (2 + 2·prefilter_passes, as Tracker::Impl::mask_inset_px).
-inline std::vector<std::uint8_t> tracker_mask(const config::TrackerConfig& tc) {
-  const double inset = 2.0 + 2.0 * tc.prefilter_passes;  // copied from Tracker::Impl::mask_inset_px
-  const PatternMask m(tc.pattern_size_px, tc.circular_mask, 8, inset);
-  const int P = tc.pattern_size_px;
-  std::vector<std::uint8_t> use(static_cast<std::size_t>(P) * P);
-  for (int y = 0; y < P; ++y)
-    for (int x = 0; x < P; ++x) use[static_cast<std::size_t>(y) * P + x] = m.inside(x, y) ? 1 : 0;
-  return use;
+// Central difference (plus − minus)/(2·step), zero where the difference is at rounding level
+// (a flat scene must have no bound).
+inline std::vector<double> central_difference(const std::vector<double>& plus, const std::vector<double>& minus, double step) {
+  std::vector<double> d(plus.size());
+  for (std::size_t i = 0; i < plus.size(); ++i) {
+    const double diff = plus[i] - minus[i];
+    d[i] = std::fabs(diff) <= 1e-9 * std::max(std::fabs(plus[i]), std::fabs(minus[i])) ? 0.0 : diff / (2 * step);
+  }
+  return d;
 }
 
-// The P×P window whose centre pixel is the one nearest (x, y), as the tracker's integer
-// displacement places the pattern.
-inline hal::Roi mask_window(double x, double y, int P) {
-  const double half = (P - 1) / 2.0;
-  return {static_cast<std::int32_t>(std::lround(x - half)), static_cast<std::int32_t>(std::lround(y - half)), P, P};
-}
+// The state of target 0 of a simulated frame: pose, shape and the frame's photometry.
+struct SimState {
+  double x = 0, y = 0, phi_deg = 0, scale = 1, jaw_px = 0;
+  double gain = 1, offset = 0;  // brightness b -> gain·b + offset
+  double defocus_px = 0;        // extra PSF σ
+};
 
-// The simulator's expected electrons of one ROI with target 0 at any pose, from a SimScene
-// built once (building it — texture load, PSF blur — takes ~40 ms, a render ~1 ms): the
-// compositing lines of SimSource::render copied (hal/scan/sim_source.cpp, float arithmetic
-// kept) with noise, jitter, drift, beam lag and brightness drift off; only target 0 is drawn
-// (make_sim_config disables the others). test_crlb checks it against SimSource::render.
+// The simulator's noise-free render of target 0 (make_sim_config leaves the others off), from
+// a SimScene built once (texture load and PSF blur ~40 ms; a render ~1 ms): SimScene::render_mean,
+// the same compositing SimSource::render uses.
 class SimMeanRenderer {
  public:
   SimMeanRenderer(const config::SimConfig& cfg, std::int32_t fw, std::int32_t fh, std::uint32_t dwell_ns)
       : scene_(cfg, limits(fw, fh)),
         n_white_(std::max(1e-9, cfg.electrons_per_pixel(dwell_ns))),
         excess_(1.0 + 1.0 / cfg.detector_gain_shape),
-        read_noise_e_(cfg.read_noise_e) {}
+        read_noise_e_(cfg.read_noise_e),
+        fw_(fw),
+        fh_(fh) {}
   CrlbNoise noise() const noexcept { return {excess_, read_noise_e_}; }
+  double electrons_per_unit() const noexcept { return n_white_; }
+  const hal::SimScene& scene() const noexcept { return scene_; }
+  std::int32_t field_w() const noexcept { return fw_; }
+  std::int32_t field_h() const noexcept { return fh_; }
 
-  void render(const hal::Roi& roi, double x, double y, double phi_deg, std::vector<double>& out) const {
-    out.resize(static_cast<std::size_t>(roi.w) * roi.h);
-    const hal::FloatImage& bg = scene_.background();
+  // Brightness b (gain 1, offset 0) of roi with target 0 in state s; coverage optional.
+  void render(const hal::Roi& roi, const SimState& s, std::vector<double>& b, std::vector<float>* coverage = nullptr) const {
+    std::vector<hal::SimTargetPose> poses(scene_.targets().size());
+    for (auto& p : poses) p.active = false;
+    if (!poses.empty()) poses[0] = {true, s.x, s.y, s.phi_deg, s.scale, s.jaw_px};
+    std::vector<float> f;
+    scene_.render_mean(roi, poses.data(), 1.0, 0.0, s.defocus_px, f, coverage);
+    b.assign(f.begin(), f.end());
+  }
+  // The window holding everything target 0 can affect in state s (clamped to the field).
+  hal::Roi support_window(const SimState& s) const {
     const hal::SimLayer& L = scene_.targets()[0];
-    const double rad = phi_deg * (6.283185307179586 / 360.0);
-    const float c = static_cast<float>(std::cos(rad)), s = static_cast<float>(std::sin(rad));
-    for (int row = 0; row < roi.h; ++row) {
-      const float qy = static_cast<float>(roi.y + row);
-      const bool active = L.enabled && std::fabs(qy - y) <= L.radius;
-      const float qx0 = static_cast<float>(roi.x);
-      for (int i = 0; i < roi.w; ++i) {
-        const float qx = qx0 + static_cast<float>(i);
-        float b = sample_clamped(bg, qx, qy);
-        if (active) {
-          const float X = qx - static_cast<float>(x), Y = qy - static_cast<float>(y);
-          const float u = static_cast<float>(L.cx) + c * X - s * Y;
-          const float v = static_cast<float>(L.cy) + s * X + c * Y;
-          if (u >= 0.0f && v >= 0.0f && u < static_cast<float>(L.alpha.w - 1) && v < static_cast<float>(L.alpha.h - 1)) {
-            const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
-            const float au = u - u0, av = v - v0;
-            const std::size_t o = static_cast<std::size_t>(v0) * L.alpha.w + u0;
-            const float w00 = (1 - au) * (1 - av), w10 = au * (1 - av), w01 = (1 - au) * av, w11 = au * av;
-            const float* A = &L.alpha.v[o];
-            const float* P = &L.premul.v[o];
-            const std::size_t st = static_cast<std::size_t>(L.alpha.w);
-            const float al = w00 * A[0] + w10 * A[1] + w01 * A[st] + w11 * A[st + 1];
-            const float pm = w00 * P[0] + w10 * P[1] + w01 * P[st] + w11 * P[st + 1];
-            b = b * (1.0f - al) + pm;
-          }
-        }
-        out[static_cast<std::size_t>(row) * roi.w + i] = std::max(0.0, static_cast<double>(b)) * n_white_;
-      }
-    }
+    const double r = L.radius * std::max(1.0, s.scale) + std::fabs(s.jaw_px) + 3.0 * s.defocus_px + 3;
+    const int x0 = std::max(0, static_cast<int>(std::floor(s.x - r))), y0 = std::max(0, static_cast<int>(std::floor(s.y - r)));
+    const int x1 = std::min(fw_ - 1, static_cast<int>(std::ceil(s.x + r))), y1 = std::min(fh_ - 1, static_cast<int>(std::ceil(s.y + r)));
+    return {x0, y0, std::max(0, x1 - x0 + 1), std::max(0, y1 - y0 + 1)};
   }
 
  private:
@@ -175,102 +195,119 @@ class SimMeanRenderer {
     lim.field_h = fh;
     return lim;
   }
-  // Copied from sim_source.cpp (file-local there): bilinear, coordinates clamped to the image.
-  static float sample_clamped(const hal::FloatImage& img, float x, float y) noexcept {
-    x = std::clamp(x, 0.0f, static_cast<float>(img.w - 1));
-    y = std::clamp(y, 0.0f, static_cast<float>(img.h - 1));
-    const int x0 = std::min(static_cast<int>(x), img.w - 2 < 0 ? 0 : img.w - 2);
-    const int y0 = std::min(static_cast<int>(y), img.h - 2 < 0 ? 0 : img.h - 2);
-    const float ax = x - x0, ay = y - y0;
-    const float* p = &img.v[static_cast<std::size_t>(y0) * img.w + x0];
-    const float top = p[0] + ax * (p[1] - p[0]);
-    const float bot = p[img.w] + ax * (p[img.w + 1] - p[img.w]);
-    return top + ay * (bot - top);
-  }
-
   hal::SimScene scene_;
   double n_white_, excess_, read_noise_e_;
+  std::int32_t fw_, fh_;
 };
 
-// The bound for the simulator's target 0 standing still at (x, y, φ) in field fw×fh: the static
-// background stays (its pixels do not move with θ, so they carry no pose information by
-// themselves). Variance: the simulator's cascade, λ·(1 + 1/k) + read_noise².
-inline Crlb crlb_sim(const SimMeanRenderer& sim, std::int32_t fw, std::int32_t fh, const config::TrackerConfig& tc,
-                     double x, double y, double phi_deg, CrlbStep step = {}) {
-  const int P = tc.pattern_size_px;
-  hal::Roi roi = mask_window(x, y, P);
-  roi.x = std::clamp(roi.x, 0, fw - P);
-  roi.y = std::clamp(roi.y, 0, fh - P);
-  const std::size_t n = static_cast<std::size_t>(P) * P;
-  std::vector<double> mean_e;
-  std::array<std::vector<double>, 3> plus, minus;
-  sim.render(roi, x, y, phi_deg, mean_e);
-  sim.render(roi, x + step.pos_px, y, phi_deg, plus[0]);
-  sim.render(roi, x - step.pos_px, y, phi_deg, minus[0]);
-  sim.render(roi, x, y + step.pos_px, phi_deg, plus[1]);
-  sim.render(roi, x, y - step.pos_px, phi_deg, minus[1]);
-  sim.render(roi, x, y, phi_deg + step.phi_deg, plus[2]);
-  sim.render(roi, x, y, phi_deg - step.phi_deg, minus[2]);
-  // The mask follows the target; the window may have been clamped at the field's edge.
-  std::vector<std::uint8_t> use = tracker_mask(tc);
-  const hal::Roi want = mask_window(x, y, P);
-  if (want.x != roi.x || want.y != roi.y) {
-    std::vector<std::uint8_t> moved(n, 0);
-    for (int yy = 0; yy < P; ++yy)
-      for (int xx = 0; xx < P; ++xx) {
-        const int sx = xx + roi.x - want.x, sy = yy + roi.y - want.y;
-        if (sx >= 0 && sy >= 0 && sx < P && sy < P)
-          moved[static_cast<std::size_t>(yy) * P + xx] = use[static_cast<std::size_t>(sy) * P + sx];
-      }
-    use.swap(moved);
+// The bound for the simulator's target 0 in state s (the static background stays: its pixels
+// do not move with θ, so they carry no pose information by themselves). Variance: the
+// simulator's cascade, λ·(1 + 1/k) + read_noise².
+inline Crlb crlb_sim(const SimMeanRenderer& sim, const SimState& s, CrlbNuisance nu = {}, CrlbStep step = {}) {
+  const hal::Roi roi = sim.support_window(s);
+  const double D = sim.electrons_per_unit();
+  std::vector<double> b, p, m;
+  std::vector<float> cover;
+  sim.render(roi, s, b, &cover);
+  std::vector<std::uint8_t> use(b.size());
+  for (std::size_t i = 0; i < b.size(); ++i) use[i] = cover[i] > 1e-3f;
+  std::vector<double> mean_e(b.size());
+  for (std::size_t i = 0; i < b.size(); ++i) mean_e[i] = D * std::max(0.0, s.gain * b[i] + s.offset);
+  std::vector<std::vector<double>> jac;
+  auto derivative = [&](SimState hi, SimState lo, double h) {
+    sim.render(roi, hi, p);
+    sim.render(roi, lo, m);
+    std::vector<double> d = central_difference(p, m, h);
+    for (double& v : d) v *= D * s.gain;
+    jac.push_back(std::move(d));
+  };
+  SimState a = s, z = s;
+  a.x += step.pos_px, z.x -= step.pos_px;
+  derivative(a, z, step.pos_px);
+  a = s, z = s;
+  a.y += step.pos_px, z.y -= step.pos_px;
+  derivative(a, z, step.pos_px);
+  a = s, z = s;
+  a.phi_deg += step.phi_deg, z.phi_deg -= step.phi_deg;
+  derivative(a, z, step.phi_deg);
+  if (nu.scale) {
+    a = s, z = s;
+    a.scale += step.scale, z.scale -= step.scale;
+    derivative(a, z, step.scale);
   }
-  return crlb_from_renders(mean_e, plus, minus, {step.pos_px, step.pos_px, step.phi_deg}, use, sim.noise());
+  if (nu.jaws) {
+    a = s, z = s;
+    a.jaw_px += step.jaw_px, z.jaw_px -= step.jaw_px;
+    derivative(a, z, step.jaw_px);
+  }
+  if (nu.photometric) {
+    std::vector<double> dg(b.size()), doff(b.size(), D);
+    for (std::size_t i = 0; i < b.size(); ++i) dg[i] = D * b[i];
+    jac.push_back(std::move(dg));
+    jac.push_back(std::move(doff));
+  }
+  return crlb_from_jacobian(mean_e, jac, use, sim.noise());
 }
 
-// One-off form (builds the scene): config cfg, field fw×fh, dwell.
+// One-off form (builds the scene): config cfg, field fw×fh, dwell, target at rest at (x, y, φ).
 inline Crlb crlb_sim_config(const config::SimConfig& cfg, std::int32_t fw, std::int32_t fh, std::uint32_t dwell_ns,
-                            const config::TrackerConfig& tc, double x, double y, double phi_deg, CrlbStep step = {}) {
-  return crlb_sim(SimMeanRenderer(cfg, fw, fh, dwell_ns), fw, fh, tc, x, y, phi_deg, step);
-}
-
-// A benchmark scenario (make_sim_config, as SimHarness runs it) at the pose (x, y, φ).
-inline Crlb crlb_sim(const Scenario& s, const config::TrackerConfig& tc, double x, double y, double phi_deg,
-                     CrlbStep step = {}) {
-  return crlb_sim_config(make_sim_config(s), s.field_w, s.field_h, s.dwell_ns, tc, x, y, phi_deg, step);
+                            double x, double y, double phi_deg, CrlbNuisance nu = {}) {
+  SimState s;
+  s.x = x, s.y = y, s.phi_deg = phi_deg;
+  return crlb_sim(SimMeanRenderer(cfg, fw, fh, dwell_ns), s, nu);
 }
 
 // WarpScene: scene point (cx, cy) shown at (x, y) turned by φ, pure Poisson at dose_e electrons
-// per pixel at brightness 1 (λ = brightness·dose, as WarpScene::render draws it). The scene is
-// sampled in double (WarpScene::sample) rather than through render()'s 16-bit levels; the
-// pixel → scene mapping is copied from WarpScene::render.
-inline Crlb crlb_warp(const WarpScene& scene, double cx, double cy, const config::TrackerConfig& tc, double x,
-                      double y, double phi_deg, double dose_e, CrlbStep step = {}) {
-  const int P = tc.pattern_size_px;
-  const hal::Roi roi = mask_window(x, y, P);
-  const std::size_t n = static_cast<std::size_t>(P) * P;
-  auto render = [&](double tx, double ty, double ph, std::vector<double>& out) {
+// per pixel at brightness 1 (λ = dose·(g·b + o), g = 1, o = 0, as WarpScene::render draws it).
+// The whole scene moves rigidly (a stage move), so the target is the recorded crop: the
+// support is the P×P pattern's footprint, turned with it. The scene is sampled in double
+// (WarpScene::sample) rather than through render()'s 16-bit levels; the pixel -> scene mapping
+// is WarpScene::render's.
+inline Crlb crlb_warp(const WarpScene& scene, double cx, double cy, int P, double x, double y, double phi_deg,
+                      double dose_e, CrlbNuisance nu = {}, CrlbStep step = {}) {
+  const double half = P / 2.0, reach = half * std::sqrt(2.0) + 2;
+  const hal::Roi roi{static_cast<std::int32_t>(std::floor(x - reach)), static_cast<std::int32_t>(std::floor(y - reach)),
+                     static_cast<std::int32_t>(2 * reach + 2), static_cast<std::int32_t>(2 * reach + 2)};
+  const std::size_t n = static_cast<std::size_t>(roi.w) * roi.h;
+  auto render = [&](double tx, double ty, double ph, std::vector<double>& out, std::vector<std::uint8_t>* use) {
     out.resize(n);
+    if (use) use->assign(n, 0);
     const double rad = ph * M_PI / 180.0, cs = std::cos(rad), sn = std::sin(rad);
-    for (int py = 0; py < P; ++py)
-      for (int pxi = 0; pxi < P; ++pxi) {
+    for (int py = 0; py < roi.h; ++py)
+      for (int pxi = 0; pxi < roi.w; ++pxi) {
         const double dx = roi.x + pxi - tx, dy = roi.y + py - ty;
-        const double b = scene.sample(cx + dx * cs - dy * sn, cy + dx * sn + dy * cs);
-        out[static_cast<std::size_t>(py) * P + pxi] = std::max(0.0, b) * dose_e;
+        const double u = dx * cs - dy * sn, v = dx * sn + dy * cs;
+        const std::size_t i = static_cast<std::size_t>(py) * roi.w + pxi;
+        out[i] = std::max(0.0, scene.sample(cx + u, cy + v));
+        if (use) (*use)[i] = std::fabs(u) <= half && std::fabs(v) <= half;
       }
   };
-  std::vector<double> mean_e;
-  std::array<std::vector<double>, 3> plus, minus;
-  render(x, y, phi_deg, mean_e);
-  render(x + step.pos_px, y, phi_deg, plus[0]);
-  render(x - step.pos_px, y, phi_deg, minus[0]);
-  render(x, y + step.pos_px, phi_deg, plus[1]);
-  render(x, y - step.pos_px, phi_deg, minus[1]);
-  render(x, y, phi_deg + step.phi_deg, plus[2]);
-  render(x, y, phi_deg - step.phi_deg, minus[2]);
-  return crlb_from_renders(mean_e, plus, minus, {step.pos_px, step.pos_px, step.phi_deg}, tracker_mask(tc), CrlbNoise{});
+  std::vector<double> b, p, m;
+  std::vector<std::uint8_t> use;
+  render(x, y, phi_deg, b, &use);
+  std::vector<std::vector<double>> jac;
+  auto derivative = [&](double x1, double y1, double f1, double x0, double y0, double f0, double h) {
+    render(x1, y1, f1, p, nullptr);
+    render(x0, y0, f0, m, nullptr);
+    std::vector<double> d = central_difference(p, m, h);
+    for (double& v : d) v *= dose_e;
+    jac.push_back(std::move(d));
+  };
+  derivative(x + step.pos_px, y, phi_deg, x - step.pos_px, y, phi_deg, step.pos_px);
+  derivative(x, y + step.pos_px, phi_deg, x, y - step.pos_px, phi_deg, step.pos_px);
+  derivative(x, y, phi_deg + step.phi_deg, x, y, phi_deg - step.phi_deg, step.phi_deg);
+  if (nu.photometric) {
+    std::vector<double> dg(n), doff(n, dose_e);
+    for (std::size_t i = 0; i < n; ++i) dg[i] = dose_e * b[i];
+    jac.push_back(std::move(dg));
+    jac.push_back(std::move(doff));
+  }
+  std::vector<double> mean_e(n);
+  for (std::size_t i = 0; i < n; ++i) mean_e[i] = dose_e * b[i];
+  return crlb_from_jacobian(mean_e, jac, use, CrlbNoise{});
 }
 
-// Mean of several bounds' variances (the bound along a run: poses differ a little in angle and
+// Mean of several bounds' variances (the bound along a run: poses differ in angle, scale and
 // background); invalid if any is.
 struct CrlbMean {
   double var_pos_px2 = 0, var_phi_deg2 = 0;
