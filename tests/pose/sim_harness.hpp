@@ -1,7 +1,9 @@
 // Closed-loop tracking on the simulated SEM for tests and benchmarks: the tracker asks for a
 // ROI, the simulator renders it at the virtual time of its scan, the tracker updates, the
 // pose is compared with the simulator's truth (mid-scan pose). Setup allocates; run() only
-// calls the RT methods.
+// calls the RT methods. The target "warped" is simulator-free: a real SEM image moved rigidly
+// to exact poses (warp_scene.hpp), pure Poisson noise. run_peer() runs another tracker (the
+// benchmark's ViSP) on the same sequence: the same scene, trajectory and frame times.
 #pragma once
 
 #include <algorithm>
@@ -19,6 +21,7 @@
 #include "sempose/pose/tracker.hpp"
 #include "sempose/rt/alloc_counter.hpp"
 #include "sempose/rt/clock.hpp"
+#include "warp_scene.hpp"
 
 namespace sempose::pose::testing {
 
@@ -39,7 +42,21 @@ struct Scenario {
   bool drift = true;  // the simulator's slow image drift and beam lag
   bool background = true;  // false: a flat background (no static clutter under the pattern)
   bool shape_mask = false;  // give the tracker the target's shape mask with its pattern (opt-in, see README)
+  // Effects (issue 13's hard cases), all off by default:
+  double scale_to = 1.0;          // the target's scale ramps from 1 to this over the run
+  bool charging_defocus = false;  // gain 1 → 0.65 (±10 % wobble), offset 0 → +0.08, defocus 0 → 1.5 px, detector τ 120 ns
+  bool jaws = false;              // target "gripper": each jaw opens and closes 8 px (period 0.4 s)
+  // Approximate frame period (192² ROI at 250 ns + flyback + modelled compute), for ramps over the run.
+  double run_s() const { return frames * 0.0101 * (dwell_ns / 250.0); }
 };
+
+// The warped real SEM target: lamella_on_post_eb.pgm seen through a σ 1 px PSF; the pattern is
+// the crop centred on scene point (563.5, 527.5) (as the bias table's).
+inline const WarpScene& warped_scene() {
+  static const WarpScene s = WarpScene::load(std::string(SEMPOSE_TEST_DATA) + "/sem/lamella_on_post_eb.pgm", 1.0);
+  return s;
+}
+constexpr double kWarpCx = 563.5, kWarpCy = 527.5;
 
 inline config::SimConfig make_sim_config(const Scenario& s) {
   config::SimConfig c;
@@ -73,6 +90,14 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     t.texture.source = "lamella";
     t.width_px = 100;
     t.height_px = 64;
+  } else if (s.target == "gripper") {
+    // The procedural two-jaw gripper (body left, jaws to +x); the pose point is the texture
+    // centre, on the body's side of the jaws' roots.
+    t.texture = config::TextureConfig{};
+    t.texture.source = "gripper";
+    t.width_px = 110;
+    t.height_px = 84;
+    t.brightness = 0.9;
   } else {
     t.texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
   }
@@ -102,9 +127,45 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     tr.period_s = 0.5;
     tr.amplitude_phi_deg = 90;
   }
+  if (s.scale_to != 1.0) {
+    t.scale.from = 1.0;
+    t.scale.to = s.scale_to;
+    t.scale.ramp_s = s.run_s();
+  }
+  if (s.jaws && s.target == "gripper") {
+    t.jaws.amplitude = 8.0;  // 0 → 8 → 0 → −8 px: open and close
+    t.jaws.period_s = 0.4;
+  }
+  if (s.charging_defocus) {
+    c.charging_gain.from = 1.0;
+    c.charging_gain.to = 0.65;
+    c.charging_gain.ramp_s = s.run_s();
+    c.charging_gain.amplitude = 0.1;
+    c.charging_gain.period_s = 0.3;
+    c.charging_offset.to = 0.08;
+    c.charging_offset.ramp_s = s.run_s();
+    c.defocus_px.to = 1.5;
+    c.defocus_px.ramp_s = s.run_s();
+    c.detector_tau_ns = 120;
+  }
   c.targets[1].enabled = false;
   return c;
 }
+
+// One frame of a run as the benchmark needs it afterwards: when it was scanned and the truth.
+struct FrameRecord {
+  std::int64_t t_start_ns = 0;
+  double t_mid_s = 0;  // mid-scan, seconds since the source started
+  hal::TargetTruth truth;
+};
+
+// A peer tracker's pose for one frame (run_peer).
+struct PeerPose {
+  bool valid = false;  // the peer reported a pose (ViSP: did not throw or diverge)
+  double x_px = 0, y_px = 0, phi_deg = 0, scale = 1;
+  double time_us = 0;
+  hal::TargetTruth truth;
+};
 
 struct RunStats {
   int frames = 0, tracked = 0, lost = 0, searches = 0;
@@ -130,20 +191,77 @@ class SimHarness {
     limits_.max_roi_w = std::max(256, tc.roi_size_px);
     limits_.max_roi_h = std::max(256, tc.roi_size_px);
     sim_cfg_ = make_sim_config(s);
-    // The pattern: the target at rest and φ = 0, averaged like an operator would record it.
-    config::SimConfig pat_cfg = sim_cfg_;
-    pat_cfg.targets[0].x_px = s.field_w / 2.0;
-    pat_cfg.targets[0].y_px = s.field_h / 2.0;
     std::vector<PatternSet> sets(1);
-    sets[0].image = pipeline::to_pattern_image(hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, 10, s.dwell_ns, 777));
-    if (s.shape_mask)
-      sets[0].mask = pipeline::to_pattern_image(hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px));
+    if (s.target == "warped") {
+      // Simulator-free: the exact crop as pattern; frames from the warped image, 16-bit levels.
+      warped_ = true;
+      limits_.bits = 16;
+      pattern_ = warped_scene().pattern(kWarpCx, kWarpCy, tc.pattern_size_px);
+      const auto& t = sim_cfg_.targets[0];
+      trajectory_ = hal::Trajectory(t.trajectory, {t.x_px, t.y_px, t.phi_deg}, s.field_w, s.field_h, s.seed * 1000003ull);
+    } else {
+      // The pattern: the target at rest and φ = 0, averaged like an operator would record it.
+      config::SimConfig pat_cfg = sim_cfg_;
+      pat_cfg.targets[0].x_px = s.field_w / 2.0;
+      pat_cfg.targets[0].y_px = s.field_h / 2.0;
+      pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, 10, s.dwell_ns, 777);
+      if (s.shape_mask)
+        sets[0].mask = pipeline::to_pattern_image(hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px));
+      sim_ = std::make_unique<hal::SimSource>(limits_, sim_cfg_);
+    }
+    sets[0].image = pipeline::to_pattern_image(pattern_);
     sets[0].nm_per_px = 40;
-    sim_ = std::make_unique<hal::SimSource>(limits_, sim_cfg_);
     tracker_ = Tracker::create(tc, std::move(sets), limits_, status_);
     pixels_.assign(static_cast<std::size_t>(s.field_w) * s.field_h, 0);
     out_.resize(static_cast<std::size_t>(s.frames));
     truth_.resize(static_cast<std::size_t>(s.frames));
+    records_.resize(static_cast<std::size_t>(s.frames));
+  }
+  const hal::Image& pattern() const { return pattern_; }
+  const hal::ScanLimits& limits() const { return limits_; }
+  const config::SimConfig& sim_config() const { return sim_cfg_; }
+  const std::vector<FrameRecord>& records() const { return records_; }
+
+  // Renders roi as scanned from t (virtual clock) with noise stream seq; truth: target 0 at mid-scan.
+  void render(const hal::Roi& roi, std::int64_t t, std::uint64_t seq, hal::Pixel* out, hal::TargetTruth* truth,
+              double* t_mid_s = nullptr) {
+    const double mid = static_cast<double>(t - hal::SimSource::kVirtualEpochNs) * 1e-9 +
+                       0.5 * static_cast<double>(limits_.scan_time_ns(roi.w, roi.h, s_.dwell_ns)) * 1e-9;
+    if (t_mid_s) *t_mid_s = mid;
+    if (!warped_) {
+      sim_->render(roi, s_.dwell_ns, t, seq, out, truth);
+      return;
+    }
+    // Test helper: WarpScene::render allocates its output (warp_out_ keeps its capacity).
+    const hal::Pose2 p = trajectory_.at(mid);
+    warped_scene().render(kWarpCx, kWarpCy, p.x_px, p.y_px, p.phi_deg, s_.field_w, s_.field_h, warp_out_,
+                          s_.noise ? s_.dose_e : 0.0, s_.seed * 7919 + seq, roi);
+    std::copy(warp_out_.begin(), warp_out_.end(), out);
+    for (int i = 0; i < hal::kMaxTargets; ++i) truth[i] = hal::TargetTruth{};
+    truth[0] = {p.x_px, p.y_px, p.phi_deg, true};
+  }
+
+  // Another tracker on the same sequence: frame f is scanned from the same virtual time as
+  // the tracker's frame f, over the ROI the peer asks for, with its own noise. Peer:
+  //   hal::Roi roi(int fw, int fh);  PeerPose track(const hal::Roi&, const hal::Pixel*, int bits);
+  //   void start(x, y, phi_deg, scale) — called with the first frame's truth before its track().
+  // The peer's first ROI comes from its own start pose (set it near the first truth).
+  template <class Peer>
+  std::vector<PeerPose> run_peer(Peer& peer) {
+    std::vector<PeerPose> out(static_cast<std::size_t>(s_.frames));
+    std::vector<hal::Pixel> px;
+    for (int f = 0; f < s_.frames; ++f) {
+      const hal::Roi roi = peer.roi(s_.field_w, s_.field_h);
+      px.resize(static_cast<std::size_t>(roi.w) * roi.h);
+      hal::TargetTruth truth[hal::kMaxTargets];
+      render(roi, records_[static_cast<std::size_t>(f)].t_start_ns, (1ull << 40) + static_cast<std::uint64_t>(f), px.data(),
+             truth);
+      if (f == 0) peer.start(truth[0].x_px, truth[0].y_px, truth[0].phi_deg, truth[0].scale);  // started at the truth
+      PeerPose& p = out[static_cast<std::size_t>(f)];
+      p = peer.track(roi, px.data(), limits_.bits);
+      p.truth = truth[0];
+    }
+    return out;
   }
   const rt::Status& status() const { return status_; }
   Tracker* tracker() { return tracker_.get(); }
@@ -159,7 +277,11 @@ class SimHarness {
       meta.field_h = s_.field_h;
       meta.dwell_ns = s_.dwell_ns;
       meta.t_scan_start_ns = t;
-      sim_->render(meta.roi, s_.dwell_ns, t, meta.seq, pixels_.data(), meta.truth);
+      meta.bits = limits_.bits;
+      FrameRecord& rec = records_[static_cast<std::size_t>(f)];
+      rec.t_start_ns = t;
+      render(meta.roi, t, meta.seq, pixels_.data(), meta.truth, &rec.t_mid_s);
+      rec.truth = meta.truth[0];
       t += limits_.scan_time_ns(meta.roi.w, meta.roi.h, s_.dwell_ns) + 500'000;  // + modelled compute
       meta.t_scan_end_ns = t;
       const std::int64_t t0 = rt::now_ns();
@@ -237,6 +359,11 @@ class SimHarness {
   hal::ScanLimits limits_;
   config::SimConfig sim_cfg_;
   std::unique_ptr<hal::SimSource> sim_;
+  bool warped_ = false;
+  hal::Trajectory trajectory_;
+  std::vector<hal::Pixel> warp_out_;
+  hal::Image pattern_;
+  std::vector<FrameRecord> records_;
   std::unique_ptr<Tracker> tracker_;
   rt::Status status_;
   std::vector<hal::Pixel> pixels_;
