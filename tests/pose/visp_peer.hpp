@@ -19,8 +19,8 @@ class VispPeer {
  public:
   static constexpr int kRoiPx = 256;
 
-  VispPeer(const hal::Image& pattern, double zone_radius_px)
-      : tracker_(pattern.pixels.data(), pattern.width, pattern.bits, zone_radius_px) {}
+  VispPeer(const hal::Image& pattern, double zone_radius_px, int pyramid_levels = 3)
+      : tracker_(pattern.pixels.data(), pattern.width, pattern.bits, zone_radius_px, pyramid_levels) {}
 
   void start(double x, double y, double phi_deg, double scale) { tracker_.set_pose({x, y, phi_deg, scale}); }
 
@@ -38,6 +38,7 @@ class VispPeer {
     out.valid = r.valid;
     out.x_px = r.pose.x_px, out.y_px = r.pose.y_px, out.phi_deg = r.pose.phi_deg, out.scale = r.pose.scale;
     out.time_us = r.time_us;
+    out.cpu_us = r.cpu_us;
     return out;
   }
 

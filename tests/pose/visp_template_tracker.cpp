@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 
 namespace sempose::pose::testing {
 
@@ -25,7 +26,8 @@ struct VispTemplateTracker::Impl {
   Pose pose;
 };
 
-VispTemplateTracker::VispTemplateTracker(const std::uint16_t* pattern, int P, int bits, double zone_radius_px)
+VispTemplateTracker::VispTemplateTracker(const std::uint16_t* pattern, int P, int bits, double zone_radius_px,
+                                         int pyramid_levels)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.c = (P - 1) / 2.0;
@@ -37,7 +39,7 @@ VispTemplateTracker::VispTemplateTracker(const std::uint16_t* pattern, int P, in
   m.tracker.setSampling(1, 1);
   m.tracker.setLambda(0.001);
   m.tracker.setIterationMax(50);
-  m.tracker.setPyramidal(3, 0);
+  m.tracker.setPyramidal(static_cast<unsigned>(pyramid_levels), 0);  // coarsest first, down to full resolution
   vpTemplateTrackerZone zone;
   constexpr int kFan = 32;
   const double r = zone_radius_px;
@@ -69,6 +71,8 @@ VispTemplateTracker::Result VispTemplateTracker::track(int x0, int y0, int w, in
   p[3] = m.pose.y_px - y0 - s * (sn * m.c + cs * m.c);
   Result out;
   const auto t0 = std::chrono::steady_clock::now();
+  timespec c0{}, c1{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
   try {
     m.tracker.setp(p);
     m.tracker.track(m.image);
@@ -81,6 +85,8 @@ VispTemplateTracker::Result VispTemplateTracker::track(int x0, int y0, int w, in
     out.valid = false;
   }
   out.time_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
+  out.cpu_us = (c1.tv_sec - c0.tv_sec) * 1e6 + (c1.tv_nsec - c0.tv_nsec) * 1e-3;
   out.pose = m.pose;
   return out;
 }
