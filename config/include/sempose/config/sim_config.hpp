@@ -126,8 +126,8 @@ struct SimConfig {
   // at each frame's mid-scan). Off: 0.
   TimeProfile defocus_px = TimeProfile::constant(0.0);
   // Detector bandwidth: time constant of a first-order low-pass on the signal along each line
-  // (the scintillator/PMT/amplifier chain). It smears a pixel into the next ~tau/dwell pixels:
-  // 75 ns gives ~0.9 px at 100 ns dwell, ~0.4 px at 250 ns. 0: infinite bandwidth (off).
+  // (the scintillator/PMT/amplifier chain). An edge lags e^(−d/τ)/(1 − e^(−d/τ)) pixels at dwell d:
+  // 120 ns gives 0.77 px at 100 ns dwell, 0.14 px at 250 ns. 0: infinite bandwidth (off).
   double detector_tau_ns = 0.0;
   SimBackgroundConfig background;
   std::vector<SimTargetConfig> targets = default_targets();
