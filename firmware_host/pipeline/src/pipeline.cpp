@@ -487,6 +487,7 @@ bool Pipeline::output_step() noexcept {
   status.state = static_cast<pose::TrackState>(words.state);
   status.pattern_set = words.pattern_set;
   status.running = words.running != 0;
+  status.stalled = stalled_.load(std::memory_order_relaxed);
   status.dwell_ns = words.dwell_ns;
   status.dropped_frames = static_cast<std::uint32_t>(dropped_frames());
   status.overruns = static_cast<std::uint32_t>(counters_.overruns.get());
