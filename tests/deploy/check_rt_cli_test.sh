@@ -35,7 +35,7 @@ rc=0; "$bin" check-rt --root "$work/empty" >"$work/empty.txt" 2>&1 || rc=$?
 # A bad config: named error, exit 2.
 printf 'pipeline:\n  acquisition: {cpu: 2000, priority: 60}\n' >"$work/bad.yaml"
 rc=0; "$bin" check-rt --config "$work/bad.yaml" >"$work/bad.txt" 2>&1 || rc=$?
-[ "$rc" -eq 2 ] && grep -q 'bad.yaml:2:.*pipeline.acquisition.cpu: 2000 is outside \[-1, 1023\]' "$work/bad.txt" \
+[ "$rc" -eq 2 ] && grep -q 'bad.yaml:2:.*pipeline.acquisition.cpu: 2000 is outside the allowed range \[-1, 1023\]' "$work/bad.txt" \
   && ok "bad config: exit 2 naming the key" || { cat "$work/bad.txt"; bad "bad config: rc $rc"; }
 
 # --strict-rt runs the same checks first and refuses on a failure, writing nothing.

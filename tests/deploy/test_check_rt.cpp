@@ -83,14 +83,18 @@ class FakeTree : public ::testing::Test {
   // Everything but `name` still passes (a mis-setting affects its own line only).
   static void only(const std::vector<check_rt::CheckResult>& r, const std::string& name) {
     for (const auto& x : r) {
-      if (x.name != name) EXPECT_EQ(x.level, Level::kPass) << check_rt::format_result(x);
+      if (x.name != name) {
+        EXPECT_EQ(x.level, Level::kPass) << check_rt::format_result(x);
+      }
     }
   }
 };
 
 TEST_F(FakeTree, TunedBoxPassesEveryCheck) {
   const auto r = run();
-  for (const auto& x : r) EXPECT_EQ(x.level, Level::kPass) << check_rt::format_result(x);
+  for (const auto& x : r) {
+    EXPECT_EQ(x.level, Level::kPass) << check_rt::format_result(x);
+  }
   EXPECT_EQ(check_rt::exit_code(r), 0);
   EXPECT_GE(r.size(), 12u);
 }
@@ -124,7 +128,9 @@ TEST_F(FakeTree, MissingIsolationWarnsWhenSleepingFailsWhenSpinning) {
   EXPECT_EQ(check_rt::exit_code(r), 1);
   cfg.pipeline.polling = "spin";
   r = run();
-  for (const char* n : {"isolcpus", "nohz_full", "rcu_nocbs"}) EXPECT_EQ(find(r, n).level, Level::kFail) << n;
+  for (const char* n : {"isolcpus", "nohz_full", "rcu_nocbs"}) {
+    EXPECT_EQ(find(r, n).level, Level::kFail) << n;
+  }
 }
 
 TEST_F(FakeTree, RtThrottling) {

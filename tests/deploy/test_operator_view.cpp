@@ -114,7 +114,9 @@ TEST(Overlay, PatternEdgesLandOnTheTargetsEdgesAtItsPose) {
   }
   const auto edges = pattern_edge_points(pattern, 0.05);
   ASSERT_FALSE(edges.empty());
-  for (const auto& e : edges) EXPECT_LE(std::abs(e.first), 1.0f) << e.first;  // on the step
+  for (const auto& e : edges) {
+    EXPECT_LE(std::abs(e.first), 1.0f) << e.first;  // on the step
+  }
   hal::Image frame;
   frame.width = 240;
   frame.height = 180;

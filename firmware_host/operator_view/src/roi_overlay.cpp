@@ -43,7 +43,8 @@ RgbImage render_roi(const hal::Image& frame, const PoseRow& pose, int roi_px, in
   const Rgb edge_colour{255, 0, 255};
   // Pattern offset (u, v) -> picture: X = c·u + s·v, Y = −s·u + c·v (CCW on screen), then scale.
   const double ph = pose.phi_deg * M_PI / 180.0, cs = std::cos(ph), sn = std::sin(ph);
-  const double cx = (pose.x_px - x0 + 0.5) * scale, cy = (pose.y_px - y0 + 0.5) * scale;
+  // Pixel i of the crop covers picture pixels i·scale … i·scale + scale − 1; its centre:
+  const double cx = (pose.x_px - x0) * scale + (scale - 1) / 2.0, cy = (pose.y_px - y0) * scale + (scale - 1) / 2.0;
   auto to_pic = [&](double u, double v) { return std::pair<double, double>{cx + scale * (cs * u + sn * v), cy + scale * (-sn * u + cs * v)}; };
   const double half = pattern_px / 2.0;
   const std::pair<double, double> corners[4] = {to_pic(-half, -half), to_pic(half, -half), to_pic(half, half), to_pic(-half, half)};
