@@ -9,7 +9,8 @@
 # Needs root and dpkg; exits 77 (skip) otherwise, or if a sempose package it did not
 # install is present.
 set -euo pipefail
-build=${1:?usage: package_test.sh BUILD_DIR}
+build=${1:?usage: package_test.sh BUILD_DIR [SOURCE_DIR]}
+src=${2:-}
 [ "$(id -u)" -eq 0 ] || { echo "skip: needs root for dpkg -i"; exit 77; }
 command -v dpkg-deb >/dev/null && command -v cpack >/dev/null || { echo "skip: dpkg or cpack missing"; exit 77; }
 if dpkg-query -W -f='${Status}' sempose 2>/dev/null | grep -q "install ok installed"; then
@@ -62,9 +63,19 @@ if ! "${limits[@]}" true 2>/dev/null; then
   echo "     note: cannot raise rlimits here (no CAP_SYS_RESOURCE): LimitMEMLOCK/LimitRTPRIO not applied; the two capabilities carry the run alone"
   limits=()
 fi
+# As on a machine without this source tree: a private mount namespace hides the source's
+# config/ (the binary's last fallback for built-in data), so the run must find the simulator's
+# texture in /usr/share/sempose/data, where the package put it.
+hide=()
+if [ -n "$src" ] && unshare --mount --propagation private true 2>/dev/null; then
+  hide=(unshare --mount --propagation private -- sh -c 'mount -t tmpfs none "$0/config" && shift && exec "$@"' "$src" x)
+  echo "     source tree's config/ hidden from the run (tmpfs in a private mount namespace)"
+else
+  echo "     note: cannot hide the source tree here (no unshare); the run may fall back to it"
+fi
 cd /var/lib/sempose
 rc=0
-"${limits[@]}" setpriv --reuid=sempose --regid=sempose --init-groups --no-new-privs \
+"${hide[@]}" "${limits[@]}" setpriv --reuid=sempose --regid=sempose --init-groups --no-new-privs \
     --inh-caps=-all,+sys_nice,+ipc_lock --ambient-caps=-all,+sys_nice,+ipc_lock --bounding-set=-all,+sys_nice,+ipc_lock \
     sempose run --config /etc/sempose/sempose.yaml --hist-dir /var/log/sempose --duration 3 >"$build/package_run.log" 2>&1 || rc=$?
 cd - >/dev/null
