@@ -40,6 +40,20 @@ n=$(ls "$work/view"/roi_*.png 2>/dev/null | wc -l)
 dims=$(od -An -tu1 -j16 -N8 "$work/view/roi_000000.png" | awk '{print $3*256+$4 "x" $7*256+$8}')
 [ "$dims" = 320x320 ] && ok "ROI picture 320x320 (160 px ROI, scale 2)" || bad "ROI picture $dims"
 
+# A run's CSV (two targets, target index column): the plot alone, one line per target.
+cat >"$work/run.yaml" <<YAML
+sim: {clock: virtual, targets: [{texture: {source: gripper}, size: [96, 72], start: [300, 300, 0]},
+                                {texture: {source: lamella}, size: [80, 60], start: [700, 400, 30]}]}
+pipeline: {acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0}, output: {cpu: -1, priority: 0}, lock_memory: false, hold_dma_latency: false}
+output: {poses_csv: $work/run_poses.csv, print_status: false}
+can: {log_file: $work/run_can.log}
+YAML
+"$bin" run --config "$work/run.yaml" --duration 2 >"$work/run.log" 2>&1 || { tail -5 "$work/run.log"; bad "sempose run for a CSV"; }
+rc=0; "$bin" view --poses "$work/run_poses.csv" --out "$work/runview" >"$work/runview.txt" 2>&1 || rc=$?
+cat "$work/runview.txt"
+[ "$rc" -eq 0 ] && grep -q "2 target(s)" "$work/runview.txt" && [ -s "$work/runview/track.png" ] && grep -q "index 1" "$work/runview/track.gp" \
+  && ok "run CSV: plot of both targets" || bad "run CSV view: rc $rc"
+
 rc=0; "$bin" view --poses "$work/poses.csv" --frames "$work/nope" --out "$work/view2" >"$work/e1.txt" 2>&1 || rc=$?
 [ "$rc" -eq 2 ] && grep -q "nope" "$work/e1.txt" && [ ! -e "$work/view2" ] && ok "missing frames folder: named, exit 2, nothing written" \
   || { cat "$work/e1.txt"; bad "missing frames folder: rc $rc"; }

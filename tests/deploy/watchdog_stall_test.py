@@ -11,7 +11,8 @@ stages and the main thread run on. Checked:
      exceeds WatchdogSec, so systemd would restart the service), and CAN heartbeats that go
      on with their `stalled` bit set;
   3. after the stall: STATUS=running and the pings resume;
-  4. SIGTERM drains: STOPPING=1 and exit 0 within service.stop_timeout_ms;
+  4. SIGUSR1 writes the histograms without stopping; SIGTERM drains: STOPPING=1 and exit 0
+     within service.stop_timeout_ms;
   5. SIGTERM while the stage is still starved: exit code 4 within the same bound, not a hang.
 Needs root (the stalling thread is SCHED_FIFO); exits 77 (skip) without it.
 """
@@ -187,6 +188,13 @@ def main():
         longest = max((b - a for a, b in zip(around, around[1:])), default=0)
         check(longest > WATCHDOG_S, f"longest ping gap {longest:.2f} s > WatchdogSec {WATCHDOG_S} s: systemd would restart it")
         time.sleep(0.5)  # one more stats period: the candump log is flushed by then
+        # SIGUSR1 (`systemctl kill -s USR1 sempose`): histograms written without stopping.
+        hist = os.path.join(work, "a_hist", "latency_hist.txt")
+        proc.send_signal(signal.SIGUSR1)
+        t_usr1 = time.monotonic()
+        while not os.path.exists(hist) and time.monotonic() - t_usr1 < 3:
+            time.sleep(0.05)
+        check(os.path.exists(hist) and proc.poll() is None, "SIGUSR1: histograms written, still running")
 
         t_term = time.monotonic()
         proc.send_signal(signal.SIGTERM)
