@@ -189,7 +189,8 @@ TEST_F(FakeTree, IrqsAllowedOnRtCoresWarnAndNameThem) {
 
 TEST_F(FakeTree, DefaultIrqAffinityOnRtCoresWarns) {
   put("proc/irq/default_smp_affinity", "f\n");
-  const auto& i = find(run(), "irq-affinity");
+  const auto r = run();
+  const auto& i = find(r, "irq-affinity");
   EXPECT_EQ(i.level, Level::kWarn);
   EXPECT_NE(i.detail.find("new IRQs default there"), std::string::npos) << i.detail;
 }
