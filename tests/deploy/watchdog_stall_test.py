@@ -143,6 +143,9 @@ def main():
     if os.geteuid() != 0:
         print("skip: needs root for the SCHED_FIFO thread that stalls a stage")
         return 77
+    if len(os.sched_getaffinity(0)) < 2 or not {0, 1} <= os.sched_getaffinity(0):
+        print("skip: needs cpus 0 and 1 (one to stall, one for the watchdog and this test)")
+        return 77
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
