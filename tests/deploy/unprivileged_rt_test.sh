@@ -32,7 +32,7 @@ bad() { echo "FAIL $*"; fails=$((fails + 1)); }
 # Starts sempose as nobody with the given capability sets; leaves its pid in $pid.
 start() {
   setpriv --reuid=nobody --regid=nogroup --clear-groups --no-new-privs "$@" \
-    "$work/sempose" run --config "$work/run.yaml" --duration 4 >"$work/out.txt" 2>&1 &
+    "$work/sempose" run --config "$work/run.yaml" --duration 8 >"$work/out.txt" 2>&1 &
   pid=$!
   for _ in $(seq 1 600); do grep -q '^thread correlation' "$work/out.txt" && return 0; kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
   return 1
@@ -51,10 +51,15 @@ if start "${caps[@]}"; then
   # Locked beyond what RLIMIT_MEMLOCK alone would allow: CAP_IPC_LOCK is what made mlockall work.
   [ "${vmlck:-0}" -gt $((memlock / 1024)) ] && ok "memory locked: VmLck $vmlck kB (VmRSS $vmrss kB) > RLIMIT_MEMLOCK $((memlock / 1024)) kB" \
     || bad "VmLck ${vmlck:-?} kB"
+  # Bash builtins only (no fork per file): on a loaded 2-core machine the FIFO threads leave
+  # little CPU to forked helpers, and the run must still be going while it is inspected.
   fifo=0
   for t in /proc/$pid/task/*; do
-    comm=$(cat "$t/comm"); policy=$(awk '{print $41}' "$t/stat"); prio=$(awk '{print $40}' "$t/stat")
-    cpus=$(awk '/^Cpus_allowed_list:/ {print $2}' "$t/status")
+    { read -r comm <"$t/comm" && read -r stat <"$t/stat"; } 2>/dev/null || continue  # ended meanwhile
+    cpus=?
+    while read -r key val; do [ "$key" = Cpus_allowed_list: ] && cpus=$val; done <"$t/status" 2>/dev/null
+    read -r -a f <<<"${stat##*) }"   # fields after "pid (comm) ": f[0] is field 3 (state)
+    policy=${f[38]}; prio=${f[37]}   # fields 41 (policy) and 40 (rt_priority)
     if [ "$policy" = 1 ]; then
       fifo=$((fifo + 1)); echo "     kernel: thread $comm SCHED_FIFO $prio on cpu $cpus"
     fi
