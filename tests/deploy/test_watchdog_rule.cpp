@@ -1,12 +1,16 @@
 // The stall rule and the notify protocol, without a pipeline: ProgressMonitor on scripted
-// counters and times, SystemdNotifier against a real AF_UNIX datagram socket of the test's own.
+// counters and times, SystemdNotifier against a real AF_UNIX datagram socket of the test's own,
+// and the heartbeat bit that reports a stall on the bus.
 #include <gtest/gtest.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
 
 #include <cstdlib>
+#include <fstream>
 #include <string>
+
+#include "sempose/ipc/protocol.hpp"
 
 #include "sempose/service/stage_progress.hpp"
 #include "sempose/service/systemd_notify.hpp"
@@ -114,4 +118,24 @@ TEST_F(NotifySocket, BadAddressIsReported) {
   SystemdNotifier n = SystemdNotifier::from_environment();
   EXPECT_FALSE(n.enabled());
   EXPECT_NE(n.problem().find("relative/socket"), std::string::npos);
+}
+
+// The heartbeat carries the stall to the bus: bit 6 of byte 0, as ipc/sempose.dbc declares.
+TEST(HeartbeatStalledBit, EncodedAtBitSixAndDeclaredInTheDbc) {
+  sempose::ipc::Heartbeat h;
+  h.stalled = true;
+  std::uint8_t data[8];
+  sempose::ipc::encode_heartbeat(h, data);
+  EXPECT_EQ(data[0] & 0x40, 0x40);
+  sempose::ipc::Heartbeat back;
+  ASSERT_TRUE(sempose::ipc::decode_heartbeat(data, 8, back));
+  EXPECT_TRUE(back.stalled);
+  EXPECT_EQ(back, h);
+  h.stalled = false;
+  sempose::ipc::encode_heartbeat(h, data);
+  EXPECT_EQ(data[0] & 0x40, 0);
+  std::ifstream dbc(std::string(SEMPOSE_SOURCE_DIR) + "/ipc/sempose.dbc");
+  bool declared = false;
+  for (std::string line; std::getline(dbc, line);) declared = declared || line.find(" SG_ stalled : 6|1@1+ (1,0) [0|1]") == 0;
+  EXPECT_TRUE(declared);
 }
