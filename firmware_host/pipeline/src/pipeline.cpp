@@ -452,14 +452,14 @@ void Pipeline::correlation_loop() noexcept {
     }
     if (run_output && output_step()) continue;
     if (acquisition_done_.load(std::memory_order_acquire) && frames_.empty()) break;
-    // Wait for the frame due next; once it is overdue by more than 50 ms (acquisition stalled,
-    // far beyond a late frame-sync edge) poll every idle_sleep_us instead of every 5 us, so
-    // this FIFO thread does not starve the non-RT thread on its core, which reports the stall.
-    // (A 1 ms threshold also triggered on ordinary late edges in the VM test and changed which
-    // frame a REACQUIRE command met.)
+    // Wait for the frame due next. While the non-RT watchdog reports a stall, poll every
+    // idle_sleep_us instead of every 5 us, so this FIFO thread does not starve the non-RT
+    // thread on its core, which must still answer SIGTERM. (Backing off on lateness alone,
+    // > 1 ms or > 50 ms overdue, changed which frame a REACQUIRE met in the VM test.)
     const std::int64_t due = next_frame_expected_ns_.load(std::memory_order_relaxed) + slack_ns;
-    const std::int64_t now = rt::now_ns();
-    idle_wait(now - due > 50 * rt::kNsPerMs ? now + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs : due);
+    idle_wait(stalled_.load(std::memory_order_relaxed)
+                  ? rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs
+                  : due);
   }
   if (run_output) {
     while (output_step()) {
