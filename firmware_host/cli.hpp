@@ -1,11 +1,23 @@
 // The `sempose` subcommands. Each returns the process exit code; argv[0] is the subcommand.
 #pragma once
 
+#include <string>
+
+namespace sempose::config {
+struct AppConfig;
+}
+
 namespace sempose::cli {
 
 int run(int argc, char** argv);      // the controller: pipeline on a scan source (cli_run.cpp)
 int sim(int argc, char** argv);      // record a simulated sequence (cli_sim.cpp)
 int pattern(int argc, char** argv);  // average frames into a pattern PGM (cli_pattern.cpp)
 int replay(int argc, char** argv);   // track through a recorded sequence (cli_replay.cpp)
+int check_rt(int argc, char** argv); // RT preflight of this box for a config (cli_check_rt.cpp)
+int view(int argc, char** argv);     // operator's pictures of a run or recording (cli_view.cpp)
+
+// The check-rt lines for `cfg` on the system under `root`; returns check-rt's exit code
+// (`sempose run --strict-rt` refuses to start on 3).
+int print_rt_checks(const config::AppConfig& cfg, const std::string& root);
 
 }  // namespace sempose::cli

@@ -11,6 +11,7 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -32,6 +33,8 @@
 #include "sempose/rt/clock.hpp"
 #include "sempose/rt/latency_histogram.hpp"
 #include "sempose/rt/memory_lock.hpp"
+#include "sempose/service/pipeline_watchdog.hpp"
+#include "sempose/service/systemd_notify.hpp"
 
 namespace {
 
@@ -125,6 +128,14 @@ int sempose::cli::run(int argc, char** argv) {
     return 2;
   }
   const bool strict = opt.strict_rt || cfg.pipeline.strict_rt;
+  if (strict) {
+    // Strict: the preflight first; a failing check would make the RT guarantee a lie.
+    std::printf("sempose run: --strict-rt: checking the system first (sempose check-rt)\n");
+    if (print_rt_checks(cfg, "/") == 3) {
+      std::fprintf(stderr, "sempose run: --strict-rt: refusing to start, see the FAIL lines and their fixes above\n");
+      return 3;
+    }
+  }
   const std::string hist_dir = opt.hist_dir.empty() ? cfg.output.hist_dir : opt.hist_dir;
 
   // Signals: blocked everywhere (threads inherit the mask), taken here with sigtimedwait.
@@ -255,6 +266,20 @@ int sempose::cli::run(int argc, char** argv) {
   }
   for (const auto& p : pipe->placements()) std::printf("thread %s\n", p.c_str());
   for (const auto& w : pipe->warnings()) std::printf("warning: %s\n", w.c_str());
+
+  // systemd (Type=notify): READY once setup is done; the watchdog is fed from this loop only
+  // while every stage makes progress. Without NOTIFY_SOCKET these are no-ops.
+  service::SystemdNotifier notifier = service::SystemdNotifier::from_environment();
+  if (!notifier.problem().empty()) std::printf("warning: %s\n", notifier.problem().c_str());
+  service::PipelineWatchdog watchdog(*pipe, notifier, static_cast<std::int64_t>(cfg.service.stall_timeout_ms) * rt::kNsPerMs,
+                                     rt::now_ns());
+  if (notifier.enabled()) {
+    notifier.ready("running");
+    std::printf("systemd: READY sent%s\n", notifier.watchdog_interval_ns() > 0
+                                              ? (", watchdog every " + std::to_string(notifier.watchdog_interval_ns() / 2'000'000) +
+                                                 " ms while every stage progresses").c_str()
+                                              : "");
+  }
   std::fflush(stdout);
 
   // ---- non-RT loop: signals, periodic flush and status
@@ -266,7 +291,8 @@ int sempose::cli::run(int argc, char** argv) {
   while (!pipe->finished()) {
     const std::int64_t now = rt::now_ns();
     if (opt.duration_s > 0 && now - t0 >= static_cast<std::int64_t>(opt.duration_s * 1e9)) break;
-    const timespec wait = rt::to_timespec(std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, next_status - now)));
+    const std::int64_t until = std::min(next_status, watchdog.next_due_ns());
+    const timespec wait = rt::to_timespec(std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, until - now)));
     const int sig = sigtimedwait(&signals, nullptr, &wait);
     if (sig == SIGINT || sig == SIGTERM) {
       stop_signal = sig;
@@ -276,6 +302,7 @@ int sempose::cli::run(int argc, char** argv) {
       dump_histograms(hist_dir, *pipe);
       std::printf("histograms written to %s\n", hist_dir.empty() ? "(no --hist-dir)" : hist_dir.c_str());
     }
+    if (rt::now_ns() >= watchdog.next_due_ns()) watchdog.poll(rt::now_ns());
     if (rt::now_ns() >= next_status) {
       next_status += period_ns;
       if (csv) csv->write_pending();
@@ -294,7 +321,20 @@ int sempose::cli::run(int argc, char** argv) {
     }
   }
   const double run_s = (rt::now_ns() - t0) * 1e-9;
+  notifier.stopping();
   pipe->request_stop();
+  // Drain within a bound: a stage stuck in a driver must not keep the service from stopping.
+  const std::int64_t drain_deadline = rt::now_ns() + static_cast<std::int64_t>(cfg.service.stop_timeout_ms) * rt::kNsPerMs;
+  while (!pipe->finished() && rt::now_ns() < drain_deadline) rt::sleep_until_ns(rt::now_ns() + 5 * rt::kNsPerMs);
+  if (!pipe->finished()) {
+    if (csv) csv->write_pending();
+    if (can.sink) can.sink->flush();
+    dump_histograms(hist_dir, *pipe);
+    std::printf("sempose run: the stages did not drain within service.stop_timeout_ms=%u ms; exiting without them\n",
+                cfg.service.stop_timeout_ms);
+    std::fflush(stdout);
+    std::_Exit(4);  // joining would wait for the stuck stage forever
+  }
   pipe->join();
   sink->flush();
   if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");

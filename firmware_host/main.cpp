@@ -17,11 +17,13 @@ constexpr Command kCommands[] = {
     {"sim", sempose::cli::sim, "record a simulated SEM sequence with ground truth"},
     {"pattern", sempose::cli::pattern, "make a pattern PGM from recorded frames"},
     {"replay", sempose::cli::replay, "track through a recorded sequence"},
+    {"check-rt", sempose::cli::check_rt, "check this box's real-time settings for a config (pass/warn/fail + fix)"},
+    {"view", sempose::cli::view, "operator's view: ROI pictures with the pattern at the pose, pose plot"},
 };
 
 int usage(std::FILE* out) {
   std::fprintf(out, "usage: sempose <command> [options]   (sempose <command> --help)\n\ncommands:\n");
-  for (const auto& c : kCommands) std::fprintf(out, "  %-8s %s\n", c.name, c.help);
+  for (const auto& c : kCommands) std::fprintf(out, "  %-9s %s\n", c.name, c.help);
   return out == stdout ? 0 : 2;
 }
 

@@ -97,6 +97,8 @@ bool load_app_config(const std::string& path, AppConfig& result, std::string& er
     read_section(root, "output", read_output, out.output);
     read_section(root, "can", read_can, out.can);
     read_section(root, "gpio", read_gpio, out.gpio);
+    read_section(root, "service", read_service, out.service);
+    check_service_against_scan(root, out.service, out.scan, out.governor.initial_dwell_ns);
     cross_check(root, out);
     resolve_sim_data(root, path, out);
   }  // root's destructor reports unknown top-level sections

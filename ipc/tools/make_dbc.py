@@ -49,6 +49,7 @@ HEARTBEAT = [
     ("running", 2, 1, False, 1, 0, 0, 1, "", "0 after a STOP command"),
     ("bus_state", 3, 2, False, 1, 0, 0, 2, "", "0 error active, 1 error passive, 2 bus off"),
     ("fd", 5, 1, False, 1, 0, 0, 1, "", "1 when poses go out as CAN FD POSE_FD frames"),
+    ("stalled", 6, 1, False, 1, 0, 0, 1, "", "1 while a pipeline stage makes no progress (the systemd watchdog is starved)"),
     ("pattern_set", 8, 4, False, 1, 0, 0, 15, "", "Active pattern set / magnification step"),
     ("bad_commands", 12, 4, False, 1, 0, 0, 15, "", "Rejected command frames, mod 16"),
     ("counter", 16, 8, False, 1, 0, 0, 255, "", "+1 per heartbeat"),

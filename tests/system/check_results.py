@@ -26,7 +26,7 @@ PASS, FAIL, SKIP = "PASS", "FAIL", "SKIP"
 # Target-side checks that must all have passed (the infrastructure and the sempose run).
 TARGET_CHECKS = ["preempt_rt", "can_if", "gpio_sim", "can_selfcheck", "gpio_input", "gpio_output", "gpio_edge",
                  "can_gpio_hw_test", "cyclictest", "sempose_can_bound", "sempose_gpio_requested",
-                 "cmd_select", "cmd_reacquire", "cmd_malformed", "sempose_exit"]
+                 "cmd_select", "cmd_reacquire", "cmd_malformed", "sempose_exit", "check_rt"]
 BASE = 0x100
 ID_XY, ID_ATTR, ID_HB, ID_CMD = BASE + 0x00, BASE + 0x01, BASE + 0x40, BASE + 0x50
 SCALES_NM_PER_PX = (40.0, 20.0)   # system.yaml: pattern set 0 and 1

@@ -88,6 +88,7 @@ void CanPoseSink::send_heartbeat(const pipeline::PipelineStatus& s, std::int64_t
   ipc::Heartbeat h;
   h.state = to_wire(s.state);
   h.running = s.running;
+  h.stalled = s.stalled;
   h.bus_state = static_cast<ipc::BusState>(channel_.bus_state());
   h.fd = fd_;
   h.pattern_set = s.pattern_set;

@@ -452,7 +452,14 @@ void Pipeline::correlation_loop() noexcept {
     }
     if (run_output && output_step()) continue;
     if (acquisition_done_.load(std::memory_order_acquire) && frames_.empty()) break;
-    idle_wait(next_frame_expected_ns_.load(std::memory_order_relaxed) + slack_ns);
+    // Wait for the frame due next. While the non-RT watchdog reports a stall, poll every
+    // idle_sleep_us instead of every 5 us, so this FIFO thread does not starve the non-RT
+    // thread on its core, which must still answer SIGTERM. (Backing off on lateness alone,
+    // > 1 ms or > 50 ms overdue, changed which frame a REACQUIRE met in the VM test.)
+    const std::int64_t due = next_frame_expected_ns_.load(std::memory_order_relaxed) + slack_ns;
+    idle_wait(stalled_.load(std::memory_order_relaxed)
+                  ? rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs
+                  : due);
   }
   if (run_output) {
     while (output_step()) {
@@ -487,6 +494,7 @@ bool Pipeline::output_step() noexcept {
   status.state = static_cast<pose::TrackState>(words.state);
   status.pattern_set = words.pattern_set;
   status.running = words.running != 0;
+  status.stalled = stalled_.load(std::memory_order_relaxed);
   status.dwell_ns = words.dwell_ns;
   status.dropped_frames = static_cast<std::uint32_t>(dropped_frames());
   status.overruns = static_cast<std::uint32_t>(counters_.overruns.get());

@@ -220,6 +220,15 @@ run_sempose() {
   sed -e "s|@GPIO_CHIP@|$CHIP|g" -e "s|@CAN_IF@|$CAN|g" -e "s|@OUT@|$OUT|g" \
       "$CFG/system.yaml" > "$CFG/system.run.yaml"   # next to the pattern files it names
   cp "$CFG/system.run.yaml" "$OUT/system.yaml"
+  # check-rt on the RT kernel with the real vcan and gpio-sim: kernel, limits, CAN link and the
+  # three GPIO lines must pass (isolation, throttling and IRQs are the VM's and may warn).
+  "$SEMPOSE" check-rt --config "$CFG/system.run.yaml" > "$OUT/check_rt.txt" 2>&1; crc=$?
+  notpass=""
+  for n in kernel memlock rtprio can gpio.frame_sync_line gpio.pose_valid_line gpio.heartbeat_line; do
+    grep -q "^PASS  $n " "$OUT/check_rt.txt" || notpass="$notpass $n"
+  done
+  if [ -z "$notpass" ]; then check check_rt PASS "rc $crc; $(tail -n1 "$OUT/check_rt.txt")"
+  else check check_rt FAIL "not passing:$notpass; $(grep -E '^(WARN|FAIL)' "$OUT/check_rt.txt" | head -c 300 | tr '\n' ';')"; fi
   rm -f "$TMP/stop_sync" "$TMP/stop_sample" "$OUT/commands_sent.txt"
   # The reference client: candump on the bus for the whole run.
   base=$(can_rx_count)

@@ -12,6 +12,7 @@
 #include "sempose/config/gpio_config.hpp"
 #include "sempose/config/pipeline_config.hpp"
 #include "sempose/config/scan_config.hpp"
+#include "sempose/config/service_config.hpp"
 #include "sempose/config/sim_config.hpp"
 #include "sempose/config/tracker_config.hpp"
 
@@ -29,6 +30,7 @@ struct AppConfig {
   OutputConfig output;
   CanConfig can;
   GpioConfig gpio;
+  ServiceConfig service;        // systemd watchdog stall rule, SIGTERM drain bound
   std::string path;            // the file it was read from (for messages)
 };
 

@@ -89,6 +89,11 @@ class Pipeline {
   // True once every stage has exited (after a stop request or the end of a finite source).
   bool finished() const noexcept { return output_done_.load(std::memory_order_acquire); }
   bool source_ended() const noexcept { return source_ended_.load(std::memory_order_acquire); }
+  // Set by the non-RT watchdog (service::PipelineWatchdog) while a stage makes no progress;
+  // the output stage copies it into the heartbeat, so the bus sees the fault.
+  void report_stall(bool stalled) noexcept { stalled_.store(stalled, std::memory_order_relaxed); }
+  // False after a STOP command (acquisition then idles on purpose: not a stall).
+  bool scanning_enabled() const noexcept { return status_.read().running != 0; }
   void join();
 
   const PipelineCounters& counters() const noexcept { return counters_; }
@@ -154,6 +159,7 @@ class Pipeline {
 
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> source_ended_{false};
+  std::atomic<bool> stalled_{false};
   std::atomic<bool> acquisition_done_{false};
   std::atomic<bool> correlation_done_{false};
   std::atomic<bool> output_done_{false};

@@ -39,6 +39,7 @@ struct PipelineStatus {
   pose::TrackState state = pose::TrackState::kAcquiring;  // of target 0 (worst over targets)
   std::uint8_t pattern_set = 0;
   bool running = true;              // false after a stop command
+  bool stalled = false;             // the non-RT watchdog saw a stage make no progress
   std::uint32_t dwell_ns = 0;
   std::uint32_t dropped_frames = 0;
   std::uint32_t overruns = 0;

@@ -1,0 +1,115 @@
+#include "sempose/check_rt/system_tree.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace sempose::check_rt {
+
+SystemTree::SystemTree(std::string root) : root_(std::move(root)) {
+  if (root_.empty()) root_ = "/";
+}
+
+std::string SystemTree::path(const std::string& rel) const {
+  return root_ == "/" ? "/" + rel : (std::filesystem::path(root_) / rel).string();
+}
+
+std::optional<std::string> SystemTree::read(const std::string& rel) const {
+  std::ifstream in(path(rel));
+  if (!in) return std::nullopt;
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) return std::nullopt;
+  std::string s = ss.str();
+  while (!s.empty() && (s.back() == '\n' || s.back() == '\r')) s.pop_back();
+  return s;
+}
+
+bool SystemTree::exists(const std::string& rel) const {
+  std::error_code ec;
+  return std::filesystem::exists(path(rel), ec);
+}
+
+bool SystemTree::writable(const std::string& rel) const { return ::access(path(rel).c_str(), W_OK) == 0; }
+
+std::vector<std::string> SystemTree::list(const std::string& rel_dir) const {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(path(rel_dir), ec), end; !ec && it != end; it.increment(ec)) {
+    out.push_back(it->path().filename().string());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::optional<std::vector<int>> parse_cpu_list(const std::string& text) {
+  std::vector<int> out;
+  std::string t;
+  for (char c : text) {
+    if (!std::isspace(static_cast<unsigned char>(c))) t += c;
+  }
+  if (t.empty() || t == "(null)") return out;
+  std::stringstream ss(t);
+  std::string part;
+  while (std::getline(ss, part, ',')) {
+    const auto dash = part.find('-');
+    try {
+      std::size_t used = 0;
+      if (dash == std::string::npos) {
+        const int v = std::stoi(part, &used);
+        if (used != part.size() || v < 0) return std::nullopt;
+        out.push_back(v);
+      } else {
+        std::size_t used2 = 0;
+        const std::string a = part.substr(0, dash), b = part.substr(dash + 1);
+        const int lo = std::stoi(a, &used), hi = std::stoi(b, &used2);
+        if (used != a.size() || used2 != b.size() || lo < 0 || hi < lo || hi > 65535) return std::nullopt;
+        for (int v = lo; v <= hi; ++v) out.push_back(v);
+      }
+    } catch (const std::exception&) {
+      return std::nullopt;
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+std::optional<std::vector<int>> parse_cpu_mask(const std::string& text) {
+  std::string hex;
+  for (char c : text) {
+    if (c == ',' || std::isspace(static_cast<unsigned char>(c))) continue;
+    if (!std::isxdigit(static_cast<unsigned char>(c))) return std::nullopt;
+    hex += c;
+  }
+  if (hex.empty()) return std::nullopt;
+  std::vector<int> out;
+  const int n = static_cast<int>(hex.size());
+  for (int i = 0; i < n; ++i) {  // i-th digit from the right holds CPUs 4i..4i+3
+    const char c = hex[static_cast<std::size_t>(n - 1 - i)];
+    const int v = std::isdigit(static_cast<unsigned char>(c)) ? c - '0' : std::tolower(c) - 'a' + 10;
+    for (int b = 0; b < 4; ++b) {
+      if (v & (1 << b)) out.push_back(4 * i + b);
+    }
+  }
+  return out;
+}
+
+std::string format_cpu_list(const std::vector<int>& cpus) {
+  std::string out;
+  for (std::size_t i = 0; i < cpus.size();) {
+    std::size_t j = i;
+    while (j + 1 < cpus.size() && cpus[j + 1] == cpus[j] + 1) ++j;
+    if (!out.empty()) out += ',';
+    out += std::to_string(cpus[i]);
+    if (j > i) out += '-' + std::to_string(cpus[j]);
+    i = j + 1;
+  }
+  return out;
+}
+
+}  // namespace sempose::check_rt

@@ -1,0 +1,143 @@
+// `sempose view`: an operator's pictures of a run or a recording, from its poses CSV.
+//   track.png              x, y, phi and score over time (gnuplot; track.dat/track.gp beside it)
+//   roi_<frame>[_<target>].png  with --frames: every Nth pose's ROI from the recorded frames,
+//                          the pattern drawn at the reported pose (see roi_overlay.hpp)
+// Works on `sempose replay --out` CSVs (frame = index of the PGM in --frames, sorted by name)
+// and on `sempose run` CSVs (output.poses_csv; ROI pictures need the frames recorded with
+// `sempose sim`). Offline tool: allocates freely, never runs beside the RT stages.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "sempose/hal/pgm.hpp"
+#include "sempose/hal/replay_source.hpp"
+#include "sempose/operator_view/pose_csv.hpp"
+#include "sempose/operator_view/roi_overlay.hpp"
+#include "sempose/operator_view/track_plot.hpp"
+
+namespace {
+
+using namespace sempose;
+
+int usage(std::FILE* out) {
+  std::fprintf(out,
+               "usage: sempose view --poses POSES.csv --out DIR [--frames DIR [--pattern P.pgm ...] [--every N]\n"
+               "                    [--roi PX] [--pattern-size PX] [--scale K]]\n"
+               "  --poses         CSV of sempose run (output.poses_csv) or sempose replay --out\n"
+               "  --out           folder for track.png (x, y, phi, score over time) and the ROI pictures\n"
+               "  --frames        recorded full-field PGMs (as for replay): draw every Nth pose's ROI\n"
+               "  --pattern       each target's pattern, in CSV target order: its edges are drawn at the pose\n"
+               "  --every N       one ROI picture per N poses of each target (default 10)\n"
+               "  --roi PX        ROI side drawn (default 192); --pattern-size PX without --pattern (default 128)\n"
+               "  --scale K       enlarge the ROI pictures K times (default 2)\n");
+  return out == stdout ? 0 : 2;
+}
+
+bool positive(const std::string& flag, const char* text, int& out, int lo, int hi) {
+  char* end = nullptr;
+  const long v = std::strtol(text, &end, 10);
+  if (end == text || *end != '\0' || v < lo || v > hi) {
+    std::fprintf(stderr, "sempose view: %s: '%s' is not an integer in [%d, %d]\n", flag.c_str(), text, lo, hi);
+    return false;
+  }
+  out = static_cast<int>(v);
+  return true;
+}
+
+}  // namespace
+
+int sempose::cli::view(int argc, char** argv) {
+  std::string poses_path, out_dir, frames_dir;
+  std::vector<std::string> patterns;
+  int every = 10, roi = 192, pattern_size = 128, scale = 2;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") return usage(stdout);
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "sempose view: unknown or incomplete option '%s'\n", a.c_str());
+      return usage(stderr);
+    }
+    const char* v = argv[++i];
+    if (a == "--poses") poses_path = v;
+    else if (a == "--out") out_dir = v;
+    else if (a == "--frames") frames_dir = v;
+    else if (a == "--pattern") patterns.emplace_back(v);
+    else if (a == "--every") { if (!positive(a, v, every, 1, 1'000'000)) return 2; }
+    else if (a == "--roi") { if (!positive(a, v, roi, 8, 4096)) return 2; }
+    else if (a == "--pattern-size") { if (!positive(a, v, pattern_size, 8, 1024)) return 2; }
+    else if (a == "--scale") { if (!positive(a, v, scale, 1, 8)) return 2; }
+    else {
+      std::fprintf(stderr, "sempose view: unknown option '%s'\n", a.c_str());
+      return usage(stderr);
+    }
+  }
+  if (poses_path.empty() || out_dir.empty()) return usage(stderr);
+
+  try {
+    const auto rows = operator_view::read_pose_csv(poses_path);
+    const auto targets = operator_view::targets_of(rows);
+    if (!patterns.empty() && patterns.size() != targets.size()) {
+      std::fprintf(stderr, "sempose view: %zu --pattern for %zu target(s) in %s\n", patterns.size(), targets.size(),
+                   poses_path.c_str());
+      return 2;
+    }
+    // Inputs are read before anything is written: a bad pattern or frame folder leaves no half output.
+    std::vector<hal::Image> pattern_images;
+    for (const auto& p : patterns) pattern_images.push_back(hal::read_pgm(p));
+    std::vector<std::string> frame_files;
+    if (!frames_dir.empty()) frame_files = hal::list_pgm_frames(frames_dir);
+
+    std::filesystem::create_directories(out_dir);
+    std::size_t tracked = 0;
+    for (const auto& r : rows) tracked += r.status == "TRACKING";
+    std::string title = std::filesystem::path(poses_path).filename().string();
+    title.erase(std::remove(title.begin(), title.end(), '\''), title.end());
+    const std::string plot_problem = operator_view::plot_track(rows, out_dir + "/track", title);
+
+    int pictures = 0;
+    std::string first, last;
+    if (!frame_files.empty()) {
+      std::map<std::string, std::size_t> seen;  // poses per target so far
+      std::vector<std::vector<std::pair<float, float>>> edges;
+      for (const auto& img : pattern_images) edges.push_back(operator_view::pattern_edge_points(img));
+      for (const auto& r : rows) {
+        const std::size_t k = seen[r.target]++;
+        if (k % static_cast<std::size_t>(every) != 0) continue;
+        if (r.frame >= frame_files.size()) {
+          std::fprintf(stderr, "sempose view: pose of frame %llu but %s holds %zu frames; ROI pictures stop here\n",
+                       static_cast<unsigned long long>(r.frame), frames_dir.c_str(), frame_files.size());
+          break;
+        }
+        const std::size_t t = static_cast<std::size_t>(std::find(targets.begin(), targets.end(), r.target) - targets.begin());
+        const hal::Image frame = hal::read_pgm(frame_files[r.frame]);
+        const int side = pattern_images.empty() ? pattern_size : pattern_images[t].width;
+        static const std::vector<std::pair<float, float>> kNoEdges;
+        const auto img = operator_view::render_roi(frame, r, roi, side, edges.empty() ? kNoEdges : edges[t], scale);
+        char name[96];
+        std::snprintf(name, sizeof name, "roi_%06llu%s%s.png", static_cast<unsigned long long>(r.frame),
+                      r.target.empty() ? "" : "_", r.target.c_str());
+        operator_view::write_png(out_dir + "/" + name, img);
+        if (first.empty()) first = name;
+        last = name;
+        ++pictures;
+      }
+    }
+    std::printf("view: %zu poses, %zu target(s), %.1f%% TRACKING\n", rows.size(), targets.size(), 100.0 * tracked / rows.size());
+    if (plot_problem.empty()) std::printf("view: %s/track.png (x, y, phi, score over %s)\n", out_dir.c_str(), "time");
+    else std::printf("view: plot not drawn: %s\n", plot_problem.c_str());
+    if (pictures > 0) {
+      std::printf("view: %d ROI pictures (every %d poses per target): %s/%s ... %s\n", pictures, every, out_dir.c_str(),
+                  first.c_str(), last.c_str());
+    }
+    return plot_problem.empty() ? 0 : 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sempose view: %s\n", e.what());
+    return 2;
+  }
+}

@@ -1,0 +1,68 @@
+#include "sempose/operator_view/pose_csv.hpp"
+
+#include <algorithm>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace sempose::operator_view {
+namespace {
+
+double number(const std::string& cell, const std::string& where) {
+  char* end = nullptr;
+  const double v = std::strtod(cell.c_str(), &end);
+  if (cell.empty() || end != cell.c_str() + cell.size()) throw std::runtime_error(where + ": '" + cell + "' is not a number");
+  return v;
+}
+
+}  // namespace
+
+std::vector<PoseRow> read_pose_csv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  std::vector<PoseRow> rows;
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty()) continue;
+    if (n == 1) {
+      if (line.rfind("frame,t_ns,x_px,y_px,phi_deg,score,status", 0) != 0) {
+        throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target]");
+      }
+      continue;
+    }
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) cells.push_back(cell);
+    const std::string where = path + ":" + std::to_string(n);
+    if (cells.size() < 7 || cells.size() > 8) {
+      throw std::runtime_error(where + ": " + std::to_string(cells.size()) + " cells, expected 7 or 8");
+    }
+    PoseRow r;
+    r.frame = static_cast<std::uint64_t>(number(cells[0], where));
+    r.t_ns = static_cast<std::int64_t>(number(cells[1], where));
+    r.x_px = number(cells[2], where);
+    r.y_px = number(cells[3], where);
+    r.phi_deg = number(cells[4], where);
+    r.score = number(cells[5], where);
+    r.status = cells[6];
+    if (cells.size() == 8) r.target = cells[7];
+    rows.push_back(std::move(r));
+  }
+  if (rows.empty()) throw std::runtime_error(path + ": no poses");
+  return rows;
+}
+
+std::vector<std::string> targets_of(const std::vector<PoseRow>& rows) {
+  std::vector<std::string> out;
+  for (const auto& r : rows) {
+    if (std::find(out.begin(), out.end(), r.target) == out.end()) out.push_back(r.target);
+  }
+  return out;
+}
+
+}  // namespace sempose::operator_view

@@ -1,0 +1,305 @@
+// check-rt on fake /proc and /sys trees: each check passes on a well-tuned tree, and each
+// mis-setting turns exactly its own line to warn or fail, with a fix that names the remedy.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+
+#include "sempose/check_rt/checks.hpp"
+
+namespace fs = std::filesystem;
+using namespace sempose;
+using check_rt::Level;
+
+namespace {
+
+class FakeProbe : public check_rt::LiveProbe {
+ public:
+  std::optional<check_rt::CanLinkDetails> can;
+  std::map<int, check_rt::GpioLineUse> lines;
+  std::optional<check_rt::CanLinkDetails> can_link(const std::string&) override { return can; }
+  check_rt::GpioLineUse gpio_line(const std::string&, int line) override {
+    auto it = lines.find(line);
+    return it == lines.end() ? check_rt::GpioLineUse{} : it->second;
+  }
+};
+
+// A tuned 4-core PREEMPT_RT box: cores 2,3 isolated, throttling off, performance governor,
+// IRQs on 0-1, CAP_SYS_NICE + CAP_IPC_LOCK held.
+class FakeTree : public ::testing::Test {
+ protected:
+  fs::path root;
+  config::AppConfig cfg;
+  FakeProbe probe;
+
+  void SetUp() override {
+    root = fs::temp_directory_path() / ("sempose_check_rt_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root);
+    put("sys/kernel/realtime", "1\n");
+    put("proc/sys/kernel/osrelease", "6.1.0-31-rt-amd64\n");
+    put("proc/sys/kernel/version", "#1 SMP PREEMPT_RT Debian 6.1.128-1\n");
+    put("proc/cmdline", "BOOT_IMAGE=/vmlinuz root=/dev/sda1 isolcpus=2,3 nohz_full=2-3 rcu_nocbs=2-3 irqaffinity=0-1\n");
+    put("sys/devices/system/cpu/online", "0-3\n");
+    put("sys/devices/system/cpu/isolated", "2-3\n");
+    put("sys/devices/system/cpu/nohz_full", "2-3\n");
+    put("proc/sys/kernel/sched_rt_runtime_us", "-1\n");
+    put("proc/sys/kernel/sched_rt_period_us", "1000000\n");
+    for (int c = 0; c < 4; ++c) put("sys/devices/system/cpu/cpu" + std::to_string(c) + "/cpufreq/scaling_governor", "performance\n");
+    put("dev/cpu_dma_latency", "");
+    for (int irq : {1, 9, 24, 25}) put("proc/irq/" + std::to_string(irq) + "/smp_affinity_list", "0-1\n");
+    put("proc/irq/default_smp_affinity", "3\n");
+    put("proc/self/status", "Name:\tsempose\nCapInh:\t0000000000000000\nCapEff:\t0000000000804000\n");
+    put("proc/self/limits",
+        "Limit                     Soft Limit           Hard Limit           Units\n"
+        "Max locked memory         8388608              8388608              bytes\n"
+        "Max realtime priority     0                    0\n");
+    cfg.pipeline.acquisition = {2, 60};
+    cfg.pipeline.correlation = {3, 50};
+    cfg.pipeline.output = {3, 40};
+  }
+  void TearDown() override { fs::remove_all(root); }
+
+  void put(const std::string& rel, const std::string& text) {
+    fs::create_directories((root / rel).parent_path());
+    std::ofstream(root / rel) << text;
+  }
+  std::vector<check_rt::CheckResult> run() {
+    check_rt::SystemTree tree(root.string());
+    return check_rt::run_checks(tree, cfg, probe);
+  }
+  static const check_rt::CheckResult& find(const std::vector<check_rt::CheckResult>& r, const std::string& name) {
+    for (const auto& x : r) {
+      if (x.name == name) return x;
+    }
+    static check_rt::CheckResult none{"(missing)", Level::kFail, "no such check", ""};
+    ADD_FAILURE() << "no check named " << name;
+    return none;
+  }
+  // Everything but `name` still passes (a mis-setting affects its own line only).
+  static void only(const std::vector<check_rt::CheckResult>& r, const std::string& name) {
+    for (const auto& x : r) {
+      if (x.name != name) {
+        EXPECT_EQ(x.level, Level::kPass) << check_rt::format_result(x);
+      }
+    }
+  }
+};
+
+TEST_F(FakeTree, TunedBoxPassesEveryCheck) {
+  const auto r = run();
+  for (const auto& x : r) {
+    EXPECT_EQ(x.level, Level::kPass) << check_rt::format_result(x);
+  }
+  EXPECT_EQ(check_rt::exit_code(r), 0);
+  EXPECT_GE(r.size(), 12u);
+}
+
+TEST_F(FakeTree, GenericKernelFailsWithTheRtKernelAsFix) {
+  fs::remove(root / "sys/kernel/realtime");
+  put("proc/sys/kernel/version", "#1 SMP PREEMPT_DYNAMIC Debian 6.1.128-1\n");
+  const auto r = run();
+  const auto& k = find(r, "kernel");
+  EXPECT_EQ(k.level, Level::kFail);
+  EXPECT_NE(k.fix.find("linux-image-rt-amd64"), std::string::npos);
+  EXPECT_EQ(check_rt::exit_code(r), 3);
+  only(r, "kernel");
+}
+
+TEST_F(FakeTree, RealtimeFlagAloneIsEnough) {
+  put("proc/sys/kernel/version", "#1 SMP\n");  // some RT kernels do not say it in the version
+  EXPECT_EQ(find(run(), "kernel").level, Level::kPass);
+}
+
+TEST_F(FakeTree, MissingIsolationWarnsWhenSleepingFailsWhenSpinning) {
+  put("sys/devices/system/cpu/isolated", "\n");
+  put("sys/devices/system/cpu/nohz_full", "(null)\n");
+  put("proc/cmdline", "root=/dev/sda1 rcu_nocbs=3\n");
+  auto r = run();
+  for (const char* n : {"isolcpus", "nohz_full", "rcu_nocbs"}) {
+    EXPECT_EQ(find(r, n).level, Level::kWarn) << n;
+    EXPECT_NE(find(r, n).fix.find("isolcpus=2-3 nohz_full=2-3 rcu_nocbs=2-3"), std::string::npos) << find(r, n).fix;
+  }
+  EXPECT_NE(find(r, "rcu_nocbs").detail.find("core(s) 2 "), std::string::npos) << find(r, "rcu_nocbs").detail;
+  EXPECT_EQ(check_rt::exit_code(r), 1);
+  cfg.pipeline.polling = "spin";
+  r = run();
+  for (const char* n : {"isolcpus", "nohz_full", "rcu_nocbs"}) {
+    EXPECT_EQ(find(r, n).level, Level::kFail) << n;
+  }
+}
+
+TEST_F(FakeTree, RtThrottling) {
+  put("proc/sys/kernel/sched_rt_runtime_us", "950000\n");
+  auto r = run();
+  EXPECT_EQ(find(r, "rt-throttling").level, Level::kWarn);
+  EXPECT_NE(find(r, "rt-throttling").fix.find("sched_rt_runtime_us=-1"), std::string::npos);
+  only(r, "rt-throttling");
+  cfg.pipeline.polling = "spin";
+  EXPECT_EQ(find(run(), "rt-throttling").level, Level::kFail);
+}
+
+TEST_F(FakeTree, PowersaveGovernorOnAnRtCoreWarns) {
+  put("sys/devices/system/cpu/cpu3/cpufreq/scaling_governor", "powersave\n");
+  put("sys/devices/system/cpu/cpu0/cpufreq/scaling_governor", "powersave\n");  // housekeeping: fine
+  const auto r = run();
+  const auto& g = find(r, "cpufreq");
+  EXPECT_EQ(g.level, Level::kWarn);
+  EXPECT_NE(g.detail.find("core(s) 3"), std::string::npos) << g.detail;
+  EXPECT_NE(g.fix.find("-c 3 -g performance"), std::string::npos) << g.fix;
+  only(r, "cpufreq");
+}
+
+TEST_F(FakeTree, NoCpufreqIsAFixedClock) {
+  fs::remove_all(root / "sys/devices/system/cpu/cpu2");
+  fs::remove_all(root / "sys/devices/system/cpu/cpu3");
+  EXPECT_EQ(find(run(), "cpufreq").level, Level::kPass);
+}
+
+TEST_F(FakeTree, DmaLatencyDeviceMissingOrReadOnly) {
+  fs::remove(root / "dev/cpu_dma_latency");
+  auto r = run();
+  EXPECT_EQ(find(r, "cpu-dma-latency").level, Level::kFail);
+  only(r, "cpu-dma-latency");
+  cfg.pipeline.hold_dma_latency = false;
+  EXPECT_EQ(find(run(), "cpu-dma-latency").level, Level::kPass);
+  if (::geteuid() != 0) {  // root may write anything: the read-only case needs a normal user
+    cfg.pipeline.hold_dma_latency = true;
+    put("dev/cpu_dma_latency", "");
+    ::chmod((root / "dev/cpu_dma_latency").c_str(), 0444);
+    EXPECT_EQ(find(run(), "cpu-dma-latency").level, Level::kFail);
+  }
+}
+
+TEST_F(FakeTree, IrqsAllowedOnRtCoresWarnAndNameThem) {
+  put("proc/irq/25/smp_affinity_list", "0-3\n");
+  put("proc/irq/30/smp_affinity_list", "3\n");
+  const auto r = run();
+  const auto& i = find(r, "irq-affinity");
+  EXPECT_EQ(i.level, Level::kWarn);
+  EXPECT_NE(i.detail.find("2 of 5 IRQs"), std::string::npos) << i.detail;
+  EXPECT_NE(i.detail.find("(25,30)"), std::string::npos) << i.detail;
+  EXPECT_NE(i.fix.find("irqaffinity=0-1"), std::string::npos) << i.fix;
+  only(r, "irq-affinity");
+}
+
+TEST_F(FakeTree, DefaultIrqAffinityOnRtCoresWarns) {
+  put("proc/irq/default_smp_affinity", "f\n");
+  const auto r = run();
+  const auto& i = find(r, "irq-affinity");
+  EXPECT_EQ(i.level, Level::kWarn);
+  EXPECT_NE(i.detail.find("new IRQs default there"), std::string::npos) << i.detail;
+}
+
+TEST_F(FakeTree, NoCapabilitiesAndLowLimitsFail) {
+  put("proc/self/status", "Name:\tsempose\nCapEff:\t0000000000000000\n");
+  auto r = run();
+  EXPECT_EQ(find(r, "memlock").level, Level::kFail);
+  EXPECT_NE(find(r, "memlock").fix.find("LimitMEMLOCK=infinity"), std::string::npos);
+  EXPECT_EQ(find(r, "rtprio").level, Level::kFail);
+  EXPECT_NE(find(r, "rtprio").fix.find("LimitRTPRIO=60"), std::string::npos) << find(r, "rtprio").fix;
+  // The limits alone are enough without the capabilities.
+  put("proc/self/limits",
+      "Max locked memory         unlimited            unlimited            bytes\n"
+      "Max realtime priority     60                   60\n");
+  r = run();
+  EXPECT_EQ(find(r, "memlock").level, Level::kPass);
+  EXPECT_EQ(find(r, "rtprio").level, Level::kPass);
+  put("proc/self/limits", "Max realtime priority     59                   59\n");
+  EXPECT_EQ(find(run(), "rtprio").level, Level::kFail);
+}
+
+TEST_F(FakeTree, OfflineOrEveryCoreAsRtCore) {
+  cfg.pipeline.correlation.cpu = 7;
+  auto r = run();
+  EXPECT_EQ(find(r, "rt-cpus").level, Level::kFail);
+  EXPECT_NE(find(r, "rt-cpus").detail.find("7 not online"), std::string::npos);
+  put("sys/devices/system/cpu/online", "0-1\n");
+  cfg.pipeline.acquisition.cpu = 0;
+  cfg.pipeline.correlation.cpu = 1;
+  EXPECT_EQ(find(run(), "rt-cpus").level, Level::kWarn);
+}
+
+TEST_F(FakeTree, CanLink) {
+  cfg.can.interface = "can0";
+  cfg.can.bitrate = 1000000;
+  auto r = run();
+  EXPECT_EQ(find(r, "can").level, Level::kFail);  // no such interface
+  EXPECT_NE(find(r, "can").detail.find("no network interface 'can0'"), std::string::npos);
+  put("sys/class/net/can0/type", "1\n");  // Ethernet
+  put("sys/class/net/can0/flags", "0x1003\n");
+  EXPECT_NE(find(run(), "can").detail.find("not a CAN interface"), std::string::npos);
+  put("sys/class/net/can0/type", "280\n");
+  put("sys/class/net/can0/flags", "0x80\n");  // down
+  r = run();
+  EXPECT_EQ(find(r, "can").level, Level::kFail);
+  EXPECT_NE(find(r, "can").fix.find("ip link set can0 type can bitrate 1000000"), std::string::npos);
+  put("sys/class/net/can0/flags", "0xc1\n");  // up
+  probe.can = check_rt::CanLinkDetails{"can", 1000000, "error-active"};
+  r = run();
+  EXPECT_EQ(find(r, "can").level, Level::kPass) << find(r, "can").detail;
+  only(r, "(none)");
+  probe.can->bitrate = 500000;
+  EXPECT_EQ(find(run(), "can").level, Level::kWarn);
+  probe.can->bitrate = 1000000;
+  probe.can->state = "error-passive";
+  EXPECT_EQ(find(run(), "can").level, Level::kWarn);
+  probe.can->state = "bus-off";
+  EXPECT_EQ(find(run(), "can").level, Level::kFail);
+  probe.can = check_rt::CanLinkDetails{"vcan", 0, ""};
+  EXPECT_EQ(find(run(), "can").level, Level::kPass);
+}
+
+TEST_F(FakeTree, GpioLines) {
+  cfg.gpio.chip = "gpiochip0";
+  cfg.gpio.frame_sync_line = 17;
+  cfg.gpio.pose_valid_line = 22;
+  auto r = run();
+  EXPECT_EQ(find(r, "gpio.frame_sync_line").level, Level::kFail);  // chip not found
+  check_rt::GpioLineUse free_line{true, "", true, false, ""};
+  probe.lines[17] = free_line;
+  probe.lines[22] = free_line;
+  r = run();
+  EXPECT_EQ(find(r, "gpio.frame_sync_line").level, Level::kPass);
+  EXPECT_EQ(find(r, "gpio.pose_valid_line").level, Level::kPass);
+  probe.lines[22].used = true;
+  probe.lines[22].consumer = "sempose";
+  r = run();
+  EXPECT_EQ(find(r, "gpio.pose_valid_line").level, Level::kFail);
+  EXPECT_NE(find(r, "gpio.pose_valid_line").detail.find("already running"), std::string::npos);
+  probe.lines[17].line_exists = false;
+  EXPECT_NE(find(run(), "gpio.frame_sync_line").detail.find("does not exist"), std::string::npos);
+}
+
+TEST_F(FakeTree, ReplaySourceNeedsItsFolder) {
+  cfg.source = "replay";
+  cfg.replay.frames_dir = (root / "recording").string();
+  EXPECT_EQ(find(run(), "scan-device").level, Level::kFail);
+  fs::create_directories(root / "recording");
+  EXPECT_EQ(find(run(), "scan-device").level, Level::kPass);
+}
+
+TEST(CpuLists, ParseKernelFormats) {
+  EXPECT_EQ(check_rt::parse_cpu_list("0-3,8,10-11\n"), (std::vector<int>{0, 1, 2, 3, 8, 10, 11}));
+  EXPECT_EQ(check_rt::parse_cpu_list("(null)"), std::vector<int>{});
+  EXPECT_EQ(check_rt::parse_cpu_list(""), std::vector<int>{});
+  EXPECT_FALSE(check_rt::parse_cpu_list("3-1"));
+  EXPECT_FALSE(check_rt::parse_cpu_list("a"));
+  EXPECT_EQ(check_rt::parse_cpu_mask("00000000,00000005"), (std::vector<int>{0, 2}));
+  EXPECT_EQ(check_rt::parse_cpu_mask("f0"), (std::vector<int>{4, 5, 6, 7}));
+  EXPECT_FALSE(check_rt::parse_cpu_mask("xyz"));
+  EXPECT_EQ(check_rt::format_cpu_list({0, 1, 2, 5, 7, 8}), "0-2,5,7-8");
+}
+
+TEST(FormatResult, OneLineWithTheFix) {
+  const std::string l = check_rt::format_result({"kernel", Level::kFail, "kernel 6.1 is not PREEMPT_RT", "install it"});
+  EXPECT_EQ(l.rfind("FAIL  kernel", 0), 0u) << l;
+  EXPECT_NE(l.find("-- fix: install it"), std::string::npos);
+  EXPECT_EQ(l.find('\n'), std::string::npos);
+}
+
+}  // namespace

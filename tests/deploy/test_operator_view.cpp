@@ -1,0 +1,143 @@
+// sempose view's parts: the poses CSV reader (errors name file and line), the PNG writer
+// (read back with libpng), and the overlay: drawn at the pose, turned the way sempose turns
+// patterns (counter-clockwise on screen), coloured by state.
+#include <gtest/gtest.h>
+#include <png.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "sempose/operator_view/pose_csv.hpp"
+#include "sempose/operator_view/rgb_image.hpp"
+#include "sempose/operator_view/roi_overlay.hpp"
+
+namespace fs = std::filesystem;
+using namespace sempose;
+using namespace sempose::operator_view;
+
+namespace {
+
+std::string temp(const std::string& name) {
+  return (fs::temp_directory_path() / ("sempose_view_" + std::to_string(::getpid()) + "_" + name)).string();
+}
+
+bool same(Rgb a, Rgb b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
+
+}  // namespace
+
+TEST(PoseCsv, ReadsRunAndReplayFiles) {
+  const std::string p = temp("poses.csv");
+  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status,target\n"
+                      "0,1000,10.5,20.25,-3.5,0.91,TRACKING,needle\n"
+                      "1,2000,11.0,21.0,-3.0,0.20,LOST,gripper\n";
+  const auto rows = read_pose_csv(p);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_DOUBLE_EQ(rows[0].y_px, 20.25);
+  EXPECT_EQ(rows[1].status, "LOST");
+  EXPECT_EQ(targets_of(rows), (std::vector<std::string>{"needle", "gripper"}));
+  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n5,0,1,2,3,0.5,ACQUIRING\n";
+  EXPECT_EQ(read_pose_csv(p).front().target, "");
+  fs::remove(p);
+}
+
+TEST(PoseCsv, ErrorsNameFileLineAndCell) {
+  const std::string p = temp("bad.csv");
+  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,1,2,3,0.5,TRACKING\n1,0,1,zwei,3,0.5,TRACKING\n";
+  try {
+    read_pose_csv(p);
+    FAIL() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(p + ":3: 'zwei' is not a number"), std::string::npos) << e.what();
+  }
+  std::ofstream(p) << "x,y\n1,2\n";
+  EXPECT_THROW(read_pose_csv(p), std::runtime_error);
+  fs::remove(p);
+  EXPECT_THROW(read_pose_csv(p), std::runtime_error);  // missing file
+}
+
+TEST(Png, WrittenPixelsReadBack) {
+  RgbImage img(7, 5);
+  img.plot(3, 2, Rgb{200, 10, 30});
+  img.plot(6, 4, Rgb{1, 2, 3});
+  const std::string p = temp("t.png");
+  write_png(p, img);
+  png_image in{};
+  in.version = PNG_IMAGE_VERSION;
+  ASSERT_TRUE(png_image_begin_read_from_file(&in, p.c_str()));
+  in.format = PNG_FORMAT_RGB;
+  std::vector<std::uint8_t> px(PNG_IMAGE_SIZE(in));
+  ASSERT_TRUE(png_image_finish_read(&in, nullptr, px.data(), 0, nullptr));
+  EXPECT_EQ(in.width, 7u);
+  EXPECT_EQ(in.height, 5u);
+  EXPECT_EQ(px[(2 * 7 + 3) * 3 + 0], 200);
+  EXPECT_EQ(px[(2 * 7 + 3) * 3 + 2], 30);
+  EXPECT_EQ(px[(4 * 7 + 6) * 3 + 1], 2);
+  EXPECT_EQ(px[0], 0);
+  fs::remove(p);
+  EXPECT_THROW(write_png("/nonexistent-dir/x.png", img), std::runtime_error);
+}
+
+TEST(Overlay, HeadingTurnsCounterClockwiseOnScreenAndColourFollowsState) {
+  hal::Image frame;
+  frame.width = 200;
+  frame.height = 200;
+  frame.pixels.assign(200 * 200, 128);
+  PoseRow pose;
+  pose.x_px = 100;
+  pose.y_px = 100;
+  pose.phi_deg = 90;
+  pose.status = "TRACKING";
+  const RgbImage img = render_roi(frame, pose, 100, 64, {}, 1);
+  const Rgb green{40, 220, 60};
+  // The ROI is centred on the pose: the pose is at (50, 50) of the 100 px picture. At +90°
+  // the pattern's +x axis points up the screen (y decreasing).
+  auto at = [&](int x, int y) { return img.pixels[static_cast<std::size_t>(y) * img.width + x]; };
+  EXPECT_TRUE(same(at(50, 50 - 20), green));
+  EXPECT_FALSE(same(at(50 + 20, 50), green));
+  EXPECT_FALSE(same(at(50, 50 + 20), green));
+  pose.status = "LOST";
+  const RgbImage lost = render_roi(frame, pose, 100, 64, {}, 1);
+  EXPECT_TRUE(same(lost.pixels[static_cast<std::size_t>(30) * 100 + 50], Rgb{235, 40, 40}));
+}
+
+TEST(Overlay, PatternEdgesLandOnTheTargetsEdgesAtItsPose) {
+  // Pattern: bright right half (edge at u = 0). In the frame the same target sits at (120, 90)
+  // turned by 90°: bright above the line y = 90. The pattern's edge points, turned and placed
+  // at the pose, must lie on that line.
+  hal::Image pattern;
+  pattern.width = pattern.height = 32;
+  pattern.pixels.resize(32 * 32);
+  for (int y = 0; y < 32; ++y) {
+    for (int x = 0; x < 32; ++x) pattern.pixels[static_cast<std::size_t>(y) * 32 + x] = x >= 16 ? 220 : 30;
+  }
+  const auto edges = pattern_edge_points(pattern, 0.05);
+  ASSERT_FALSE(edges.empty());
+  for (const auto& e : edges) {
+    EXPECT_LE(std::abs(e.first), 1.0f) << e.first;  // on the step
+  }
+  hal::Image frame;
+  frame.width = 240;
+  frame.height = 180;
+  frame.pixels.assign(240 * 180, 30);
+  for (int y = 0; y < 90; ++y) {
+    for (int x = 0; x < 240; ++x) frame.pixels[static_cast<std::size_t>(y) * 240 + x] = 220;
+  }
+  PoseRow pose;
+  pose.x_px = 120;
+  pose.y_px = 90;
+  pose.phi_deg = 90;
+  pose.status = "TRACKING";
+  const RgbImage img = render_roi(frame, pose, 64, 32, edges, 1);
+  int magenta = 0, on_line = 0;
+  for (int y = 0; y < img.height; ++y) {
+    for (int x = 0; x < img.width; ++x) {
+      if (!same(img.pixels[static_cast<std::size_t>(y) * img.width + x], Rgb{255, 0, 255})) continue;
+      ++magenta;
+      on_line += std::abs(y - 32) <= 2;  // the ROI's row 32 is the frame's y = 90
+    }
+  }
+  EXPECT_GT(magenta, 5);
+  EXPECT_EQ(on_line, magenta);
+}
