@@ -56,12 +56,12 @@ TEST(ServiceConfig, StallTimeoutMustCoverTwoFullFieldScans) {
 }
 
 TEST(ShippedConfigs, LoadWithoutErrors) {
-  for (const char* rel : {"packaging/sempose.yaml", "packaging/examples/production.yaml", "config/default.yaml"}) {
+  for (const char* rel : {"config/deploy/sempose.yaml", "config/deploy/examples/production.yaml", "config/default.yaml"}) {
     sempose::config::AppConfig cfg;
     std::string errors;
     EXPECT_TRUE(sempose::config::load_app_config(std::string(SEMPOSE_SOURCE_DIR) + "/" + rel, cfg, errors))
         << rel << ":\n" << errors;
-    if (std::string(rel) == "packaging/examples/production.yaml") {
+    if (std::string(rel) == "config/deploy/examples/production.yaml") {
       EXPECT_EQ(cfg.pipeline.polling, "spin");
       EXPECT_TRUE(cfg.pipeline.strict_rt);
       EXPECT_EQ(cfg.can.interface, "can0");
