@@ -9,6 +9,7 @@
 #include <sched.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -22,6 +23,8 @@
 #include "sempose/can_output/factory.hpp"
 #include "sempose/can_output/gpio_pose_sink.hpp"
 #include "sempose/config/app_config.hpp"
+#include "sempose/config/reader.hpp"
+#include "sempose/hal/can_candump_log.hpp"
 #include "sempose/hal/gpio_synced_source.hpp"
 #include "sempose/hal/source_factory.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
@@ -36,6 +39,8 @@
 namespace {
 
 using namespace sempose;
+
+constexpr double kMaxDurationS = 10 * 365.25 * 86400;
 
 struct Options {
   std::string config;
@@ -71,8 +76,11 @@ bool parse(int argc, char** argv, Options& o) {
       if (!value(v)) return false;
       char* end = nullptr;
       o.duration_s = std::strtod(v.c_str(), &end);
-      if (end == v.c_str() || *end != '\0' || o.duration_s < 0) {
-        std::fprintf(stderr, "sempose run: --duration: '%s' is not a number of seconds >= 0\n", v.c_str());
+      // NaN would run forever and 1e10 s overflows the nanosecond deadline: a finite number
+      // of seconds up to ten years.
+      if (end == v.c_str() || *end != '\0' || !(o.duration_s >= 0 && o.duration_s <= kMaxDurationS)) {
+        std::fprintf(stderr, "sempose run: --duration: '%s' is not a number of seconds in [0, %.0f]\n", v.c_str(),
+                     kMaxDurationS);
         return false;
       }
     } else if (a == "--strict-rt") {
@@ -99,6 +107,34 @@ void dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
   std::ofstream json(dir + "/latency_hist.json");
   rt::write_histogram_json(json, series);
   if (!txt || !json) std::fprintf(stderr, "sempose run: cannot write histograms to %s\n", dir.c_str());
+}
+
+// A SIGINT/SIGTERM that arrived while setup ran (signals are blocked, so it waits): taken
+// here so a stop request during a long setup is honoured between phases, not after start.
+int pending_stop_signal(const sigset_t& signals) {
+  sigset_t pending;
+  sigemptyset(&pending);
+  if (sigpending(&pending) != 0) return 0;
+  for (int sig : {SIGINT, SIGTERM}) {
+    if (sigismember(&pending, sig) == 1 && sigismember(&signals, sig) == 1) {
+      const timespec zero{0, 0};
+      sigset_t one;
+      sigemptyset(&one);
+      sigaddset(&one, sig);
+      sigtimedwait(&one, nullptr, &zero);  // consume it
+      return sig;
+    }
+  }
+  return 0;
+}
+
+// Longest a healthy source can take for one frame: the whole field at the slowest dwell the
+// scan generator allows, plus flyback. No frame for several of these (and at least 2 s) is a
+// stall, never a silent idle loop.
+std::int64_t stall_timeout_ns(const hal::ScanLimits& l) {
+  const double frame_ns = static_cast<double>(l.field_w) * l.field_h * l.max_dwell_ns +
+                          static_cast<double>(l.field_h) * l.line_flyback_ns;
+  return static_cast<std::int64_t>(std::clamp(3.0 * frame_ns, 2e9, 3.6e12));
 }
 
 void pin_non_rt_thread(int cpu) {
@@ -135,14 +171,22 @@ int sempose::cli::run(int argc, char** argv) {
   sigaddset(&signals, SIGUSR1);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  // Output files may name folders that do not exist yet (out/demo/...): make them, so a run
-  // never fails after its setup work for want of a directory.
-  for (const std::string& file : {cfg.output.poses_csv, opt.can_log.empty() && cfg.can.interface.empty()
-                                                          ? cfg.can.log_file
-                                                          : opt.can_log}) {
-    const auto parent = std::filesystem::path(file).parent_path();
-    std::error_code ec;
-    if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
+  // Output paths given on the command line get the same checks as the config's, before any
+  // setup work and before any file is created or truncated.
+  {
+    std::string bad;
+    if (!opt.can_log.empty()) {
+      if (const std::string why = config::output_path_problem(opt.can_log); !why.empty())
+        bad += "  --can-log: '" + opt.can_log + "' cannot be written: it is " + why + "\n";
+    }
+    if (!opt.hist_dir.empty()) {
+      if (const std::string why = config::output_dir_problem(opt.hist_dir); !why.empty())
+        bad += "  --hist-dir: '" + opt.hist_dir + "' cannot hold histograms: it is " + why + "\n";
+    }
+    if (!bad.empty()) {
+      std::fprintf(stderr, "sempose run: invalid output:\n%s", bad.c_str());
+      return 2;
+    }
   }
 
   // ---- setup: everything that allocates
@@ -171,6 +215,22 @@ int sempose::cli::run(int argc, char** argv) {
   if (!st) {
     std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
     return 2;
+  }
+
+  // Setup is done up to the outputs: a SIGINT/SIGTERM that came meanwhile stops here, before
+  // any output file is created or truncated.
+  if (const int sig = pending_stop_signal(signals)) {
+    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    return 0;
+  }
+  // Output files may name folders that do not exist yet (out/demo/...): make them now, after
+  // every check and the setup work, so a refused run leaves nothing behind.
+  for (const std::string& file : {cfg.output.poses_csv, opt.can_log.empty() && cfg.can.interface.empty()
+                                                          ? cfg.can.log_file
+                                                          : opt.can_log}) {
+    const auto parent = std::filesystem::path(file).parent_path();
+    std::error_code ec;
+    if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
   }
 
   can_output::CanOutput can;
@@ -246,6 +306,10 @@ int sempose::cli::run(int argc, char** argv) {
     }
     if (!st.message.empty()) std::printf("warning: %s\n", st.message.c_str());
   }
+  if (const int sig = pending_stop_signal(signals)) {
+    std::printf("stopped by %s during setup\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    return 0;
+  }
   // rt_allocs: heap calls on armed (RT) threads from here on; setup may allocate freely.
   const std::uint64_t allocs_at_start = rt::alloc::allocations();
   st = pipe->start(strict);
@@ -259,13 +323,43 @@ int sempose::cli::run(int argc, char** argv) {
 
   // ---- non-RT loop: signals, periodic flush and status
   const std::int64_t t0 = rt::now_ns();
+  const auto duration_ns = static_cast<std::int64_t>(opt.duration_s * 1e9);  // <= 3.2e17: no overflow
   const std::int64_t period_ns = static_cast<std::int64_t>(cfg.pipeline.stats_period_ms) * rt::kNsPerMs;
   std::int64_t next_status = t0 + period_ns;
   const auto& c = pipe->counters();
   int stop_signal = 0;
+  auto* candump = dynamic_cast<hal::CandumpLogChannel*>(can.channel.get());
+  auto output_write_errors = [&] {
+    return (csv ? csv->write_errors() : 0) + (candump ? candump->write_errors() : 0);
+  };
+  const std::int64_t stall_ns = stall_timeout_ns(scan->limits());
+  std::uint64_t last_frames = 0;
+  std::int64_t last_frame_change = t0;
+  bool stalled = false;
+  std::uint64_t stalls = 0;
   while (!pipe->finished()) {
     const std::int64_t now = rt::now_ns();
-    if (opt.duration_s > 0 && now - t0 >= static_cast<std::int64_t>(opt.duration_s * 1e9)) break;
+    // Stall watchdog (non-RT): frames must keep coming while running. Virtual-time sources
+    // run as fast as the CPU allows, so the same wall-clock bound holds for them.
+    const std::uint64_t frames_now = c.frames_scanned.get();
+    if (frames_now != last_frames) {
+      last_frames = frames_now;
+      last_frame_change = now;
+      if (stalled) {
+        stalled = false;
+        pipe->set_fault(pipeline::kFaultSourceStalled, false);
+        std::printf("fault cleared: the scan source delivers frames again\n");
+        std::fflush(stdout);
+      }
+    } else if (!stalled && now - last_frame_change > stall_ns) {
+      stalled = true;
+      ++stalls;
+      pipe->set_fault(pipeline::kFaultSourceStalled, true);
+      std::printf("fault: the scan source delivered no frame for %.1f s (scan_errors=%llu); state reported LOST\n",
+                  (now - last_frame_change) * 1e-9, static_cast<unsigned long long>(c.scan_errors.get()));
+      std::fflush(stdout);
+    }
+    if (opt.duration_s > 0 && now - t0 >= duration_ns) break;
     const timespec wait = rt::to_timespec(std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, next_status - now)));
     const int sig = sigtimedwait(&signals, nullptr, &wait);
     if (sig == SIGINT || sig == SIGTERM) {
@@ -280,15 +374,23 @@ int sempose::cli::run(int argc, char** argv) {
       next_status += period_ns;
       if (csv) csv->write_pending();
       if (can.sink) can.sink->flush();
+      if (output_write_errors() > 0 && !(pipe->faults() & pipeline::kFaultOutputWrite)) {
+        pipe->set_fault(pipeline::kFaultOutputWrite, true);
+        std::printf("fault: writing an output file failed (%s)\n",
+                    std::strerror(csv && csv->last_errno() ? csv->last_errno() : candump ? candump->last_errno() : 0));
+        std::fflush(stdout);
+      }
       if (cfg.output.print_status) {
         const auto e2e = pipe->histograms().end_to_end.snapshot();
-        std::printf("t=%.1fs frames=%llu poses=%llu dropped=%llu overruns=%llu dwell_ns=[%llu,%llu] e2e_us_p99=%.0f\n",
+        std::printf("t=%.1fs frames=%llu poses=%llu dropped=%llu overruns=%llu dwell_ns=[%llu,%llu] e2e_us_p99=%.0f "
+                    "output_errors=%llu%s\n",
                     (rt::now_ns() - t0) * 1e-9, static_cast<unsigned long long>(c.frames_scanned.get()),
                     static_cast<unsigned long long>(c.sent.get()),
                     static_cast<unsigned long long>(pipe->dropped_frames()),
                     static_cast<unsigned long long>(c.overruns.get()),
                     static_cast<unsigned long long>(c.dwell_min_ns.get()),
-                    static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99));
+                    static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99),
+                    static_cast<unsigned long long>(output_write_errors()), stalled ? " STALLED" : "");
         std::fflush(stdout);
       }
     }
@@ -297,6 +399,9 @@ int sempose::cli::run(int argc, char** argv) {
   pipe->request_stop();
   pipe->join();
   sink->flush();
+  const bool csv_ok = csv ? csv->close() : true;
+  const std::uint64_t can_log_pending = candump ? candump->bytes_pending() : 0;
+  const std::uint64_t output_errors = output_write_errors();
   if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
   if (pipe->source_ended()) std::printf("the source ended\n");
   dump_histograms(hist_dir, *pipe);
@@ -351,6 +456,24 @@ int sempose::cli::run(int argc, char** argv) {
                 static_cast<unsigned long long>(sc.edges.load()), static_cast<unsigned long long>(sc.missed.load()),
                 static_cast<unsigned long long>(sc.late.load()), static_cast<unsigned long long>(sc.spurious.load()));
   }
+  std::printf(" output_errors=%llu csv_lines_lost=%llu can_log_bytes_lost=%llu commands_rejected=%llu "
+              "command_overflows=%llu source_stalls=%llu",
+              static_cast<unsigned long long>(output_errors),
+              static_cast<unsigned long long>(csv ? csv->lost_lines() : 0),
+              static_cast<unsigned long long>(can_log_pending),
+              static_cast<unsigned long long>(c.commands_rejected.get()),
+              static_cast<unsigned long long>(cc.commands_overflowed.load()), static_cast<unsigned long long>(stalls));
   std::printf("\n");
+  // Exit code: 0 only when nothing was lost. 4: an output failed to write; 5: the source stalled.
+  if (output_errors > 0 || !csv_ok || can_log_pending > 0) {
+    std::fprintf(stderr, "sempose run: output write errors (csv lines lost %llu, candump log bytes lost %llu)\n",
+                 static_cast<unsigned long long>(csv ? csv->lost_lines() : 0),
+                 static_cast<unsigned long long>(can_log_pending));
+    return 4;
+  }
+  if (stalls > 0) {
+    std::fprintf(stderr, "sempose run: the scan source stalled %llu time(s)\n", static_cast<unsigned long long>(stalls));
+    return 5;
+  }
   return 0;
 }
