@@ -154,6 +154,15 @@ int sempose::cli::run(int argc, char** argv) {
   }
   if (!parse(argc, argv, opt)) return usage(stderr);
 
+  // Signals: blocked from the very start and everywhere (threads inherit the mask), taken
+  // with sigtimedwait, so a SIGINT/SIGTERM in any phase of start-up is a clean stop.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGUSR1);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
   config::AppConfig cfg;
   std::string errors;
   if (!config::load_app_config(opt.config, cfg, errors)) {
@@ -163,13 +172,6 @@ int sempose::cli::run(int argc, char** argv) {
   const bool strict = opt.strict_rt || cfg.pipeline.strict_rt;
   const std::string hist_dir = opt.hist_dir.empty() ? cfg.output.hist_dir : opt.hist_dir;
 
-  // Signals: blocked everywhere (threads inherit the mask), taken here with sigtimedwait.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  sigaddset(&signals, SIGUSR1);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   // Output paths given on the command line get the same checks as the config's, before any
   // setup work and before any file is created or truncated.
@@ -189,6 +191,10 @@ int sempose::cli::run(int argc, char** argv) {
     }
   }
 
+  if (const int sig = pending_stop_signal(signals)) {
+    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    return 0;
+  }
   // ---- setup: everything that allocates
   rt::Status st;
   std::unique_ptr<hal::ScanSource> source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st);
@@ -210,6 +216,10 @@ int sempose::cli::run(int argc, char** argv) {
     scan = synced.get();
   }
 
+  if (const int sig = pending_stop_signal(signals)) {
+    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    return 0;
+  }
   pipeline::TrackerSetup trackers;
   st = pipeline::make_trackers(cfg, scan->limits(), trackers);
   if (!st) {
