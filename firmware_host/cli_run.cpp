@@ -29,6 +29,7 @@
 #include "sempose/hal/source_factory.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/pipeline.hpp"
+#include "sempose/pipeline/stall_watchdog.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "sempose/rt/alloc_counter.hpp"
@@ -126,15 +127,6 @@ int pending_stop_signal(const sigset_t& signals) {
     }
   }
   return 0;
-}
-
-// Longest a healthy source can take for one frame: the whole field at the slowest dwell the
-// scan generator allows, plus flyback. No frame for several of these (and at least 2 s) is a
-// stall, never a silent idle loop.
-std::int64_t stall_timeout_ns(const hal::ScanLimits& l) {
-  const double frame_ns = static_cast<double>(l.field_w) * l.field_h * l.max_dwell_ns +
-                          static_cast<double>(l.field_h) * l.line_flyback_ns;
-  return static_cast<std::int64_t>(std::clamp(3.0 * frame_ns, 2e9, 3.6e12));
 }
 
 void pin_non_rt_thread(int cpu) {
@@ -342,32 +334,25 @@ int sempose::cli::run(int argc, char** argv) {
   auto output_write_errors = [&] {
     return (csv ? csv->write_errors() : 0) + (candump ? candump->write_errors() : 0);
   };
-  const std::int64_t stall_ns = stall_timeout_ns(scan->limits());
-  std::uint64_t last_frames = 0;
-  std::int64_t last_frame_change = t0;
-  bool stalled = false;
-  std::uint64_t stalls = 0;
+  pipeline::StallWatchdog watchdog(pipeline::StallWatchdog::timeout_for(scan->limits()), t0);
   while (!pipe->finished()) {
     const std::int64_t now = rt::now_ns();
     // Stall watchdog (non-RT): frames must keep coming while running. Virtual-time sources
     // run as fast as the CPU allows, so the same wall-clock bound holds for them.
-    const std::uint64_t frames_now = c.frames_scanned.get();
-    if (frames_now != last_frames) {
-      last_frames = frames_now;
-      last_frame_change = now;
-      if (stalled) {
-        stalled = false;
+    switch (watchdog.update(c.frames_scanned.get(), now)) {
+      case pipeline::StallWatchdog::Change::kStalled:
+        pipe->set_fault(pipeline::kFaultSourceStalled, true);
+        std::printf("fault: the scan source delivered no frame for %.1f s (scan_errors=%llu); state reported LOST\n",
+                    watchdog.silent_ns(now) * 1e-9, static_cast<unsigned long long>(c.scan_errors.get()));
+        std::fflush(stdout);
+        break;
+      case pipeline::StallWatchdog::Change::kRecovered:
         pipe->set_fault(pipeline::kFaultSourceStalled, false);
         std::printf("fault cleared: the scan source delivers frames again\n");
         std::fflush(stdout);
-      }
-    } else if (!stalled && now - last_frame_change > stall_ns) {
-      stalled = true;
-      ++stalls;
-      pipe->set_fault(pipeline::kFaultSourceStalled, true);
-      std::printf("fault: the scan source delivered no frame for %.1f s (scan_errors=%llu); state reported LOST\n",
-                  (now - last_frame_change) * 1e-9, static_cast<unsigned long long>(c.scan_errors.get()));
-      std::fflush(stdout);
+        break;
+      case pipeline::StallWatchdog::Change::kNone:
+        break;
     }
     if (opt.duration_s > 0 && now - t0 >= duration_ns) break;
     const timespec wait = rt::to_timespec(std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, next_status - now)));
@@ -400,7 +385,7 @@ int sempose::cli::run(int argc, char** argv) {
                     static_cast<unsigned long long>(c.overruns.get()),
                     static_cast<unsigned long long>(c.dwell_min_ns.get()),
                     static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99),
-                    static_cast<unsigned long long>(output_write_errors()), stalled ? " STALLED" : "");
+                    static_cast<unsigned long long>(output_write_errors()), watchdog.stalled() ? " STALLED" : "");
         std::fflush(stdout);
       }
     }
@@ -472,7 +457,8 @@ int sempose::cli::run(int argc, char** argv) {
               static_cast<unsigned long long>(csv ? csv->lost_lines() : 0),
               static_cast<unsigned long long>(can_log_pending),
               static_cast<unsigned long long>(c.commands_rejected.get()),
-              static_cast<unsigned long long>(cc.commands_overflowed.load()), static_cast<unsigned long long>(stalls));
+              static_cast<unsigned long long>(cc.commands_overflowed.load()),
+              static_cast<unsigned long long>(watchdog.stalls()));
   std::printf("\n");
   // Exit code: 0 only when nothing was lost. 4: an output failed to write; 5: the source stalled.
   if (output_errors > 0 || !csv_ok || can_log_pending > 0) {
@@ -481,8 +467,9 @@ int sempose::cli::run(int argc, char** argv) {
                  static_cast<unsigned long long>(can_log_pending));
     return 4;
   }
-  if (stalls > 0) {
-    std::fprintf(stderr, "sempose run: the scan source stalled %llu time(s)\n", static_cast<unsigned long long>(stalls));
+  if (watchdog.stalls() > 0) {
+    std::fprintf(stderr, "sempose run: the scan source stalled %llu time(s)\n",
+                 static_cast<unsigned long long>(watchdog.stalls()));
     return 5;
   }
   return 0;

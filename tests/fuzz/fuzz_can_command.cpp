@@ -3,6 +3,7 @@
 // CAN pose sink exactly as from a bus; every command it hands on must be well-formed, every
 // frame is accounted for (command, bad command or someone else's frame), and the pure
 // decoder agrees with the encoder on every frame it accepts.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -30,7 +31,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     f.flags = data[pos + 2];
     f.len = data[pos + 3];
     pos += 4;
-    const std::size_t n = std::min<std::size_t>({f.len, 64, size - pos});
+    const std::size_t n = std::min<std::size_t>(std::min<std::size_t>(f.len, 64), size - pos);
     std::memcpy(f.data, data + pos, n);
     pos += n;
     // The pure decoder on its own: accepted frames re-encode to the same bytes.
