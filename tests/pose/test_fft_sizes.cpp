@@ -14,9 +14,10 @@
 #include <vector>
 
 #include "sempose/config/tracker_config.hpp"
-#include "sempose/hal/scan_source.hpp"
+#include "sempose/config/scan_config.hpp"
 #include "sempose/pose/tracker.hpp"
-#include "sempose/pose/zncc.hpp"
+#include "sempose/pose/fft_correlator.hpp"
+#include "sempose/pose/pattern_support.hpp"
 #include "sempose/rt/alloc_counter.hpp"
 
 namespace sempose::pose {
@@ -27,7 +28,7 @@ namespace {
 void check_size(int want_w, int want_h, int& padded) {
   const int p = std::min({16, want_w, want_h});
   PatternMask mask(p, false);
-  ZnccCorrelator z(want_w, want_h, mask);
+  FftCorrelator z(want_w, want_h, mask);
   ASSERT_GE(z.fft_w(), want_w);
   ASSERT_GE(z.fft_h(), want_h);
   if (z.fft_w() != want_w || z.fft_h() != want_h) ++padded;
@@ -39,7 +40,7 @@ void check_size(int want_w, int want_h, int& padded) {
   for (int y = 0; y < p; ++y)
     for (int x = 0; x < p; ++x) pat[static_cast<std::size_t>(y * p + x)] = static_cast<float>(img[static_cast<std::size_t>((uy + y) * want_w + ux + x)]);
   ASSERT_TRUE(normalize_pattern(pat.data(), mask));
-  std::vector<ZnccCorrelator::Complex> spec(z.spectrum_len());
+  std::vector<FftCorrelator::Complex> spec(z.spectrum_len());
   z.make_spectrum(pat.data(), spec.data());
   std::vector<float> out(static_cast<std::size_t>(want_w) * want_h);
   {
@@ -108,14 +109,13 @@ TEST(FftSizes, TrackerSetupAtSizesThatOnceCrashed) {
     tc.roi_size_px = c.roi;
     tc.pattern_size_px = c.pattern;
     tc.search_downsample = std::max(1, std::min(8, c.pattern / 4));
-    hal::ScanLimits limits;
+    config::ScanLimits limits;
     limits.field_w = c.field_w;
     limits.field_h = c.field_h;
     limits.max_roi_w = std::min(c.field_w, std::max(256, c.roi));
     limits.max_roi_h = std::min(c.field_h, std::max(256, c.roi));
     std::vector<PatternSet> sets(1);
     sets[0].image.width = sets[0].image.height = c.pattern;
-    sets[0].image.bits = 8;
     sets[0].image.pixels.resize(static_cast<std::size_t>(c.pattern) * c.pattern);
     for (std::size_t i = 0; i < sets[0].image.pixels.size(); ++i)
       sets[0].image.pixels[i] = static_cast<std::uint16_t>((i * 2654435761u >> 9) % 256);
