@@ -55,6 +55,10 @@ constexpr int kWhenRunning = -2;
 Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int signal_after_ms = -1, int sig = SIGTERM) {
   const std::string dir = work_dir();
   const std::string out_path = dir + "/stdout.txt", err_path = dir + "/stderr.txt";
+  // Emptied here, not only by the child: the previous run's output must not be read as this
+  // one's (kWhenRunning would signal a child that has not started yet).
+  std::ofstream(out_path, std::ios::trunc).close();
+  std::ofstream(err_path, std::ios::trunc).close();
   const auto t0 = std::chrono::steady_clock::now();
   const pid_t pid = fork();
   if (pid == 0) {
