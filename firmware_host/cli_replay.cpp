@@ -25,6 +25,7 @@
 #include "sempose/pipeline/pose_input.hpp"
 #include "sempose/config/reader.hpp"
 #include "sempose/config/tracker_config.hpp"
+#include "sempose/hal/frames_csv.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
 #include "sempose/pipeline/pose_input.hpp"
@@ -180,19 +181,17 @@ int run_replay(int argc, char** argv) {
 
   std::vector<std::int64_t> t_ns;
   const std::string frames_csv = (std::filesystem::path(frames_dir) / "frames.csv").string();
-  if (std::filesystem::exists(frames_csv)) {
-    for (const auto& r : read_numeric_csv(frames_csv)) {
-      if (r.size() >= 2) {
-        const auto idx = static_cast<std::size_t>(r[0]);
-        if (t_ns.size() <= idx) t_ns.resize(idx + 1, 0);
-        t_ns[idx] = static_cast<std::int64_t>(r[1]);
-      }
-    }
-  }
+  if (std::filesystem::exists(frames_csv)) t_ns = hal::read_frames_csv(frames_csv, names.size());
   std::map<std::pair<long, int>, Truth> truth;
   if (!truth_path.empty()) {
     for (const auto& r : read_numeric_csv(truth_path)) {
       if (r.size() < 4) throw std::runtime_error(truth_path + ": expected frame,x_px,y_px,phi_deg[,target]");
+      // A row naming no frame or target, or with a non-finite value, is not truth (and a NaN
+      // or huge value must not reach an integer conversion).
+      if (!(std::fabs(r[0]) < 1e15) || (r.size() >= 5 && !(std::fabs(r[4]) < 1e6)) || !std::isfinite(r[1]) ||
+          !std::isfinite(r[2]) || !std::isfinite(r[3])) {
+        continue;
+      }
       truth[{static_cast<long>(r[0]), r.size() >= 5 ? static_cast<int>(r[4]) : 0}] = {r[1], r[2], r[3]};
     }
   }

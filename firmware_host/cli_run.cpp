@@ -9,6 +9,7 @@
 #include <sched.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -23,10 +24,13 @@
 #include "sempose/can_output/factory.hpp"
 #include "sempose/can_output/gpio_pose_sink.hpp"
 #include "sempose/config/app_config.hpp"
+#include "sempose/config/reader.hpp"
+#include "sempose/hal/can_candump_log.hpp"
 #include "sempose/hal/gpio_synced_source.hpp"
 #include "sempose/hal/source_factory.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/pipeline.hpp"
+#include "sempose/pipeline/stall_watchdog.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "sempose/rt/alloc_counter.hpp"
@@ -39,6 +43,8 @@
 namespace {
 
 using namespace sempose;
+
+constexpr double kMaxDurationS = 10 * 365.25 * 86400;
 
 struct Options {
   std::string config;
@@ -74,8 +80,11 @@ bool parse(int argc, char** argv, Options& o) {
       if (!value(v)) return false;
       char* end = nullptr;
       o.duration_s = std::strtod(v.c_str(), &end);
-      if (end == v.c_str() || *end != '\0' || o.duration_s < 0) {
-        std::fprintf(stderr, "sempose run: --duration: '%s' is not a number of seconds >= 0\n", v.c_str());
+      // NaN would run forever and 1e10 s overflows the nanosecond deadline: a finite number
+      // of seconds up to ten years.
+      if (end == v.c_str() || *end != '\0' || !(o.duration_s >= 0 && o.duration_s <= kMaxDurationS)) {
+        std::fprintf(stderr, "sempose run: --duration: '%s' is not a number of seconds in [0, %.0f]\n", v.c_str(),
+                     kMaxDurationS);
         return false;
       }
     } else if (a == "--strict-rt") {
@@ -104,6 +113,25 @@ void dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
   if (!txt || !json) std::fprintf(stderr, "sempose run: cannot write histograms to %s\n", dir.c_str());
 }
 
+// A SIGINT/SIGTERM that arrived while setup ran (signals are blocked, so it waits): taken
+// here so a stop request during a long setup is honoured between phases, not after start.
+int pending_stop_signal(const sigset_t& signals) {
+  sigset_t pending;
+  sigemptyset(&pending);
+  if (sigpending(&pending) != 0) return 0;
+  for (int sig : {SIGINT, SIGTERM}) {
+    if (sigismember(&pending, sig) == 1 && sigismember(&signals, sig) == 1) {
+      const timespec zero{0, 0};
+      sigset_t one;
+      sigemptyset(&one);
+      sigaddset(&one, sig);
+      sigtimedwait(&one, nullptr, &zero);  // consume it
+      return sig;
+    }
+  }
+  return 0;
+}
+
 void pin_non_rt_thread(int cpu) {
   if (cpu < 0) return;
   cpu_set_t set;
@@ -120,6 +148,15 @@ int sempose::cli::run(int argc, char** argv) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) return usage(stdout);
   }
   if (!parse(argc, argv, opt)) return usage(stderr);
+
+  // Signals: blocked from the very start and everywhere (threads inherit the mask), taken
+  // with sigtimedwait, so a SIGINT/SIGTERM in any phase of start-up is a clean stop.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGUSR1);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   config::AppConfig cfg;
   std::string errors;
@@ -138,24 +175,29 @@ int sempose::cli::run(int argc, char** argv) {
   }
   const std::string hist_dir = opt.hist_dir.empty() ? cfg.output.hist_dir : opt.hist_dir;
 
-  // Signals: blocked everywhere (threads inherit the mask), taken here with sigtimedwait.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  sigaddset(&signals, SIGUSR1);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  // Output files may name folders that do not exist yet (out/demo/...): make them, so a run
-  // never fails after its setup work for want of a directory.
-  for (const std::string& file : {cfg.output.poses_csv, opt.can_log.empty() && cfg.can.interface.empty()
-                                                          ? cfg.can.log_file
-                                                          : opt.can_log}) {
-    const auto parent = std::filesystem::path(file).parent_path();
-    std::error_code ec;
-    if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
+  // Output paths given on the command line get the same checks as the config's, before any
+  // setup work and before any file is created or truncated.
+  {
+    std::string bad;
+    if (!opt.can_log.empty()) {
+      if (const std::string why = config::output_path_problem(opt.can_log); !why.empty())
+        bad += "  --can-log: '" + opt.can_log + "' cannot be written: it is " + why + "\n";
+    }
+    if (!opt.hist_dir.empty()) {
+      if (const std::string why = config::output_dir_problem(opt.hist_dir); !why.empty())
+        bad += "  --hist-dir: '" + opt.hist_dir + "' cannot hold histograms: it is " + why + "\n";
+    }
+    if (!bad.empty()) {
+      std::fprintf(stderr, "sempose run: invalid output:\n%s", bad.c_str());
+      return 2;
+    }
   }
 
+  if (const int sig = pending_stop_signal(signals)) {
+    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    return 0;
+  }
   // ---- setup: everything that allocates
   rt::Status st;
   std::unique_ptr<hal::ScanSource> source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st);
@@ -177,11 +219,31 @@ int sempose::cli::run(int argc, char** argv) {
     scan = synced.get();
   }
 
+  if (const int sig = pending_stop_signal(signals)) {
+    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    return 0;
+  }
   pipeline::TrackerSetup trackers;
   st = pipeline::make_trackers(cfg, scan->limits(), trackers);
   if (!st) {
     std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
     return 2;
+  }
+
+  // Setup is done up to the outputs: a SIGINT/SIGTERM that came meanwhile stops here, before
+  // any output file is created or truncated.
+  if (const int sig = pending_stop_signal(signals)) {
+    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    return 0;
+  }
+  // Output files may name folders that do not exist yet (out/demo/...): make them now, after
+  // every check and the setup work, so a refused run leaves nothing behind.
+  for (const std::string& file : {cfg.output.poses_csv, opt.can_log.empty() && cfg.can.interface.empty()
+                                                          ? cfg.can.log_file
+                                                          : opt.can_log}) {
+    const auto parent = std::filesystem::path(file).parent_path();
+    std::error_code ec;
+    if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
   }
 
   can_output::CanOutput can;
@@ -257,6 +319,10 @@ int sempose::cli::run(int argc, char** argv) {
     }
     if (!st.message.empty()) std::printf("warning: %s\n", st.message.c_str());
   }
+  if (const int sig = pending_stop_signal(signals)) {
+    std::printf("stopped by %s during setup\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    return 0;
+  }
   // rt_allocs: heap calls on armed (RT) threads from here on; setup may allocate freely.
   const std::uint64_t allocs_at_start = rt::alloc::allocations();
   st = pipe->start(strict);
@@ -284,13 +350,36 @@ int sempose::cli::run(int argc, char** argv) {
 
   // ---- non-RT loop: signals, periodic flush and status
   const std::int64_t t0 = rt::now_ns();
+  const auto duration_ns = static_cast<std::int64_t>(opt.duration_s * 1e9);  // <= 3.2e17: no overflow
   const std::int64_t period_ns = static_cast<std::int64_t>(cfg.pipeline.stats_period_ms) * rt::kNsPerMs;
   std::int64_t next_status = t0 + period_ns;
   const auto& c = pipe->counters();
   int stop_signal = 0;
+  auto* candump = dynamic_cast<hal::CandumpLogChannel*>(can.channel.get());
+  auto output_write_errors = [&] {
+    return (csv ? csv->write_errors() : 0) + (candump ? candump->write_errors() : 0);
+  };
+  pipeline::StallWatchdog source_watchdog(pipeline::StallWatchdog::timeout_for(scan->limits()), t0);
   while (!pipe->finished()) {
     const std::int64_t now = rt::now_ns();
-    if (opt.duration_s > 0 && now - t0 >= static_cast<std::int64_t>(opt.duration_s * 1e9)) break;
+    // Stall watchdog (non-RT): frames must keep coming while running. Virtual-time sources
+    // run as fast as the CPU allows, so the same wall-clock bound holds for them.
+    switch (source_watchdog.update(c.frames_scanned.get(), now)) {
+      case pipeline::StallWatchdog::Change::kStalled:
+        pipe->set_fault(pipeline::kFaultSourceStalled, true);
+        std::printf("fault: the scan source delivered no frame for %.1f s (scan_errors=%llu); state reported LOST\n",
+                    source_watchdog.silent_ns(now) * 1e-9, static_cast<unsigned long long>(c.scan_errors.get()));
+        std::fflush(stdout);
+        break;
+      case pipeline::StallWatchdog::Change::kRecovered:
+        pipe->set_fault(pipeline::kFaultSourceStalled, false);
+        std::printf("fault cleared: the scan source delivers frames again\n");
+        std::fflush(stdout);
+        break;
+      case pipeline::StallWatchdog::Change::kNone:
+        break;
+    }
+    if (opt.duration_s > 0 && now - t0 >= duration_ns) break;
     const std::int64_t until = std::min(next_status, watchdog.next_due_ns());
     const timespec wait = rt::to_timespec(std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, until - now)));
     const int sig = sigtimedwait(&signals, nullptr, &wait);
@@ -307,15 +396,23 @@ int sempose::cli::run(int argc, char** argv) {
       next_status += period_ns;
       if (csv) csv->write_pending();
       if (can.sink) can.sink->flush();
+      if (output_write_errors() > 0 && !(pipe->faults() & pipeline::kFaultOutputWrite)) {
+        pipe->set_fault(pipeline::kFaultOutputWrite, true);
+        std::printf("fault: writing an output file failed (%s)\n",
+                    std::strerror(csv && csv->last_errno() ? csv->last_errno() : candump ? candump->last_errno() : 0));
+        std::fflush(stdout);
+      }
       if (cfg.output.print_status) {
         const auto e2e = pipe->histograms().end_to_end.snapshot();
-        std::printf("t=%.1fs frames=%llu poses=%llu dropped=%llu overruns=%llu dwell_ns=[%llu,%llu] e2e_us_p99=%.0f\n",
+        std::printf("t=%.1fs frames=%llu poses=%llu dropped=%llu overruns=%llu dwell_ns=[%llu,%llu] e2e_us_p99=%.0f "
+                    "output_errors=%llu%s\n",
                     (rt::now_ns() - t0) * 1e-9, static_cast<unsigned long long>(c.frames_scanned.get()),
                     static_cast<unsigned long long>(c.sent.get()),
                     static_cast<unsigned long long>(pipe->dropped_frames()),
                     static_cast<unsigned long long>(c.overruns.get()),
                     static_cast<unsigned long long>(c.dwell_min_ns.get()),
-                    static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99));
+                    static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99),
+                    static_cast<unsigned long long>(output_write_errors()), source_watchdog.stalled() ? " STALLED" : "");
         std::fflush(stdout);
       }
     }
@@ -333,10 +430,13 @@ int sempose::cli::run(int argc, char** argv) {
     std::printf("sempose run: the stages did not drain within service.stop_timeout_ms=%u ms; exiting without them\n",
                 cfg.service.stop_timeout_ms);
     std::fflush(stdout);
-    std::_Exit(4);  // joining would wait for the stuck stage forever
+    std::_Exit(6);  // joining would wait for the stuck stage forever
   }
   pipe->join();
   sink->flush();
+  const bool csv_ok = csv ? csv->close() : true;
+  const std::uint64_t can_log_pending = candump ? candump->bytes_pending() : 0;
+  const std::uint64_t output_errors = output_write_errors();
   if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
   if (pipe->source_ended()) std::printf("the source ended\n");
   dump_histograms(hist_dir, *pipe);
@@ -391,6 +491,27 @@ int sempose::cli::run(int argc, char** argv) {
                 static_cast<unsigned long long>(sc.edges.load()), static_cast<unsigned long long>(sc.missed.load()),
                 static_cast<unsigned long long>(sc.late.load()), static_cast<unsigned long long>(sc.spurious.load()));
   }
+  std::printf(" output_errors=%llu csv_lines_lost=%llu can_log_bytes_lost=%llu commands_rejected=%llu "
+              "command_overflows=%llu source_stalls=%llu",
+              static_cast<unsigned long long>(output_errors),
+              static_cast<unsigned long long>(csv ? csv->lost_lines() : 0),
+              static_cast<unsigned long long>(can_log_pending),
+              static_cast<unsigned long long>(c.commands_rejected.get()),
+              static_cast<unsigned long long>(cc.commands_overflowed.load()),
+              static_cast<unsigned long long>(source_watchdog.stalls()));
   std::printf("\n");
+  // Exit code: 0 only when nothing was lost. 4: an output failed to write; 5: the source stalled;
+  // 6 (above): the stages did not drain within service.stop_timeout_ms.
+  if (output_errors > 0 || !csv_ok || can_log_pending > 0) {
+    std::fprintf(stderr, "sempose run: output write errors (csv lines lost %llu, candump log bytes lost %llu)\n",
+                 static_cast<unsigned long long>(csv ? csv->lost_lines() : 0),
+                 static_cast<unsigned long long>(can_log_pending));
+    return 4;
+  }
+  if (source_watchdog.stalls() > 0) {
+    std::fprintf(stderr, "sempose run: the scan source stalled %llu time(s)\n",
+                 static_cast<unsigned long long>(source_watchdog.stalls()));
+    return 5;
+  }
   return 0;
 }

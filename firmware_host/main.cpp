@@ -1,6 +1,8 @@
 // sempose: hard-real-time vision controller for robotic nanohandling in an SEM.
 #include <cstdio>
 #include <cstring>
+#include <exception>
+#include <new>
 
 #include "cli.hpp"
 
@@ -33,7 +35,19 @@ int main(int argc, char** argv) {
   if (argc < 2) return usage(stderr);
   if (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) return usage(stdout);
   for (const auto& c : kCommands) {
-    if (std::strcmp(argv[1], c.name) == 0) return c.fn(argc - 1, argv + 1);
+    if (std::strcmp(argv[1], c.name) != 0) continue;
+    // Every command handles its own expected errors; anything that still escapes (a library
+    // throwing where nobody expected it) becomes a named error and exit 2, never an abort.
+    try {
+      return c.fn(argc - 1, argv + 1);
+    } catch (const std::bad_alloc&) {
+      std::fprintf(stderr, "sempose %s: error: out of memory during setup\n", c.name);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "sempose %s: error: %s\n", c.name, e.what());
+    } catch (...) {
+      std::fprintf(stderr, "sempose %s: error: unexpected failure (unknown exception)\n", c.name);
+    }
+    return 2;
   }
   std::fprintf(stderr, "sempose: unknown command '%s'\n", argv[1]);
   return usage(stderr);

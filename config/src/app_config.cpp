@@ -1,5 +1,7 @@
 #include "sempose/config/app_config.hpp"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <memory>
 #include <string>
@@ -10,12 +12,74 @@
 namespace sempose::config {
 namespace {
 
+constexpr int kMaxTrackedTargets = 4;  // hal::kMaxTargets (config does not depend on hal)
+
 // Checks that need more than one section (run after every section is read).
 void cross_check(Section& root, const AppConfig& c) {
   if (c.source == "replay" && c.replay.frames_dir.empty()) {
     root.errors().add(root.mark(), "replay.frames_dir", "required when source is replay");
   }
-  const int targets = static_cast<int>(c.targets.size());
+  // The simulator's own enabled targets are tracked when no targets: list is given.
+  int targets = static_cast<int>(c.targets.size());
+  if (targets == 0 && c.source == "sim") {
+    targets = static_cast<int>(std::count_if(c.sim.targets.begin(), c.sim.targets.end(),
+                                             [](const SimTargetConfig& t) { return t.enabled; }));
+  }
+  if (targets > kMaxTrackedTargets) {
+    root.errors().add(root.mark(), c.targets.empty() ? "sim.targets" : "targets",
+                      std::to_string(targets) + " targets; at most " + std::to_string(kMaxTrackedTargets) +
+                          " can be tracked");
+  }
+  // A tracking ROI the scan generator refuses would stall after the first pose: the ROI
+  // (clamped to the field, as the tracker does) must fit scan.max_roi_w/h unless it is the
+  // whole field, which is always allowed.
+  const int roi_w = std::min(c.tracker.roi_size_px, c.scan.field_w);
+  const int roi_h = std::min(c.tracker.roi_size_px, c.scan.field_h);
+  const bool whole_field = roi_w == c.scan.field_w && roi_h == c.scan.field_h;
+  if (c.source == "sim" && !whole_field && (roi_w > c.scan.max_roi_w || roi_h > c.scan.max_roi_h)) {
+    root.errors().add(root.mark(), "tracker.roi_size_px",
+                      std::to_string(c.tracker.roi_size_px) + " gives a " + std::to_string(roi_w) + "x" +
+                          std::to_string(roi_h) + " ROI, larger than scan.max_roi_w/h " +
+                          std::to_string(c.scan.max_roi_w) + "x" + std::to_string(c.scan.max_roi_h) +
+                          " (allowed: at most the scan limits, or the whole field)");
+  }
+  // Files: checked for their kind before anything opens them (a directory reads as empty, a
+  // FIFO blocks in open(), a device never ends), so a wrong path is a message, not a hang.
+  for (std::size_t i = 0; i < c.targets.size(); ++i) {
+    for (std::size_t j = 0; j < c.targets[i].pattern_sets.size(); ++j) {
+      const auto& ps = c.targets[i].pattern_sets[j];
+      const std::string key = "targets[" + std::to_string(i) + "].pattern_sets[" + std::to_string(j) + "].";
+      if (const std::string why = path_kind_problem(ps.file); !ps.file.empty() && !why.empty()) {
+        root.errors().add(root.mark(), key + "file", "'" + ps.file + "' is " + why + " (need a PGM file)");
+      }
+      if (const std::string why = path_kind_problem(ps.mask); !ps.mask.empty() && !why.empty()) {
+        root.errors().add(root.mark(), key + "mask", "'" + ps.mask + "' is " + why + " (need a PGM file)");
+      }
+    }
+  }
+  if (c.source == "replay" && !c.replay.frames_dir.empty()) {
+    struct stat st {};
+    if (::stat(c.replay.frames_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+      const std::string why = path_kind_problem(c.replay.frames_dir);
+      root.errors().add(root.mark(), "replay.frames_dir",
+                        "'" + c.replay.frames_dir + "' is " + (why.empty() ? std::string("a file") : why) +
+                            " (need a directory of PGM frames)");
+    }
+  }
+  if (const std::string why = output_path_problem(c.output.poses_csv); !c.output.poses_csv.empty() && !why.empty()) {
+    root.errors().add(root.mark(), "output.poses_csv", "'" + c.output.poses_csv + "' cannot be written: it is " + why);
+  }
+  if (const std::string why = output_path_problem(c.can.log_file);
+      c.can.interface.empty() && !c.can.log_file.empty() && !why.empty()) {
+    root.errors().add(root.mark(), "can.log_file", "'" + c.can.log_file + "' cannot be written: it is " + why);
+  }
+  if (const std::string why = output_dir_problem(c.output.hist_dir); !c.output.hist_dir.empty() && !why.empty()) {
+    root.errors().add(root.mark(), "output.hist_dir", "'" + c.output.hist_dir + "' cannot hold histograms: it is " + why);
+  }
+  if (c.pipeline.schedule.size() > 16) {  // Pipeline::kMaxSchedule
+    root.errors().add(root.mark(), "pipeline.schedule",
+                      std::to_string(c.pipeline.schedule.size()) + " entries; at most 16 are allowed");
+  }
   for (int t : c.pipeline.schedule) {
     if (t >= targets) {
       root.errors().add(root.mark(), "pipeline.schedule",
@@ -66,45 +130,77 @@ void resolve_sim_data(Section& root, const std::string& config_path, AppConfig& 
 
 }  // namespace
 
+namespace {
+bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, AppConfig& result,
+                     std::string& error_text);
+}  // namespace
+
+std::vector<KeyInfo> config_keys(const std::string& text) {
+  Errors errors("(catalog)");
+  AppConfig out;
+  std::string ignored;
+  read_app_config("(catalog)", load_text(text, errors), errors, out, ignored);
+  return errors.keys();
+}
+
 bool load_app_config(const std::string& path, AppConfig& result, std::string& error_text) {
+  Errors errors(path);
+  YAML::Node node = load_file(path, errors);
+  return read_app_config(path, node, errors, result, error_text);
+}
+
+bool parse_app_config(const std::string& text, const std::string& path, AppConfig& result, std::string& error_text) {
+  Errors errors(path);
+  YAML::Node node = load_text(text, errors);
+  return read_app_config(path, node, errors, result, error_text);
+}
+
+namespace {
+bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, AppConfig& result,
+                     std::string& error_text) {
   // Read into a fresh struct (defaults), hand it over at the end.
   auto fresh = std::make_unique<AppConfig>();
   AppConfig& out = *fresh;
   out.path = path;
-  Errors errors(path);
-  YAML::Node node = load_file(path, errors);
   if (!errors.empty()) {
     error_text = errors.joined();
     result = std::move(out);
     return false;
   }
-  {
-    Section root(node, "", errors);
-    root.opt_choice("source", out.source, {"sim", "replay"});
-    read_section(root, "scan", read_scan, out.scan);
-    read_section(root, "sim", read_sim, out.sim);
-    read_section(root, "replay", read_replay, out.replay);
-    read_targets(root, out.targets);
-    for (auto& t : out.targets) {
-      for (auto& p : t.pattern_sets) {
-        p.file = resolve(path, p.file);
-        p.mask = resolve(path, p.mask);
+  // yaml-cpp may still throw on shapes nobody expected (a conversion of an odd node): that
+  // is a message about the file too, never an escaping exception.
+  try {
+    {
+      Section root(node, "", errors);
+      root.opt_choice("source", out.source, {"sim", "replay"});
+      read_section(root, "scan", read_scan, out.scan);
+      read_section(root, "sim", read_sim, out.sim);
+      read_section(root, "replay", read_replay, out.replay);
+      read_targets(root, out.targets);
+      for (auto& t : out.targets) {
+        for (auto& p : t.pattern_sets) {
+          p.file = resolve(path, p.file);
+          p.mask = resolve(path, p.mask);
+        }
       }
-    }
-    read_section(root, "tracker", read_tracker, out.tracker);
-    read_section(root, "governor", read_governor, out.governor);
-    read_section(root, "pipeline", read_pipeline, out.pipeline);
-    read_section(root, "output", read_output, out.output);
-    read_section(root, "can", read_can, out.can);
-    read_section(root, "gpio", read_gpio, out.gpio);
-    read_section(root, "service", read_service, out.service);
-    check_service_against_scan(root, out.service, out.scan, out.governor.initial_dwell_ns);
-    cross_check(root, out);
-    resolve_sim_data(root, path, out);
-  }  // root's destructor reports unknown top-level sections
+      read_section(root, "tracker", read_tracker, out.tracker);
+      read_section(root, "governor", read_governor, out.governor);
+      read_section(root, "pipeline", read_pipeline, out.pipeline);
+      read_section(root, "output", read_output, out.output);
+      read_section(root, "can", read_can, out.can);
+      read_section(root, "gpio", read_gpio, out.gpio);
+      read_section(root, "service", read_service, out.service);
+      check_service_against_scan(root, out.service, out.scan, out.governor.initial_dwell_ns);
+      cross_check(root, out);
+      resolve_sim_data(root, path, out);
+    }  // root's destructor reports unknown top-level sections
+  } catch (const std::exception& e) {
+    errors.add(std::string("cannot be read: ") + e.what());
+  }
   error_text = errors.joined();
   result = std::move(out);
   return errors.empty();
 }
+}  // namespace
 
 }  // namespace sempose::config

@@ -1,6 +1,13 @@
 #include "sempose/config/reader.hpp"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
 #include <cstdio>
 #include <limits>
 
@@ -89,8 +96,22 @@ void Section::finish() {
   if (finished_) return;
   finished_ = true;
   if (!present()) return;
+  // yaml-cpp keeps duplicate keys and lookups return the first: a second value would be
+  // silently ignored, so a repeated key is an error naming both lines.
+  std::map<std::string, YAML::Mark> seen;
   for (const auto& kv : node_) {
-    const std::string k = kv.first.as<std::string>();
+    if (!kv.first.IsScalar()) {
+      errors_->add(kv.first.Mark(), path_.empty() ? "(top level)" : path_,
+                   "a key must be a plain name, not a list or mapping");
+      continue;
+    }
+    const std::string k = kv.first.Scalar();
+    const auto [it, fresh] = seen.emplace(k, kv.first.Mark());
+    if (!fresh) {
+      errors_->add(kv.first.Mark(), key_path(k.c_str()),
+                   "duplicate key (first given on line " + std::to_string(it->second.line + 1) + ")");
+      continue;
+    }
     if (read_.count(k) == 0) {
       std::string known;
       for (const auto& r : read_) known += (known.empty() ? "" : ", ") + r;
@@ -100,20 +121,111 @@ void Section::finish() {
   }
 }
 
-YAML::Node load_file(const std::string& path, Errors& errors) {
-  try {
-    YAML::Node root = YAML::LoadFile(path);
-    if (!root.IsMap()) {
-      errors.add("the top level must be a mapping of sections (sim:, tracker:, ...)");
-      return {};
+std::string path_kind_problem(const std::string& path) {
+  struct stat st {};
+  if (path.empty()) return "an empty path";
+  if (::stat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) {
+      const auto slash = path.rfind('/');
+      struct stat dir {};
+      if (slash != std::string::npos && slash > 0 && ::stat(path.substr(0, slash).c_str(), &dir) != 0) {
+        return "in a missing folder";
+      }
+      return "missing";
     }
-    return root;
-  } catch (const YAML::BadFile&) {
-    errors.add("cannot open the file (missing or unreadable)");
+    return std::string("not accessible (") + std::strerror(errno) + ")";
+  }
+  if (S_ISREG(st.st_mode)) return "";
+  if (S_ISDIR(st.st_mode)) return "a directory, not a file";
+  if (S_ISFIFO(st.st_mode)) return "a FIFO, not a regular file";
+  if (S_ISCHR(st.st_mode)) return "a character device, not a regular file";
+  if (S_ISBLK(st.st_mode)) return "a block device, not a regular file";
+  if (S_ISSOCK(st.st_mode)) return "a socket, not a regular file";
+  return "not a regular file";
+}
+
+std::string output_path_problem(const std::string& path) {
+  if (path.empty()) return "an empty path";
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {
+    if (S_ISREG(st.st_mode) || S_ISCHR(st.st_mode)) {
+      return ::access(path.c_str(), W_OK) == 0 ? "" : "not writable";
+    }
+    return path_kind_problem(path);  // directory, FIFO (would block in open), socket, ...
+  }
+  if (errno != ENOENT) return std::string("not accessible (") + std::strerror(errno) + ")";
+  // A missing file: its folder must exist (or be creatable: sempose makes missing folders).
+  std::string dir = path.substr(0, path.rfind('/') == std::string::npos ? 0 : path.rfind('/'));
+  while (!dir.empty()) {
+    struct stat d {};
+    if (::stat(dir.c_str(), &d) == 0) {
+      if (!S_ISDIR(d.st_mode)) return "below '" + dir + "', which is not a directory";
+      return ::access(dir.c_str(), W_OK | X_OK) == 0 ? "" : "in folder '" + dir + "', which is not writable";
+    }
+    const auto slash = dir.rfind('/');
+    dir = slash == std::string::npos ? std::string() : dir.substr(0, slash);
+  }
+  return "";
+}
+
+std::string output_dir_problem(const std::string& path) {
+  if (path.empty()) return "an empty path";
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {
+    if (S_ISREG(st.st_mode)) return "a regular file, not a directory";
+    if (!S_ISDIR(st.st_mode)) return path_kind_problem(path);
+    return ::access(path.c_str(), W_OK | X_OK) == 0 ? "" : "a directory that is not writable";
+  }
+  // Missing: it is created, so the nearest existing ancestor must be a writable directory.
+  return output_path_problem(path + "/x");
+}
+
+namespace {
+YAML::Node checked_root(YAML::Node root, Errors& errors) {
+  if (!root.IsMap()) {
+    errors.add("the top level must be a mapping of sections (sim:, tracker:, ...)");
+    return {};
+  }
+  return root;
+}
+}  // namespace
+
+YAML::Node load_text(const std::string& text, Errors& errors) {
+  try {
+    return checked_root(YAML::Load(text), errors);
   } catch (const YAML::Exception& e) {
     errors.add(e.mark, "(syntax)", e.msg);
+  } catch (const std::exception& e) {
+    errors.add(std::string("cannot be read as YAML: ") + e.what());
   }
   return {};
+}
+
+YAML::Node load_file(const std::string& path, Errors& errors) {
+  const std::string kind = path_kind_problem(path);
+  if (!kind.empty()) {
+    errors.add("cannot read the config: it is " + kind);
+    return {};
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    errors.add(std::string("cannot open the config (") + std::strerror(errno) + ")");
+    return {};
+  }
+  std::string text;
+  char buf[65536];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    text.append(buf, static_cast<std::size_t>(in.gcount()));
+    if (static_cast<long long>(text.size()) > kMaxConfigBytes) {
+      errors.add("the config is larger than " + std::to_string(kMaxConfigBytes >> 20) + " MiB");
+      return {};
+    }
+  }
+  if (in.bad()) {
+    errors.add("read error");
+    return {};
+  }
+  return load_text(text, errors);
 }
 
 }  // namespace sempose::config

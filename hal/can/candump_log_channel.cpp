@@ -122,7 +122,12 @@ void CandumpLogChannel::flush() {
     const ssize_t w = ::write(file_, pending.data(), pending.size());
     if (w < 0) {
       if (errno == EINTR) continue;
-      break;  // disk full etc.: keep the data; the ring fills and send() counts drops
+      // Disk full, I/O error: counted and reported (summary, heartbeat, exit code). The data
+      // stays in the ring for the next flush (the error may pass); once the ring is full,
+      // send() counts every frame it cannot keep as dropped.
+      write_errors_.fetch_add(1, std::memory_order_relaxed);
+      last_errno_.store(errno, std::memory_order_relaxed);
+      break;
     }
     ring_.consume(static_cast<std::size_t>(w));
     written_.fetch_add(static_cast<std::uint64_t>(w), std::memory_order_relaxed);

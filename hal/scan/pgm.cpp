@@ -1,6 +1,10 @@
 #include "sempose/hal/pgm.hpp"
 
+#include <sys/stat.h>
+
 #include <cctype>
+#include <cerrno>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
@@ -70,13 +74,40 @@ std::string parse(const std::vector<unsigned char>& d, Image& out) {
 
 }  // namespace
 
+bool parse_pgm(const std::vector<unsigned char>& data, Image& out, std::string& error) {
+  error = parse(data, out);
+  return error.empty();
+}
+
 bool try_read_pgm(const std::string& path, Image& out, std::string& error) {
+  // Only a regular file is read: a directory "opens" and reads as empty, a FIFO blocks in
+  // open() until a writer comes, a character device such as /dev/zero never ends.
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    error = path + ": cannot open (" + std::strerror(errno) + ")";
+    return false;
+  }
+  if (!S_ISREG(st.st_mode)) {
+    error = path + ": not a regular file (" +
+            (S_ISDIR(st.st_mode) ? "a directory" : S_ISFIFO(st.st_mode) ? "a FIFO" : S_ISCHR(st.st_mode) ? "a character device" : S_ISBLK(st.st_mode) ? "a block device" : "a socket or other special file") +
+            ")";
+    return false;
+  }
+  // The largest valid PGM: 16384² 16-bit samples plus a header with comments.
+  constexpr long long kMaxBytes = 2ll * kPgmMaxSide * kPgmMaxSide + (1 << 20);
+  if (st.st_size > kMaxBytes) {
+    error = path + ": " + std::to_string(st.st_size) + " bytes is larger than any PGM of at most " +
+            std::to_string(kPgmMaxSide) + " px per side";
+    return false;
+  }
   std::ifstream f(path, std::ios::binary);
   if (!f) {
     error = path + ": cannot open (missing or unreadable)";
     return false;
   }
-  std::vector<unsigned char> data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  std::vector<unsigned char> data(static_cast<std::size_t>(st.st_size));
+  f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(data.size()));
+  data.resize(static_cast<std::size_t>(f.gcount()));
   if (f.bad()) {
     error = path + ": read error";
     return false;

@@ -3,12 +3,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 
+#include "sempose/hal/frames_csv.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/scan_request_check.hpp"
 #include "sempose/rt/clock.hpp"
@@ -89,29 +91,19 @@ ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig&
   limits_.bits = frames_[0].bits;
 
   const fs::path csv = fs::path(cfg.frames_dir) / "frames.csv";
-  if (fs::exists(csv)) {
-    t_ns_.assign(frames_.size(), 0);
-    std::vector<bool> seen(frames_.size(), false);
-    for (const auto& row : read_csv(csv.string(), 2)) {
-      const auto i = static_cast<long long>(row[0]);
-      if (i < 0 || static_cast<std::size_t>(i) >= frames_.size()) {
-        throw std::runtime_error(csv.string() + ": frame " + std::to_string(i) + " has no PGM (" +
-                                 std::to_string(frames_.size()) + " frames)");
-      }
-      t_ns_[static_cast<std::size_t>(i)] = static_cast<std::int64_t>(row[1]);
-      seen[static_cast<std::size_t>(i)] = true;
-    }
-    if (std::find(seen.begin(), seen.end(), false) != seen.end()) {
-      throw std::runtime_error(csv.string() + ": some frames have no t_ns line");
-    }
-  }
+  std::error_code ec;
+  if (fs::exists(csv, ec)) t_ns_ = read_frames_csv(csv.string(), frames_.size());
   const fs::path gt = fs::path(cfg.frames_dir) / "ground_truth.csv";
   if (fs::exists(gt)) {
     truth_.assign(frames_.size(), {});
     for (const auto& row : read_csv(gt.string(), 4)) {
+      // Rows that name no frame or target here, or carry a non-finite value, are not truth.
+      if (!(row[0] >= 0 && row[0] < static_cast<double>(frames_.size())) || (row.size() >= 5 && !(row[4] >= 0 && row[4] < kMaxTargets)) ||
+          !std::isfinite(row[1]) || !std::isfinite(row[2]) || !std::isfinite(row[3])) {
+        continue;
+      }
       const auto i = static_cast<long long>(row[0]);
       const auto target = row.size() >= 5 ? static_cast<int>(row[4]) : 0;
-      if (i < 0 || static_cast<std::size_t>(i) >= frames_.size() || target < 0 || target >= kMaxTargets) continue;
       truth_[static_cast<std::size_t>(i)][static_cast<std::size_t>(target)] = {row[1], row[2], row[3], true};
       truth_count_ = static_cast<std::uint8_t>(std::max<int>(truth_count_, target + 1));
     }

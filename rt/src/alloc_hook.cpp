@@ -33,11 +33,9 @@ bool this_thread_armed() noexcept { return t_armed; }
 std::uint64_t allocations() noexcept { return g_allocs.load(std::memory_order_relaxed); }
 std::uint64_t frees() noexcept { return g_frees.load(std::memory_order_relaxed); }
 std::uint64_t this_thread_allocations() noexcept { return t_allocs; }
-#ifdef SEMPOSE_SANITIZED
-bool counts_malloc() noexcept { return false; }
-#else
+// Normal builds replace the malloc family, sanitizer builds hook the sanitizer's allocator:
+// raw malloc is counted in both.
 bool counts_malloc() noexcept { return true; }
-#endif
 }  // namespace sempose::rt::alloc
 
 #ifndef SEMPOSE_SANITIZED
@@ -94,40 +92,16 @@ void* pvalloc(std::size_t n) {
 }
 }  // extern "C"
 #else
-// Sanitizer builds: count at operator new/delete, which then use the sanitizer's malloc.
+// Sanitizer builds: the sanitizer owns malloc, so the family cannot be replaced. Its allocator
+// calls hooks on every allocation and free instead — malloc, calloc, realloc, the aligned forms
+// and operator new alike — so FFTW's own fftwf_malloc and any raw malloc are counted here too
+// (counting only operator new let a plan that mallocs inside fftwf_execute pass as clean).
+extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*, std::size_t),
+                                                         void (*free_hook)(const volatile void*));
 namespace {
-void* counted_new(std::size_t n) {
-  count_alloc();
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void* counted_new_aligned(std::size_t n, std::align_val_t a) {
-  count_alloc();
-  const auto align = static_cast<std::size_t>(a);
-  if (void* p = std::aligned_alloc(align, (n + align - 1) / align * align)) return p;
-  throw std::bad_alloc();
-}
-void counted_delete(void* p) noexcept {
-  count_free(p);
-  std::free(p);
-}
+void on_sanitizer_malloc(const volatile void*, std::size_t) { count_alloc(); }
+void on_sanitizer_free(const volatile void* p) { count_free(const_cast<const void*>(p)); }
+// Installed before main(); static initialisation of this object runs before any armed thread.
+const int g_hooks_installed = __sanitizer_install_malloc_and_free_hooks(on_sanitizer_malloc, on_sanitizer_free);
 }  // namespace
-void* operator new(std::size_t n) { return counted_new(n); }
-void* operator new[](std::size_t n) { return counted_new(n); }
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  try { return counted_new(n); } catch (...) { return nullptr; }
-}
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
-  try { return counted_new(n); } catch (...) { return nullptr; }
-}
-void* operator new(std::size_t n, std::align_val_t a) { return counted_new_aligned(n, a); }
-void* operator new[](std::size_t n, std::align_val_t a) { return counted_new_aligned(n, a); }
-void operator delete(void* p) noexcept { counted_delete(p); }
-void operator delete[](void* p) noexcept { counted_delete(p); }
-void operator delete(void* p, std::size_t) noexcept { counted_delete(p); }
-void operator delete[](void* p, std::size_t) noexcept { counted_delete(p); }
-void operator delete(void* p, std::align_val_t) noexcept { counted_delete(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { counted_delete(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { counted_delete(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { counted_delete(p); }
 #endif

@@ -158,10 +158,20 @@ TEST(CanPoseSink, ValidCommandsAreHandedOutInOrder) {
   EXPECT_FALSE(sink.next_command(c));
   EXPECT_EQ(sink.counters().commands_accepted.load(), 3u);
   EXPECT_EQ(sink.counters().last_command_seq.load(), 12);
-  // The heartbeat echoes the last accepted command's sequence number.
+  // Received is not applied: the heartbeat echoes only what the pipeline reports as taken
+  // effect, never a seq the sink merely decoded.
   ipc::Heartbeat h;
   ipc::decode_heartbeat(ch.sent(0).data, 8, h);
+  EXPECT_EQ(h.last_command_seq, 0);
+  EXPECT_EQ(c.seq, 12);
+  pl::PipelineStatus applied;
+  applied.last_command_seq = 12;
+  applied.commands_rejected = 2;
+  sink.service(applied, 1'000'000'000);  // past the heartbeat period
+  ASSERT_GE(ch.sent_count(), 2u);
+  ipc::decode_heartbeat(ch.sent(ch.sent_count() - 1).data, 8, h);
   EXPECT_EQ(h.last_command_seq, 12);
+  EXPECT_EQ(h.bad_commands, 2) << "refused commands are reported with the malformed ones";
 }
 
 TEST(CanPoseSink, BadCommandsAreCountedAndNeverActedOn) {
@@ -175,16 +185,22 @@ TEST(CanPoseSink, BadCommandsAreCountedAndNeverActedOn) {
   rtr.flags = hal::CanFrame::kRemote;
   rtr.len = 8;
   ch.inject(rtr);                                              // remote frame
+  auto ext = command(0x150, {2, 6, 0, 0, 0, 0, 0, 0});
+  ext.flags = hal::CanFrame::kExtended;
+  ch.inject(ext);                                              // extended frame on the command id
+  auto fd = command(0x150, {2, 7, 0, 0, 0, 0, 0, 0});
+  fd.flags = hal::CanFrame::kFd;
+  ch.inject(fd);                                               // FD frame on the command id
   ch.inject(command(0x7FF, {2, 5, 0, 0, 0, 0, 0, 0}));         // someone else's id: ignored, not bad
   sink.service({}, 0);
   pl::Command c;
   EXPECT_FALSE(sink.next_command(c));
-  EXPECT_EQ(sink.counters().bad_commands.load(), 5u);
+  EXPECT_EQ(sink.counters().bad_commands.load(), 7u);
   EXPECT_EQ(sink.counters().non_command_frames.load(), 1u);
   EXPECT_EQ(sink.counters().commands_accepted.load(), 0u);
   ipc::Heartbeat h;
   ipc::decode_heartbeat(ch.sent(0).data, 8, h);
-  EXPECT_EQ(h.bad_commands, 5);
+  EXPECT_EQ(h.bad_commands, 7);
 }
 
 TEST(CanPoseSink, CommandsPerCycleAreBounded) {

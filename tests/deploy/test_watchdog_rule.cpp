@@ -136,6 +136,6 @@ TEST(HeartbeatStalledBit, EncodedAtBitSixAndDeclaredInTheDbc) {
   EXPECT_EQ(data[0] & 0x40, 0);
   std::ifstream dbc(std::string(SEMPOSE_SOURCE_DIR) + "/ipc/sempose.dbc");
   bool declared = false;
-  for (std::string line; std::getline(dbc, line);) declared = declared || line.find(" SG_ stalled : 6|1@1+ (1,0) [0|1]") == 0;
+  for (std::string line; std::getline(dbc, line);) declared = declared || line.find(" SG_ stalled : 7|1@1+ (1,0) [0|1]") == 0;
   EXPECT_TRUE(declared);
 }

@@ -237,7 +237,7 @@ def main():
         rc, took = wait_exit(proc, 15)
         hog.wait()
         hog_end = time.monotonic()
-        check(rc == 4 and t_term + took < hog_end + 1.0,
+        check(rc == 6 and t_term + took < hog_end + 1.0,
               f"exit code {rc}; process gone {t_term + took - hog_end:+.2f} s after the starving thread ended")
     finally:
         for h in hogs:

@@ -31,7 +31,13 @@ class RecordingSink final : public PoseSink {
     poses_[count_++] = pose;
     return PublishResult::kSent;
   }
-  void service(const PipelineStatus&, std::int64_t) noexcept override { ++services_; }
+  void service(const PipelineStatus& s, std::int64_t) noexcept override {
+    ++services_;
+    last_ack_.store(s.last_command_seq, std::memory_order_relaxed);
+    rejected_.store(s.commands_rejected, std::memory_order_relaxed);
+  }
+  int last_ack() const { return last_ack_.load(std::memory_order_relaxed); }
+  std::uint32_t rejected() const { return rejected_.load(std::memory_order_relaxed); }
   bool next_command(Command& out) noexcept override {
     if (pending_.load(std::memory_order_acquire) == 0) return false;
     out = command_;
@@ -52,6 +58,8 @@ class RecordingSink final : public PoseSink {
   std::uint64_t services_ = 0;
   Command command_{};
   std::atomic<int> pending_{0};
+  std::atomic<int> last_ack_{0};
+  std::atomic<std::uint32_t> rejected_{0};
 };
 
 struct Rig {
@@ -151,6 +159,48 @@ TEST(Pipeline, CommandsReachTheTrackersWithoutLocks) {
   rig.pipeline->join();
   EXPECT_EQ(rig.pipeline->counters().commands.get(), 1u);
   EXPECT_GE(rig.pipeline->counters().targets[0].searches.get(), 2u) << "start search + commanded re-acquisition";
+}
+
+// A command naming a pattern set or target that does not exist does nothing, is counted as
+// rejected and is never acknowledged; a valid one is acknowledged with its seq once applied.
+TEST(Pipeline, CommandsNamingNothingAreRejectedNotAcknowledged) {
+  Rig rig(kVirtualYaml, 4096);
+  rig.pipeline->stop_after_frames(900);
+  ASSERT_TRUE(rig.pipeline->start(false).ok);
+  auto send = [&](Command c) {
+    while (rig.pipeline->counters().sent.get() < 100) rt::sleep_until_ns(rt::now_ns() + 100'000);
+    const std::uint64_t before = rig.pipeline->counters().commands.get() + rig.pipeline->counters().commands_rejected.get();
+    rig.sink->inject(c);
+    while (rig.pipeline->counters().commands.get() + rig.pipeline->counters().commands_rejected.get() == before &&
+           !rig.pipeline->finished())
+      rt::sleep_until_ns(rt::now_ns() + 100'000);
+    const std::uint64_t sent = rig.pipeline->counters().sent.get();
+    while (rig.pipeline->counters().sent.get() < sent + 3 && !rig.pipeline->finished())
+      rt::sleep_until_ns(rt::now_ns() + 100'000);  // a few output cycles: the heartbeat status is current
+  };
+  Command select_missing;
+  select_missing.kind = CommandKind::kSelectPatternSet;
+  select_missing.arg = 5;  // one pattern set configured
+  select_missing.seq = 21;
+  send(select_missing);
+  Command reacquire_missing;
+  reacquire_missing.kind = CommandKind::kReacquire;
+  reacquire_missing.target = 3;  // one target configured
+  reacquire_missing.seq = 22;
+  send(reacquire_missing);
+  EXPECT_EQ(rig.pipeline->counters().commands_rejected.get(), 2u);
+  EXPECT_EQ(rig.pipeline->counters().commands.get(), 0u);
+  EXPECT_EQ(rig.sink->last_ack(), 0) << "a refused command must not be acknowledged";
+  EXPECT_EQ(rig.sink->rejected(), 2u);
+  EXPECT_EQ(rig.pipeline->counters().targets[0].searches.get(), 1u) << "nothing was re-acquired";
+  Command reacquire;
+  reacquire.kind = CommandKind::kReacquire;
+  reacquire.target = 0;
+  reacquire.seq = 23;
+  send(reacquire);
+  rig.pipeline->join();
+  EXPECT_EQ(rig.pipeline->counters().commands.get(), 1u);
+  EXPECT_EQ(rig.sink->last_ack(), 23);
 }
 
 }  // namespace

@@ -49,6 +49,10 @@ struct Scenario {
   bool jaws = false;              // target "gripper": each jaw opens and closes 8 px (period 0.4 s)
   // Approximate frame period (192² ROI at 250 ns + flyback + modelled compute), for ramps over the run.
   double run_s() const { return frames * 0.0101 * (dwell_ns / 250.0); }
+  // Faults (the pattern is always recorded from the target as configured above):
+  int vanish_after = -1;         // >= 0: the target is gone from this frame on (background only)
+  bool target_in_field = true;   // false: the target sits far outside the field from the start
+  enum class Frames { kScene, kBlank, kSaturated } frames_kind = Frames::kScene;  // blank/saturated: every pixel 0 / full scale
 };
 
 // The warped real SEM target: lamella_on_post_eb.pgm seen through a σ 1 px PSF; the pattern is
@@ -223,6 +227,19 @@ class SimHarness {
     }
     sets[0].image = pipeline::to_pattern_image(pattern_);
     sets[0].nm_per_px = 40;
+    if (!warped_) {
+      config::SimConfig run_cfg = sim_cfg_;
+      if (!s.target_in_field) {
+        run_cfg.targets[0].x_px = -4.0 * s.field_w;  // far outside: not even its rim is scanned
+        run_cfg.targets[0].trajectory = config::TrajectoryConfig{};
+        sim_ = std::make_unique<hal::SimSource>(limits_, run_cfg);
+      }
+      if (s.vanish_after >= 0) {
+        config::SimConfig gone = run_cfg;
+        gone.targets[0].enabled = false;
+        sim_gone_ = std::make_unique<hal::SimSource>(limits_, gone);
+      }
+    }
     tracker_ = Tracker::create(tc, std::move(sets), limits_, status_);
     pixels_.assign(static_cast<std::size_t>(s.field_w) * s.field_h, 0);
     out_.resize(static_cast<std::size_t>(s.frames));
@@ -241,7 +258,13 @@ class SimHarness {
                        0.5 * static_cast<double>(limits_.scan_time_ns(roi.w, roi.h, s_.dwell_ns)) * 1e-9;
     if (t_mid_s) *t_mid_s = mid;
     if (!warped_) {
-      sim_->render(roi, s_.dwell_ns, t, seq, out, truth);
+      // Faults: the target gone from frame vanish_after on; blank or saturated frames.
+      hal::SimSource& src = (sim_gone_ && static_cast<long long>(seq) >= s_.vanish_after) ? *sim_gone_ : *sim_;
+      src.render(roi, s_.dwell_ns, t, seq, out, truth);
+      if (s_.frames_kind != Scenario::Frames::kScene) {
+        const hal::Pixel v = s_.frames_kind == Scenario::Frames::kBlank ? 0 : 255;
+        std::fill(out, out + static_cast<std::ptrdiff_t>(roi.w) * roi.h, v);
+      }
       return;
     }
     // Test helper: WarpScene::render allocates its output (warp_out_ keeps its capacity).
@@ -378,6 +401,7 @@ class SimHarness {
   std::vector<hal::Pixel> warp_out_;
   hal::Image pattern_;
   std::vector<FrameRecord> records_;
+  std::unique_ptr<hal::SimSource> sim_gone_;  // the same scene without the target (vanish_after)
   std::unique_ptr<Tracker> tracker_;
   rt::Status status_;
   std::vector<hal::Pixel> pixels_;

@@ -39,8 +39,34 @@ TEST(LossPolicy, AbsoluteRelativeAndPsrThresholds) {
   EXPECT_FALSE(loss.weak(scored(0.65f)));
   loss.reset();
   EXPECT_FALSE(loss.weak(scored(0.6f)));   // the recent mean is forgotten with the target
-  EXPECT_TRUE(loss.found(scored(0.6f)));
-  EXPECT_FALSE(loss.found(Measurement{}));
+  // ... but its own score level is not: a start search must find ≥ 0.7 × 0.9 again, so
+  // background that merely beats the absolute threshold after the target left is not it.
+  EXPECT_FALSE(loss.found(scored(0.6f), 0.0));
+  EXPECT_TRUE(loss.found(scored(0.65f), 0.0));
+  loss.forget_target();                    // commanded re-acquisition / new pattern set
+  EXPECT_TRUE(loss.found(scored(0.6f), 0.0));
+  EXPECT_FALSE(loss.found(Measurement{}, 0.0));
+}
+
+TEST(LossPolicy, NoiseFloorsAndAttainableScore) {
+  config::TrackerConfig c;
+  c.score_threshold = 0.25;
+  c.relative_score_threshold = 0.7;
+  LossPolicy loss(c);
+  loss.set_noise_floors(0.30f, 0.35f);
+  EXPECT_TRUE(loss.weak(scored(0.29f)));    // above score_threshold, at the ROI's noise floor
+  EXPECT_EQ(loss.weak_reasons(scored(0.29f)), kReasonLowScore);
+  EXPECT_FALSE(loss.weak(scored(0.31f)));
+  EXPECT_FALSE(loss.found(scored(0.34f), 0.0)) << "below the full field's noise floor";
+  EXPECT_TRUE(loss.found(scored(0.5f), 0.6)) << "0.5 >= 0.7 x 0.6 attainable";
+  EXPECT_FALSE(loss.found(scored(0.5f), 0.97)) << "textured background: far below what its window allows";
+  loss.set_calibrating(true);               // setup's noise trials: decisions off, nothing learnt
+  loss.set_noise_floors(-1.0f, -1.0f);
+  EXPECT_TRUE(loss.found(scored(0.5f), 0.97));
+  loss.accepted(0.5f);
+  loss.set_calibrating(false);
+  loss.reset();
+  EXPECT_TRUE(loss.found(scored(0.3f), 0.0)) << "a calibration trial is not the target's level";
 }
 
 TEST(LossPolicy, LostAfterKWeakFramesInARow) {

@@ -88,13 +88,19 @@ void CanPoseSink::send_heartbeat(const pipeline::PipelineStatus& s, std::int64_t
   ipc::Heartbeat h;
   h.state = to_wire(s.state);
   h.running = s.running;
-  h.stalled = s.stalled;
   h.bus_state = static_cast<ipc::BusState>(channel_.bus_state());
   h.fd = fd_;
   h.pattern_set = s.pattern_set;
-  h.bad_commands = static_cast<std::uint8_t>(counters_.bad_commands.load(std::memory_order_relaxed) & 0xF);
+  // Every command that did not take effect: malformed, lost to a full ring, or naming a
+  // pattern set or target that does not exist.
+  const std::uint64_t refused = counters_.bad_commands.load(std::memory_order_relaxed) +
+                                counters_.commands_overflowed.load(std::memory_order_relaxed) + s.commands_rejected;
+  h.bad_commands = static_cast<std::uint8_t>(refused & 0xF);
   h.counter = heartbeat_counter_++;
-  h.last_command_seq = counters_.last_command_seq.load(std::memory_order_relaxed);
+  // Acknowledge only what took effect (the pipeline echoes the seq once applied).
+  h.last_command_seq = s.last_command_seq;
+  h.output_fault = (s.fault_bits & pipeline::kFaultOutputWrite) != 0;
+  h.stalled = (s.fault_bits & (pipeline::kFaultSourceStalled | pipeline::kFaultStageStalled)) != 0;
   h.dwell_ns = static_cast<std::uint16_t>(s.dwell_ns > 0xFFFF ? 0xFFFF : s.dwell_ns);
   h.dropped_frames = static_cast<std::uint8_t>(s.dropped_frames & 0xFF);
   h.overruns = static_cast<std::uint8_t>(s.overruns & 0xF);
@@ -129,20 +135,23 @@ bool CanPoseSink::to_command(const ipc::WireCommand& w, pipeline::Command& out) 
 void CanPoseSink::read_commands() noexcept {
   hal::CanFrame f;
   for (int i = 0; i < options_.max_commands_per_cycle && channel_.receive(f); ++i) {
-    if (f.extended() || f.id != options_.ids.command) {
+    if (f.id != options_.ids.command) {
       bump(counters_.non_command_frames);
       continue;
     }
     ipc::WireCommand w;
-    ipc::CommandCheck check = ipc::CommandCheck::kBadLength;  // RTR and FD frames are not commands
-    if (!f.remote() && !f.fd()) check = ipc::decode_command(f.data, f.len, w);
+    // RTR, FD and extended frames on the command id are malformed commands (counted), not
+    // commands: the protocol is classic 11-bit data frames only.
+    ipc::CommandCheck check = ipc::CommandCheck::kBadLength;
+    if (!f.remote() && !f.fd() && !f.extended()) check = ipc::decode_command(f.data, f.len, w);
     pipeline::Command cmd;
     if (check != ipc::CommandCheck::kOk || !to_command(w, cmd)) {
       counters_.last_bad_reason.store(static_cast<std::uint8_t>(check), std::memory_order_relaxed);
       bump(counters_.bad_commands);
       continue;
     }
-    counters_.last_command_seq.store(w.seq, std::memory_order_relaxed);
+    counters_.last_command_seq.store(w.seq, std::memory_order_relaxed);  // received (the ack waits for the effect)
+    cmd.seq = w.seq;
     if (commands_.try_push(cmd)) bump(counters_.commands_accepted);
     else bump(counters_.commands_overflowed);
   }

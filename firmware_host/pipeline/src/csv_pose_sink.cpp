@@ -12,11 +12,20 @@ CsvPoseSink::CsvPoseSink(std::string path, std::size_t capacity, bool with_targe
   ring_.allocate(std::max<std::size_t>(16, capacity));
 }
 
-CsvPoseSink::~CsvPoseSink() {
-  if (file_ != nullptr) {
-    write_pending();
-    std::fclose(file_);
-  }
+CsvPoseSink::~CsvPoseSink() { close(); }
+
+bool CsvPoseSink::close() {
+  if (file_ == nullptr) return write_errors_ == 0;
+  write_pending();
+  if (std::fclose(file_) != 0) note_error(errno, 0);
+  file_ = nullptr;
+  return write_errors_ == 0;
+}
+
+void CsvPoseSink::note_error(int err, std::uint64_t lines) {
+  ++write_errors_;
+  lost_lines_ += lines;
+  last_errno_ = err;
 }
 
 rt::Status CsvPoseSink::open() {
@@ -24,7 +33,10 @@ rt::Status CsvPoseSink::open() {
   if (file_ == nullptr) {
     return rt::Status::failure("output.poses_csv: cannot create '" + path_ + "': " + std::strerror(errno));
   }
-  std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s\n", with_target_ ? ",target" : "");
+  if (std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s\n", with_target_ ? ",target" : "") < 0 ||
+      std::fflush(file_) != 0) {
+    note_error(errno, 0);
+  }
   return rt::Status::success();
 }
 
@@ -39,6 +51,7 @@ PublishResult CsvPoseSink::publish(const PoseRecord& pose, std::int64_t t_now_ns
 
 void CsvPoseSink::write_pending() {
   if (file_ == nullptr) return;
+  std::uint64_t lines = 0;
   for (auto batch = ring_.readable(); !batch.empty(); batch = ring_.readable()) {
     for (const PoseRecord& p : batch) {
       // t_ns: when the frame's scan ended (the time the pose is valid for).
@@ -47,11 +60,18 @@ void CsvPoseSink::write_pending() {
                    pose::to_string(p.state));
       if (with_target_) std::fprintf(file_, ",%u", static_cast<unsigned>(p.target));
       std::fputc('\n', file_);
-      ++written_;
+      ++lines;
     }
     ring_.consume(batch.size());
   }
-  std::fflush(file_);
+  // A full disk or an I/O error is found at the flush: the lines of this round are counted
+  // as lost (stdio discards what it could not write), the error is kept for the summary.
+  if (std::fflush(file_) != 0 || std::ferror(file_)) {
+    note_error(errno, lines);
+    std::clearerr(file_);
+  } else {
+    written_ += lines;
+  }
 }
 
 }  // namespace sempose::pipeline

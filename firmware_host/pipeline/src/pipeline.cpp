@@ -71,7 +71,7 @@ Pipeline::Pipeline(const config::PipelineConfig& pipeline, const config::Governo
     pool_.transfer(static_cast<hal::FramePool::Index>(i), rt::SlotOwner::kFree, kAcq);
     free_slots_.try_push(static_cast<hal::FramePool::Index>(i));  // acquisition collects them at start
   }
-  status_.publish(StatusWords{0, static_cast<std::uint8_t>(pose::TrackState::kAcquiring), 0, 1});
+  status_.publish(StatusWords{0, static_cast<std::uint8_t>(pose::TrackState::kAcquiring), 0, 1, 0, 0});
   for (std::size_t t = 0; t < trackers_.size(); ++t) {
     last_state_[t] = pose::TrackState::kAcquiring;
     publish_plan(static_cast<std::uint8_t>(t), true);
@@ -315,8 +315,24 @@ void Pipeline::acquisition_loop() noexcept {
 
 // ---------------------------------------------------------------- correlation
 
-void Pipeline::apply_command(const Command& c) noexcept {
+bool Pipeline::apply_command(const Command& c) noexcept {
   const std::size_t n = trackers_.size();
+  // A command naming something that does not exist is refused as a whole (and not
+  // acknowledged): a controller must not believe a magnification step or target changed.
+  const bool target_ok = c.target == 0xFF || c.target < n;
+  bool ok = target_ok;
+  if (ok && c.kind == CommandKind::kSelectPatternSet) {
+    for (std::size_t t = 0; t < n; ++t) {
+      if ((c.target == 0xFF || c.target == t) && c.arg >= trackers_[t]->pattern_set_count()) ok = false;
+    }
+  }
+  StatusWords st = status_.read();
+  if (!ok) {
+    counters_.commands_rejected.add();
+    st.commands_rejected = static_cast<std::uint32_t>(counters_.commands_rejected.get());
+    status_.publish(st);
+    return false;
+  }
   auto for_targets = [&](auto&& fn) {
     for (std::size_t t = 0; t < n; ++t) {
       if (c.target == 0xFF || c.target == t) fn(static_cast<std::uint8_t>(t));
@@ -341,10 +357,11 @@ void Pipeline::apply_command(const Command& c) noexcept {
       break;
   }
   for (std::size_t t = 0; t < n; ++t) publish_plan(static_cast<std::uint8_t>(t), running_);
-  StatusWords st = status_.read();
   st.running = running_ ? 1 : 0;
+  st.last_command_seq = c.seq;
   status_.publish(st);
   counters_.commands.add();
+  return true;
 }
 
 void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
@@ -376,7 +393,7 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   publish_plan(target, running_);
   last_state_[target] = est.state;
   {
-    StatusWords st{};
+    StatusWords st = status_.read();  // keeps the command acknowledgement fields
     pose::TrackState worst = pose::TrackState::kTracking;
     for (std::size_t t = 0; t < trackers_.size(); ++t) {
       if (static_cast<int>(last_state_[t]) > static_cast<int>(worst)) worst = last_state_[t];
@@ -457,7 +474,7 @@ void Pipeline::correlation_loop() noexcept {
     // thread on its core, which must still answer SIGTERM. (Backing off on lateness alone,
     // > 1 ms or > 50 ms overdue, changed which frame a REACQUIRE met in the VM test.)
     const std::int64_t due = next_frame_expected_ns_.load(std::memory_order_relaxed) + slack_ns;
-    idle_wait(stalled_.load(std::memory_order_relaxed)
+    idle_wait((faults_.load(std::memory_order_relaxed) & kFaultStageStalled) != 0
                   ? rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs
                   : due);
   }
@@ -494,10 +511,14 @@ bool Pipeline::output_step() noexcept {
   status.state = static_cast<pose::TrackState>(words.state);
   status.pattern_set = words.pattern_set;
   status.running = words.running != 0;
-  status.stalled = stalled_.load(std::memory_order_relaxed);
   status.dwell_ns = words.dwell_ns;
   status.dropped_frames = static_cast<std::uint32_t>(dropped_frames());
   status.overruns = static_cast<std::uint32_t>(counters_.overruns.get());
+  status.last_command_seq = words.last_command_seq;
+  status.commands_rejected = words.commands_rejected;
+  status.fault_bits = faults_.load(std::memory_order_relaxed);
+  // A stalled source produces no poses: the last pose's TRACKING must not stand for "valid".
+  if (status.fault_bits & (kFaultSourceStalled | kFaultStageStalled)) status.state = pose::TrackState::kLost;
   if (virtual_time_) {
     if (worked) last_virtual_now_ns_ = p.t_pose_done_ns;
     sink_.service(status, last_virtual_now_ns_);

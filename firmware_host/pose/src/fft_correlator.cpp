@@ -7,6 +7,8 @@
 #include <cstring>
 #include <mutex>
 #include <new>
+#include <stdexcept>
+#include <string>
 
 #include "sempose/rt/alloc_counter.hpp"
 
@@ -72,40 +74,48 @@ int good_fft_size(int n) noexcept {
 
 FftCorrelator::FftCorrelator(int fft_w, int fft_h, const PatternMask& mask)
     : fft_w_(fft_w), fft_h_(fft_h), mask_(mask), tables_(fft_w, fft_h) {
-  const std::size_t real_len = static_cast<std::size_t>(fft_w_) * fft_h_;
-  image_ = static_cast<float*>(fftwf_malloc(sizeof(float) * real_len));
-  corr_ = static_cast<float*>(fftwf_malloc(sizeof(float) * real_len));
-  image_spec_ = static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len()));
-  product_ = static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len()));
-  if (!image_ || !corr_ || !image_spec_ || !product_) throw std::bad_alloc();
-  // Some FFTW plans (buffered or indirect solvers) malloc scratch inside fftwf_execute for
-  // large sizes. Make a plan, run it once with the heap counter armed, and re-plan without
-  // those solvers until the execution is allocation-free (checked here, at setup, so the
-  // loop's zero-allocation guarantee does not depend on what the planner happened to pick).
+  // Some FFTW plans (buffered or indirect solvers) malloc scratch inside fftwf_execute, and
+  // for some sizes FFTW has no plan at all once those solvers are excluded (the planner
+  // returns NULL). Try the flag sets from fastest to most restricted; a plan is taken only
+  // when both directions exist and one execution with the heap counter armed allocated
+  // nothing. When no flag set gives such a plan at a size, the next larger 2,3,5-smooth
+  // size is tried: the region is zero-padded anyway, so a larger transform gives the same
+  // scores. Checked here, at setup, so the loop's zero-allocation guarantee never depends
+  // on what the planner happened to pick, and a NULL plan is never executed.
   static constexpr unsigned kFlagSets[] = {FFTW_MEASURE, FFTW_MEASURE | FFTW_NO_BUFFERING,
                                            FFTW_MEASURE | FFTW_NO_BUFFERING | FFTW_NO_INDIRECT_OP,
                                            FFTW_ESTIMATE | FFTW_NO_BUFFERING | FFTW_NO_INDIRECT_OP};
-  std::memset(image_, 0, sizeof(float) * real_len);
-  std::memset(static_cast<void*>(product_), 0, sizeof(Complex) * spectrum_len());
-  for (unsigned flags : kFlagSets) {
-    std::lock_guard<std::mutex> lock(planner_mutex());
-    if (plan_forward_) fftwf_destroy_plan(static_cast<fftwf_plan>(plan_forward_));
-    if (plan_inverse_) fftwf_destroy_plan(static_cast<fftwf_plan>(plan_inverse_));
-    plan_forward_ = fftwf_plan_dft_r2c_2d(fft_h_, fft_w_, image_, reinterpret_cast<fftwf_complex*>(image_spec_), flags);
-    plan_inverse_ = fftwf_plan_dft_c2r_2d(fft_h_, fft_w_, reinterpret_cast<fftwf_complex*>(product_), corr_, flags);
-    std::memset(image_, 0, sizeof(float) * real_len);
-    std::memset(static_cast<void*>(product_), 0, sizeof(Complex) * spectrum_len());
-    std::uint64_t allocs = 0;
-    {
-      rt::alloc::ScopedArm arm;
-      const std::uint64_t before = rt::alloc::this_thread_allocations();
-      fftwf_execute(static_cast<fftwf_plan>(plan_forward_));
-      fftwf_execute(static_cast<fftwf_plan>(plan_inverse_));
-      allocs = rt::alloc::this_thread_allocations() - before;
+  constexpr int kSizeAttempts = 6;
+  const int want_w = std::max(1, fft_w), want_h = std::max(1, fft_h);
+  bool found = false;
+  for (int attempt = 0; attempt < kSizeAttempts && !found; ++attempt) {
+    if (attempt > 0) {
+      fft_w_ = good_fft_size(fft_w_ + 1);
+      fft_h_ = good_fft_size(fft_h_ + 1);
+    } else {
+      fft_w_ = want_w;
+      fft_h_ = want_h;
     }
-    execute_allocates_ = allocs != 0;
-    if (!execute_allocates_) break;
+    allocate_buffers();
+    for (unsigned flags : kFlagSets) {
+      if (make_plans(flags) && !execution_allocates()) {
+        found = true;
+        break;
+      }
+    }
   }
+  execute_allocates_ = !found;
+  if (!found) {
+    // No allocation-free plan anywhere: keep the requested size with FFTW's default
+    // solvers (which always plan) and let setup report that the loop may allocate.
+    fft_w_ = want_w;
+    fft_h_ = want_h;
+    allocate_buffers();
+    if (!make_plans(FFTW_ESTIMATE)) throw std::runtime_error("FFTW could not plan a " + std::to_string(fft_w_) + "x" +
+                                                             std::to_string(fft_h_) + " transform");
+  }
+  if (fft_w_ != want_w || fft_h_ != want_h) tables_ = SummedAreaTables(fft_w_, fft_h_);
+  const std::size_t real_len = static_cast<std::size_t>(fft_w_) * fft_h_;
   std::memset(image_, 0, sizeof(float) * real_len);
   std::memset(corr_, 0, sizeof(float) * real_len);
   std::memset(static_cast<void*>(image_spec_), 0, sizeof(Complex) * spectrum_len());
@@ -114,12 +124,52 @@ FftCorrelator::FftCorrelator(int fft_w, int fft_h, const PatternMask& mask)
   inv_sigma_.assign(real_len, 0.0f);
 }
 
-FftCorrelator::~FftCorrelator() {
+void FftCorrelator::allocate_buffers() {
+  destroy_plans();
+  fftwf_free(image_);
+  fftwf_free(corr_);
+  fftwf_free(image_spec_);
+  fftwf_free(product_);
+  const std::size_t real_len = static_cast<std::size_t>(fft_w_) * fft_h_;
+  image_ = static_cast<float*>(fftwf_malloc(sizeof(float) * real_len));
+  corr_ = static_cast<float*>(fftwf_malloc(sizeof(float) * real_len));
+  image_spec_ = static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len()));
+  product_ = static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len()));
+  if (!image_ || !corr_ || !image_spec_ || !product_) throw std::bad_alloc();
+}
+
+void FftCorrelator::destroy_plans() noexcept {
+  std::lock_guard<std::mutex> lock(planner_mutex());
+  if (plan_forward_) fftwf_destroy_plan(static_cast<fftwf_plan>(plan_forward_));
+  if (plan_inverse_) fftwf_destroy_plan(static_cast<fftwf_plan>(plan_inverse_));
+  plan_forward_ = plan_inverse_ = nullptr;
+}
+
+bool FftCorrelator::make_plans(unsigned flags) {
+  destroy_plans();
   {
     std::lock_guard<std::mutex> lock(planner_mutex());
-    if (plan_forward_) fftwf_destroy_plan(static_cast<fftwf_plan>(plan_forward_));
-    if (plan_inverse_) fftwf_destroy_plan(static_cast<fftwf_plan>(plan_inverse_));
+    plan_forward_ = fftwf_plan_dft_r2c_2d(fft_h_, fft_w_, image_, reinterpret_cast<fftwf_complex*>(image_spec_), flags);
+    plan_inverse_ = fftwf_plan_dft_c2r_2d(fft_h_, fft_w_, reinterpret_cast<fftwf_complex*>(product_), corr_, flags);
   }
+  if (plan_forward_ && plan_inverse_) return true;
+  destroy_plans();
+  return false;
+}
+
+bool FftCorrelator::execution_allocates() noexcept {
+  // FFTW_MEASURE planning overwrites the arrays: run on zeros.
+  std::memset(image_, 0, sizeof(float) * static_cast<std::size_t>(fft_w_) * fft_h_);
+  std::memset(static_cast<void*>(product_), 0, sizeof(Complex) * spectrum_len());
+  rt::alloc::ScopedArm arm;
+  const std::uint64_t before = rt::alloc::this_thread_allocations();
+  fftwf_execute(static_cast<fftwf_plan>(plan_forward_));
+  fftwf_execute(static_cast<fftwf_plan>(plan_inverse_));
+  return rt::alloc::this_thread_allocations() != before;
+}
+
+FftCorrelator::~FftCorrelator() {
+  destroy_plans();
   fftwf_free(image_);
   fftwf_free(corr_);
   fftwf_free(image_spec_);

@@ -9,15 +9,22 @@ bool LossPolicy::below_recent(const Measurement& m) const noexcept {
 }
 
 bool LossPolicy::weak(const Measurement& m) const noexcept {
-  return !m.valid || m.score < cfg_.score_threshold || below_recent(m) ||
+  return !m.valid || m.score < cfg_.score_threshold || m.score <= roi_floor_ || below_recent(m) ||
          (cfg_.psr_threshold > 0 && m.psr_valid && m.psr < cfg_.psr_threshold);
 }
 
 std::uint8_t LossPolicy::weak_reasons(const Measurement& m) const noexcept {
   std::uint8_t b = 0;
-  if (!m.valid || m.score < cfg_.score_threshold || below_recent(m)) b |= kReasonLowScore;
+  if (!m.valid || m.score < cfg_.score_threshold || m.score <= roi_floor_ || below_recent(m)) b |= kReasonLowScore;
   if (cfg_.psr_threshold > 0 && m.psr_valid && m.psr < cfg_.psr_threshold) b |= kReasonLowPsr;
   return b;
+}
+
+bool LossPolicy::found(const Measurement& m, double attainable) const noexcept {
+  if (!m.valid || weak(m) || m.score <= field_floor_) return false;
+  if (calibrating_ || cfg_.relative_score_threshold <= 0) return true;
+  if (m.score < cfg_.relative_score_threshold * attainable) return false;
+  return !have_ref_ || m.score >= cfg_.relative_score_threshold * ref_score_;
 }
 
 FrameVerdict LossPolicy::judge(const Measurement& m) noexcept {
@@ -29,6 +36,8 @@ void LossPolicy::accepted(float score) noexcept {
   score_mean_ = have_score_mean_ ? 0.8 * score_mean_ + 0.2 * score : score;
   have_score_mean_ = true;
   weak_frames_ = 0;
+  ref_score_ = score_mean_;
+  have_ref_ = !calibrating_;
 }
 
 void LossPolicy::reset() noexcept {

@@ -88,12 +88,138 @@ struct Tracker::Impl {
     field.field_h = field_height;
   }
 
+  // Noise floors per pattern set (LossPolicy): measured at setup by calibrate_noise_floors().
+  struct NoiseFloor {
+    float roi = -1.0f;    // tracking ROI path (walk + recovery sweep)
+    float field = -1.0f;  // full-field start search
+  };
+  static constexpr int kNullTrials = 8;
+  static constexpr double kNullSigmas = 5.0;  // Gumbel tail: ~1e-3 per frame above mean + 5 sd
+  static constexpr int kNullFieldMax = 2048;  // the floor grows only as sqrt(ln area)
+  std::vector<NoiseFloor> noise_floors;
+  double prefilter_noise_gain = 1.0;  // Σk² of the 2-D prefilter kernel (white-noise variance kept)
+
+  void use_noise_floors_of(std::uint8_t set) noexcept {
+    if (set < noise_floors.size()) loss.set_noise_floors(noise_floors[set].roi, noise_floors[set].field);
+  }
+  double attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept;
+  void calibrate_noise_floors(const config::ScanLimits& limits);
+  void forget_everything() noexcept;
+
   PoseEstimate update(const PoseFrame& frame) noexcept;
   Measurement track(const PatternBank& bank) noexcept;
   void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
   void go_lost() noexcept;
   void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;
 };
+
+// The ZNCC the target itself would reach in the window at (cx, cy) of a frame: √(S/(S+N)),
+// S the window's signal variance, N the noise variance the prefilter leaves. A true match
+// explains S; textured background that merely resembles the pattern explains a small part of
+// it. N comes from the raw window by Immerkær's estimator (Laplacian-difference kernel, blind
+// to linear structure: σ = √(π/2)·Σ|I∗L| / (6(W−2)(H−2))), scaled by the prefilter's noise
+// gain; S = window variance − noise. RT, no allocation (one pass over the P×P window).
+double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept {
+  const int p = sizes.pattern_px;
+  if (w < p || h < p || p < 3) return 0.0;
+  const int x0 = std::clamp(static_cast<int>(std::lround(cx - (p - 1) / 2.0)), 0, w - p);
+  const int y0 = std::clamp(static_cast<int>(std::lround(cy - (p - 1) / 2.0)), 0, h - p);
+  double sum = 0, sum2 = 0, abs_lap = 0;
+  for (int y = 0; y < p; ++y) {
+    const std::uint16_t* row = px + static_cast<std::size_t>(y0 + y) * w + x0;
+    for (int x = 0; x < p; ++x) {
+      const double v = row[x];
+      sum += v;
+      sum2 += v * v;
+    }
+  }
+  for (int y = 1; y + 1 < p; ++y) {
+    const std::uint16_t* r0 = px + static_cast<std::size_t>(y0 + y - 1) * w + x0;
+    const std::uint16_t* r1 = r0 + w;
+    const std::uint16_t* r2 = r1 + w;
+    for (int x = 1; x + 1 < p; ++x) {
+      const double l = (double(r0[x - 1]) - 2.0 * r0[x] + r0[x + 1]) - 2.0 * (double(r1[x - 1]) - 2.0 * r1[x] + r1[x + 1]) +
+                       (double(r2[x - 1]) - 2.0 * r2[x] + r2[x + 1]);
+      abs_lap += std::fabs(l);
+    }
+  }
+  const double n = static_cast<double>(p) * p;
+  const double var = std::max(0.0, sum2 / n - (sum / n) * (sum / n));
+  const double sigma = std::sqrt(M_PI / 2.0) * abs_lap / (6.0 * (p - 2) * (p - 2));
+  const double noise = std::min(var, sigma * sigma);
+  const double signal = var - noise;
+  const double left = signal + prefilter_noise_gain * noise;
+  return left > 0 ? std::sqrt(signal / left) : 0.0;
+}
+
+// Setup only (allocates): the noise floors of every pattern set, measured by running the real
+// update() on frames of uniform 8-bit white noise — a tracking ROI at an angle spread over the
+// circle and a full field (capped at kNullFieldMax per side) — kNullTrials each; the floor is
+// mean + kNullSigmas·sd of the best scores. Deterministic (fixed seed): every start gives the
+// same floors.
+void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
+  const int fw = std::min(limits.field_w, kNullFieldMax), fh = std::min(limits.field_h, kNullFieldMax);
+  std::vector<std::uint16_t> noise(static_cast<std::size_t>(fw) * fh);
+  std::uint64_t rng = 0x9E3779B97F4A7C15ull;
+  auto fill = [&](std::size_t n) {
+    for (std::size_t i = 0; i < n; ++i) {
+      rng ^= rng << 13;
+      rng ^= rng >> 7;
+      rng ^= rng << 17;
+      noise[i] = static_cast<std::uint16_t>(rng >> 56);
+    }
+  };
+  auto floor_of = [](const std::vector<double>& v) {
+    double m = 0, q = 0;
+    for (double x : v) m += x;
+    m /= static_cast<double>(v.size());
+    for (double x : v) q += (x - m) * (x - m);
+    const double sd = std::sqrt(q / static_cast<double>(v.size() - 1));
+    return static_cast<float>(std::min(1.0, m + kNullSigmas * sd));
+  };
+  loss.set_calibrating(true);
+  loss.set_noise_floors(-1.0f, -1.0f);
+  noise_floors.assign(banks.size(), NoiseFloor{});
+  const std::uint8_t keep = active.load(std::memory_order_relaxed);
+  for (std::size_t set = 0; set < banks.size(); ++set) {
+    active.store(static_cast<std::uint8_t>(set), std::memory_order_relaxed);
+    std::vector<double> roi_scores, field_scores;
+    for (int k = 0; k < kNullTrials; ++k) {
+      PoseFrame frame;
+      frame.field_w = fw;
+      frame.field_h = fh;
+      frame.bits = 8;
+      frame.pixels = noise.data();
+      // Full field: the start search.
+      forget_everything();
+      fill(noise.size());
+      frame.roi = {0, 0, fw, fh};
+      field_scores.push_back(update(frame).score);
+      // Tracking ROI at the field's centre, predicted at an angle spread over the circle.
+      const int rw = std::min(sizes.roi_px, fw), rh = std::min(sizes.roi_px, fh);
+      forget_everything();
+      motion.accept(fw / 2.0, fh / 2.0, rt::wrap_deg(k * (360.0 / kNullTrials) + 7.0), true);
+      tracking = true;
+      fill(static_cast<std::size_t>(rw) * rh);
+      frame.roi = {(fw - rw) / 2, (fh - rh) / 2, rw, rh};
+      roi_scores.push_back(update(frame).score);
+    }
+    noise_floors[set].roi = floor_of(roi_scores);
+    noise_floors[set].field = floor_of(field_scores);
+  }
+  active.store(keep, std::memory_order_relaxed);
+  forget_everything();
+  loss.set_calibrating(false);
+  use_noise_floors_of(keep);
+  field.field_w = limits.field_w;
+  field.field_h = limits.field_h;
+}
+
+void Tracker::Impl::forget_everything() noexcept {
+  go_lost();
+  loss.forget_target();
+  motion = MotionModel(cfg.predict_velocity);  // also the last angle a search's tie-break uses
+}
 
 // Tracking: the predicted angle's FFT peak in the loaded ROI, the walk and the fit; when the
 // walk hit its bound or the score collapsed, a bounded angle sweep in this ROI before giving
@@ -172,6 +298,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
     go_lost();
+    // Commanded, or a new magnification: the target's look may have changed; the new
+    // pattern set has its own noise floors.
+    loss.forget_target();
+    use_noise_floors_of(set);
     if (!full_field) {
       e.state = TrackState::kAcquiring;
       e.reason_bits = kReasonCommanded;
@@ -192,11 +322,15 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.searched = true;
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), rx, ry);
     if (m.valid) to_estimate(m, roi.x + rx, roi.y + ry, e);
-    if (loss.found(m)) {
+    const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;
+    if (loss.found(m, attainable)) {
       accept(e, frame, true);
     } else {
       e.state = TrackState::kAcquiring;
-      e.reason_bits = m.valid ? loss.weak_reasons(m) : static_cast<std::uint8_t>(kReasonFlatFrame);
+      // Not found is a low score too when it is only below the field's floor, the attainable
+      // score or the target's own level.
+      e.reason_bits = m.valid ? static_cast<std::uint8_t>(loss.weak_reasons(m) | kReasonLowScore)
+                              : static_cast<std::uint8_t>(kReasonFlatFrame);
       go_lost();
     }
     return e;
@@ -287,6 +421,22 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.banks.push_back(std::move(bank));
     t.nm_per_px.push_back(sets[i].nm_per_px);
   }
+  {
+    // White-noise variance the prefilter keeps: Σk² of its 2-D kernel, the 5-tap binomial
+    // [1 4 6 4 1]/16 convolved with itself once per pass, separable.
+    std::vector<double> k{1.0};
+    for (int pass = 0; pass < cfg.prefilter_passes; ++pass) {
+      std::vector<double> next(k.size() + 4, 0.0);
+      const double b[5] = {1 / 16.0, 4 / 16.0, 6 / 16.0, 4 / 16.0, 1 / 16.0};
+      for (std::size_t i = 0; i < k.size(); ++i)
+        for (int j = 0; j < 5; ++j) next[i + static_cast<std::size_t>(j)] += k[i] * b[j];
+      k.swap(next);
+    }
+    double g = 0;
+    for (double v : k) g += v * v;
+    t.prefilter_noise_gain = g * g;
+  }
+  t.calibrate_noise_floors(limits);
   status = rt::Status::success();
   if (t.half.execute_allocates() || t.coarse.execute_allocates()) {
     status.message = "tracker: warning: no allocation-free FFTW plan found for " + std::to_string(sizes.roi_fft_px) +
@@ -314,6 +464,13 @@ bool Tracker::select_pattern_set(std::uint8_t set) noexcept {
   return true;
 }
 
+std::size_t Tracker::pattern_set_count() const noexcept { return impl_->banks.size(); }
+float Tracker::noise_floor_roi(std::size_t set) const noexcept {
+  return set < impl_->noise_floors.size() ? impl_->noise_floors[set].roi : -1.0f;
+}
+float Tracker::noise_floor_field(std::size_t set) const noexcept {
+  return set < impl_->noise_floors.size() ? impl_->noise_floors[set].field : -1.0f;
+}
 std::uint8_t Tracker::pattern_set() const noexcept { return impl_->active.load(std::memory_order_relaxed); }
 double Tracker::nm_per_px() const noexcept { return impl_->nm_per_px[impl_->active.load(std::memory_order_relaxed)]; }
 void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::memory_order_relaxed); }

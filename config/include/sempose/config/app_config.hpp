@@ -11,6 +11,7 @@
 #include "sempose/config/governor_config.hpp"
 #include "sempose/config/gpio_config.hpp"
 #include "sempose/config/pipeline_config.hpp"
+#include "sempose/config/reader.hpp"
 #include "sempose/config/scan_config.hpp"
 #include "sempose/config/service_config.hpp"
 #include "sempose/config/sim_config.hpp"
@@ -37,5 +38,11 @@ struct AppConfig {
 // Reads and validates `path` into `out`. On failure returns false and error_text holds
 // one line per problem; `out` then holds defaults plus whatever could be read.
 bool load_app_config(const std::string& path, AppConfig& out, std::string& error_text);
+// The same for YAML text already in memory (tests, the fuzz target); `path` names it in
+// messages and is the folder relative pattern paths resolve against.
+bool parse_app_config(const std::string& text, const std::string& path, AppConfig& out, std::string& error_text);
+// Every scalar key the readers look at for this text (lists as far as the text has items),
+// with its kind: what the table-driven tests iterate over.
+std::vector<KeyInfo> config_keys(const std::string& text);
 
 }  // namespace sempose::config

@@ -7,6 +7,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <set>
@@ -15,6 +16,14 @@
 #include <vector>
 
 namespace sempose::config {
+
+// Every scalar key a reader asked for, with its kind: the catalog the table-driven tests walk
+// (NaN/inf for every floating-point key, ...), so a new key is covered without a new test.
+enum class KeyKind : std::uint8_t { kFloat, kInteger, kBool, kText };
+struct KeyInfo {
+  std::string path;  // dotted, with list indices: sim.targets[0].brightness
+  KeyKind kind;
+};
 
 class Errors {
  public:
@@ -25,10 +34,13 @@ class Errors {
   const std::vector<std::string>& messages() const noexcept { return messages_; }
   std::string joined() const;  // one message per line
   const std::string& file() const noexcept { return file_; }
+  void note_key(std::string path, KeyKind kind) { keys_.push_back({std::move(path), kind}); }
+  const std::vector<KeyInfo>& keys() const noexcept { return keys_; }
 
  private:
   std::string file_;
   std::vector<std::string> messages_;
+  std::vector<KeyInfo> keys_;
 };
 
 // A mapping node with its dotted path. Read keys with opt()/req()/child(); call
@@ -80,6 +92,14 @@ class Section {
   }
   template <typename T>
   void read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T hi);
+  template <typename T>
+  void note(const char* key) {
+    KeyKind k = KeyKind::kText;
+    if constexpr (std::is_same_v<T, bool>) k = KeyKind::kBool;
+    else if constexpr (std::is_floating_point_v<T>) k = KeyKind::kFloat;
+    else if constexpr (std::is_integral_v<T>) k = KeyKind::kInteger;
+    errors_->note_key(key_path(key), k);
+  }
 
   YAML::Node node_;
   std::string path_;
@@ -88,8 +108,22 @@ class Section {
   bool finished_ = false;
 };
 
-// Loads and parses a file; a syntax error or a non-mapping top level goes to errors.
+// Loads and parses a file; a syntax error or a non-mapping top level goes to errors. The path
+// must be a readable regular file of at most kMaxConfigBytes (a directory, FIFO or device is
+// refused by name before anything opens it: a FIFO would block, /dev/zero never ends).
+constexpr long long kMaxConfigBytes = 16ll << 20;
 YAML::Node load_file(const std::string& path, Errors& errors);
+YAML::Node load_text(const std::string& text, Errors& errors);  // the same for text in memory
+
+// What kind of file system object a path names, for messages and checks before any open().
+// "" when it is a regular file; otherwise e.g. "a directory", "a FIFO", "a character device",
+// "missing", "in a missing folder".
+std::string path_kind_problem(const std::string& path);
+// For an output file: "" when it can be created or written (regular file, missing file in an
+// existing writable folder, or a character device such as /dev/null); otherwise why not.
+std::string output_path_problem(const std::string& path);
+// For an output folder: "" when it is a writable directory or can be created; otherwise why not.
+std::string output_dir_problem(const std::string& path);
 
 // ---- template definitions ----
 
@@ -117,7 +151,19 @@ void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T 
       errors_->add(n.Mark(), key_path(key), "'" + shown + "' is not a number");
       return;
     }
-    if (std::is_integral_v<T> && v != static_cast<long double>(static_cast<long long>(v))) {
+    // NaN compares false with every bound and inf overflows the conversions downstream: no
+    // setting here means anything by them, so they are refused for every numeric key.
+    if (!std::isfinite(v)) {
+      errors_->add(n.Mark(), key_path(key), "'" + shown + "' is not a finite number");
+      return;
+    }
+    if (std::is_integral_v<T> && (v < -9.2e18L || v > 1.8e19L)) {
+      errors_->add(n.Mark(), key_path(key),
+                   shown + " is outside the allowed range " +
+                       describe_range(static_cast<double>(lo), static_cast<double>(hi)));
+      return;
+    }
+    if (std::is_integral_v<T> && v != std::floor(v)) {
       errors_->add(n.Mark(), key_path(key), shown + " is not a whole number");
       return;
     }
@@ -136,6 +182,7 @@ void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T 
 template <typename T>
 void Section::opt(const char* key, T& out, T lo, T hi) {
   read_.insert(key);
+  note<T>(key);
   if (!present()) return;
   const YAML::Node n = node_[key];
   if (!n.IsDefined()) return;
@@ -145,6 +192,7 @@ void Section::opt(const char* key, T& out, T lo, T hi) {
 template <typename T>
 void Section::req(const char* key, T& out, T lo, T hi) {
   read_.insert(key);
+  note<T>(key);
   if (!present() || !node_[key].IsDefined()) {
     errors_->add(node_.Mark(), key_path(key), "required key is missing");
     return;
@@ -155,6 +203,7 @@ void Section::req(const char* key, T& out, T lo, T hi) {
 template <typename T>
 void Section::opt_list(const char* key, std::vector<T>& out, T lo, T hi) {
   read_.insert(key);
+  note<T>((std::string(key) + "[0]").c_str());
   if (!present()) return;
   const YAML::Node n = node_[key];
   if (!n.IsDefined()) return;

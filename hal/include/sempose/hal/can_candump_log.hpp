@@ -45,6 +45,11 @@ class CandumpLogChannel final : public CanChannel {
   static std::size_t format_line(const CanFrame& frame, std::int64_t t_ns, const char* channel,
                                  char* out) noexcept;
   std::uint64_t bytes_written() const noexcept { return written_.load(std::memory_order_relaxed); }
+  // Failed write(2) calls (full disk, I/O error), the last errno, and the bytes still
+  // waiting in the ring (after the last flush at exit: bytes that never reached the file).
+  std::uint64_t write_errors() const noexcept { return write_errors_.load(std::memory_order_relaxed); }
+  int last_errno() const noexcept { return last_errno_.load(std::memory_order_relaxed); }
+  std::uint64_t bytes_pending() const noexcept { return ring_.pending(); }
 
  private:
   CandumpLogChannel() = default;
@@ -56,6 +61,8 @@ class CandumpLogChannel final : public CanChannel {
   bool wall_clock_ = false;
   rt::SpscBuffer<char> ring_;  // send (RT) → flush (non-RT)
   std::atomic<std::uint64_t> written_{0};
+  std::atomic<std::uint64_t> write_errors_{0};
+  std::atomic<int> last_errno_{0};
   std::mutex flush_mutex_;  // non-RT side only: two non-RT callers of flush() never interleave
 };
 

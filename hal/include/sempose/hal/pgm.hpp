@@ -10,6 +10,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "sempose/hal/image.hpp"
 
@@ -19,6 +20,8 @@ inline constexpr int kPgmMaxSide = 16384;
 
 Image read_pgm(const std::string& path);
 bool try_read_pgm(const std::string& path, Image& out, std::string& error);
+// The same rules for bytes already in memory (error without the file name); the fuzz target.
+bool parse_pgm(const std::vector<unsigned char>& data, Image& out, std::string& error);
 // Writes maxval 255 (bits 8, samples clamped to 255) or 65535 (bits 16).
 void write_pgm(const std::string& path, const Image& image);
 

@@ -174,7 +174,8 @@ struct Heartbeat {
   bool running = true;
   BusState bus_state = BusState::kActive;
   bool fd = false;                  // poses go out as CAN FD frames
-  bool stalled = false;             // a pipeline stage made no progress (service.stall_timeout_ms)
+  bool output_fault = false;        // a file output (CSV, candump log) failed to write
+  bool stalled = false;             // the scan source or an RT stage made no progress for too long
   std::uint8_t pattern_set = 0;     // 0..15
   std::uint8_t bad_commands = 0;    // mod 16
   std::uint8_t counter = 0;         // +1 per heartbeat, wraps
@@ -258,7 +259,8 @@ inline void encode_heartbeat(const Heartbeat& h, std::uint8_t* data) noexcept {
   put_bits(data, 2, 1, h.running ? 1u : 0u);
   put_bits(data, 3, 2, static_cast<std::uint8_t>(h.bus_state));
   put_bits(data, 5, 1, h.fd ? 1u : 0u);
-  put_bits(data, 6, 1, h.stalled ? 1u : 0u);
+  put_bits(data, 6, 1, h.output_fault ? 1u : 0u);
+  put_bits(data, 7, 1, h.stalled ? 1u : 0u);
   put_bits(data, 8, 4, h.pattern_set > 15 ? 15u : h.pattern_set);
   put_bits(data, 12, 4, h.bad_commands & 0xFu);
   put_bits(data, 16, 8, h.counter);
@@ -323,7 +325,8 @@ inline bool decode_heartbeat(const std::uint8_t* data, std::uint8_t len, Heartbe
   out.running = get_bits(data, 2, 1) != 0;
   out.bus_state = static_cast<BusState>(get_bits(data, 3, 2));
   out.fd = get_bits(data, 5, 1) != 0;
-  out.stalled = get_bits(data, 6, 1) != 0;
+  out.output_fault = get_bits(data, 6, 1) != 0;
+  out.stalled = get_bits(data, 7, 1) != 0;
   out.pattern_set = static_cast<std::uint8_t>(get_bits(data, 8, 4));
   out.bad_commands = static_cast<std::uint8_t>(get_bits(data, 12, 4));
   out.counter = static_cast<std::uint8_t>(get_bits(data, 16, 8));

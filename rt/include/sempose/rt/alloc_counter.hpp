@@ -4,7 +4,7 @@
 // How: in normal builds the malloc family (malloc, calloc, realloc, free, the aligned forms)
 // is replaced by thin wrappers around glibc's __libc_* entry points; operator new/delete in
 // libstdc++ call malloc/free, so they are counted too. In sanitizer builds the sanitizer owns
-// malloc, so global operator new/delete are replaced instead (raw malloc is then not counted).
+// malloc; the sanitizer allocator's malloc/free hooks count every heap call instead.
 // The check on a thread-local flag costs a few instructions per call.
 #pragma once
 
@@ -24,7 +24,7 @@ std::uint64_t frees() noexcept;
 // Allocations made by the calling thread while armed.
 std::uint64_t this_thread_allocations() noexcept;
 
-// True when raw malloc calls are counted (false in sanitizer builds).
+// True when raw malloc calls are counted (every build since the sanitizer hooks).
 bool counts_malloc() noexcept;
 
 // RAII: arm for a scope (tests).

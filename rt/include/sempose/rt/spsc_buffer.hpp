@@ -38,6 +38,10 @@ class SpscBuffer {
     head_cache_ = tail_cache_ = 0;
   }
   std::size_t capacity() const noexcept { return capacity_; }
+  // Items pushed and not yet consumed (exact when neither side is running, e.g. at exit).
+  std::size_t pending() const noexcept {
+    return tail_.value.load(std::memory_order_acquire) - head_.value.load(std::memory_order_acquire);
+  }
 
   // Producer: all n items, or nothing (false) when they do not fit. Never blocks.
   bool try_push(const T* items, std::size_t n) noexcept {

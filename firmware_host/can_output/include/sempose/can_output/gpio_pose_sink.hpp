@@ -28,6 +28,11 @@ class GpioPoseSink final : public pipeline::PoseSink {
   }
   void service(const pipeline::PipelineStatus& status, std::int64_t t_now_ns) noexcept override {
     running_ = status.running;
+    // A stalled source gives no new pose: the last TRACKING must not keep "pose valid" up.
+    if (status.fault_bits & pipeline::kFaultSourceStalled) {
+      tracking_ = 0;
+      outputs_.set_pose_valid(false);
+    }
     if (!running_) outputs_.set_pose_valid(false);
     inner_.service(status, t_now_ns);
   }

@@ -27,7 +27,15 @@ class CsvPoseSink final : public PoseSink {
   void write_pending();
   void flush() override { write_pending(); }
 
+  // Non-RT: writes what is pending and closes; false when any write failed.
+  bool close();
+
   std::uint64_t written() const noexcept { return written_; }
+  // Failed writes (a full disk, an I/O error): how often, how many pose lines were lost,
+  // and the last errno (0: none).
+  std::uint64_t write_errors() const noexcept { return write_errors_; }
+  std::uint64_t lost_lines() const noexcept { return lost_lines_; }
+  int last_errno() const noexcept { return last_errno_; }
   std::uint64_t dropped() const noexcept { return dropped_.load(std::memory_order_relaxed); }
 
  private:
@@ -37,6 +45,10 @@ class CsvPoseSink final : public PoseSink {
   std::atomic<std::uint64_t> dropped_{0};
   std::FILE* file_ = nullptr;
   std::uint64_t written_ = 0;
+  std::uint64_t write_errors_ = 0;
+  std::uint64_t lost_lines_ = 0;
+  int last_errno_ = 0;
+  void note_error(int err, std::uint64_t lines);
 };
 
 // Fans one pose out to several sinks (e.g. CSV for validation + CAN). Commands come from

@@ -62,6 +62,8 @@ struct StatusWords {
   std::uint8_t state;
   std::uint8_t pattern_set;
   std::uint8_t running;
+  std::uint8_t last_command_seq;   // last command that took effect
+  std::uint32_t commands_rejected; // valid commands naming nothing that exists
 };
 
 class Pipeline {
@@ -89,9 +91,16 @@ class Pipeline {
   // True once every stage has exited (after a stop request or the end of a finite source).
   bool finished() const noexcept { return output_done_.load(std::memory_order_acquire); }
   bool source_ended() const noexcept { return source_ended_.load(std::memory_order_acquire); }
-  // Set by the non-RT watchdog (service::PipelineWatchdog) while a stage makes no progress;
-  // the output stage copies it into the heartbeat, so the bus sees the fault.
-  void report_stall(bool stalled) noexcept { stalled_.store(stalled, std::memory_order_relaxed); }
+  // Faults found outside the RT stages (the main thread's file writes, the source stall
+  // watchdog, the service watchdog's stage-progress rule): set or cleared here, reported in
+  // every heartbeat (PipelineStatus::fault_bits).
+  void set_fault(std::uint8_t bits, bool on) noexcept {
+    if (on) faults_.fetch_or(bits, std::memory_order_relaxed);
+    else faults_.fetch_and(static_cast<std::uint8_t>(~bits), std::memory_order_relaxed);
+  }
+  std::uint8_t faults() const noexcept { return faults_.load(std::memory_order_relaxed); }
+  // Set by the non-RT service watchdog (service::PipelineWatchdog) while a stage makes no progress.
+  void report_stall(bool stalled) noexcept { set_fault(kFaultStageStalled, stalled); }
   // False after a STOP command (acquisition then idles on purpose: not a stall).
   bool scanning_enabled() const noexcept { return status_.read().running != 0; }
   void join();
@@ -117,7 +126,9 @@ class Pipeline {
   // One output cycle; returns true when it did any work.
   bool output_step() noexcept;
   void correlate(hal::FramePool::Index slot) noexcept;
-  void apply_command(const Command& c) noexcept;
+  // Applies a command; false (and nothing changed) when it names a pattern set or target that
+  // does not exist.
+  bool apply_command(const Command& c) noexcept;
   void publish_plan(std::uint8_t target, bool enabled) noexcept;
   void idle_wait(std::int64_t until_ns) const noexcept;
 
@@ -159,7 +170,7 @@ class Pipeline {
 
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> source_ended_{false};
-  std::atomic<bool> stalled_{false};
+  std::atomic<std::uint8_t> faults_{0};
   std::atomic<bool> acquisition_done_{false};
   std::atomic<bool> correlation_done_{false};
   std::atomic<bool> output_done_{false};

@@ -46,6 +46,7 @@ struct PipelineCounters {
   Counter overruns;             // a frame's scan ended before the previous pose was done
   Counter poses_ring_full;      // poses lost because output fell behind
   Counter commands;             // commands applied
+  Counter commands_rejected;    // valid commands naming a pattern set or target that does not exist
   Counter correlation_allocs;
   // output
   Counter sent;

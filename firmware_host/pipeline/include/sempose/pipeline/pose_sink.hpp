@@ -39,11 +39,20 @@ struct PipelineStatus {
   pose::TrackState state = pose::TrackState::kAcquiring;  // of target 0 (worst over targets)
   std::uint8_t pattern_set = 0;
   bool running = true;              // false after a stop command
-  bool stalled = false;             // the non-RT watchdog saw a stage make no progress
   std::uint32_t dwell_ns = 0;
   std::uint32_t dropped_frames = 0;
   std::uint32_t overruns = 0;
+  // Acknowledgement: the seq of the last command that took effect, and how many valid
+  // commands were refused because they named something that does not exist (a pattern set
+  // or target not configured) or were lost to a full command ring.
+  std::uint8_t last_command_seq = 0;
+  std::uint32_t commands_rejected = 0;
+  std::uint8_t fault_bits = 0;      // kFault* below: reported faults (heartbeat, summary)
 };
+
+inline constexpr std::uint8_t kFaultOutputWrite = 1;    // a file output (CSV, candump log) failed to write
+inline constexpr std::uint8_t kFaultSourceStalled = 2;  // no frame from the scan source for too long
+inline constexpr std::uint8_t kFaultStageStalled = 4;   // an RT stage made no progress (service watchdog)
 
 enum class CommandKind : std::uint8_t {
   kSelectPatternSet = 0,  // arg = pattern set / magnification step; nm_per_px = its scale
@@ -54,6 +63,7 @@ enum class CommandKind : std::uint8_t {
 
 struct Command {
   CommandKind kind = CommandKind::kStart;
+  std::uint8_t seq = 0;  // the controller's sequence number, echoed once the command took effect
   std::uint8_t target = 0xFF;
   std::uint8_t arg = 0;
   double nm_per_px = 0;  // 0 = keep the configured value

@@ -25,6 +25,9 @@ class FftCorrelator {
  public:
   using Complex = std::complex<float>;
 
+  // fft_w × fft_h is the smallest transform wanted; the correlator may pick the next larger
+  // 2,3,5-smooth size when FFTW has no allocation-free plan at that size (fft_w()/fft_h()
+  // tell which). Throws only when FFTW cannot plan at all.
   FftCorrelator(int fft_w, int fft_h, const PatternMask& mask);
   ~FftCorrelator();
   FftCorrelator(const FftCorrelator&) = delete;
@@ -58,6 +61,10 @@ class FftCorrelator {
  private:
   template <typename T>
   bool load_impl(const T* pixels, int w, int h, std::ptrdiff_t stride) noexcept;
+  void allocate_buffers();
+  void destroy_plans() noexcept;
+  bool make_plans(unsigned flags);     // false (and no plan kept) when FFTW has none
+  bool execution_allocates() noexcept; // one forward + inverse run with the heap counter armed
 
   int fft_w_, fft_h_;
   const PatternMask& mask_;

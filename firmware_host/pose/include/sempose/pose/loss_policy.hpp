@@ -1,7 +1,21 @@
 // When is a measurement not the target, and when is the target lost: the state decision of
-// one frame. A weak measurement (low exact score, far below the target's recent scores, or a
-// weak peak-to-sidelobe ratio) is reported with its reasons; K weak frames in a row lose the
-// target (a full-field search follows). RT, no allocation.
+// one frame. A weak measurement (low exact score, at or below the noise floor, far below the
+// target's recent scores, or a weak peak-to-sidelobe ratio) is reported with its reasons; K
+// weak frames in a row lose the target (a full-field search follows). A start search's match
+// is the target only when it also clears the full field's noise floor, the score attainable
+// in its window and — once the target was seen — the target's own score level. None of these
+// is a tuned constant:
+//  * noise floors: what the same tracker reaches on pure-noise frames for this pattern set,
+//    ROI and field, measured at setup (Tracker::create); nothing at or below can be told
+//    from noise;
+//  * attainable score: √(S/(S+N)) of the match's window (signal over signal + noise): a true
+//    match explains the window's signal, background texture that resembles the pattern does
+//    not (dose 20: ~0.4 where ~0.97 is attainable);
+//  * the target's own level: the running mean of its accepted scores, kept across a loss, so
+//    background merely above the absolute threshold after the target left is not "found";
+//    forgotten on a commanded re-acquisition or a pattern-set switch.
+// All scaled by relative_score_threshold (the same "this much of what the target reaches").
+// RT, no allocation.
 #pragma once
 
 #include <cstdint>
@@ -27,8 +41,19 @@ class LossPolicy {
 
   // A tracked frame's verdict (counts weak frames).
   FrameVerdict judge(const Measurement& m) noexcept;
-  // A start search's result is the target when valid and not weak.
-  bool found(const Measurement& m) const noexcept { return m.valid && !weak(m); }
+  // A start search's result is the target when valid, not weak, above the field's noise
+  // floor and close enough to the attainable score and the target's own level.
+  bool found(const Measurement& m, double attainable) const noexcept;
+
+  // Setup: the active pattern set's noise floors (-1: none, e.g. while measuring them).
+  void set_noise_floors(float roi, float field) noexcept {
+    roi_floor_ = roi;
+    field_floor_ = field;
+  }
+  // Setup's noise trials: no own level is learnt from them.
+  void set_calibrating(bool on) noexcept { calibrating_ = on; }
+  // The target's look may have changed (commanded re-acquisition, new magnification).
+  void forget_target() noexcept { have_ref_ = false; }
 
   // The reported score of an accepted pose (the recent mean the relative threshold uses).
   void accepted(float score) noexcept;
@@ -44,6 +69,10 @@ class LossPolicy {
   int weak_frames_ = 0;
   double score_mean_ = 0;  // running mean of accepted scores
   bool have_score_mean_ = false;
+  float roi_floor_ = -1.0f, field_floor_ = -1.0f;
+  bool calibrating_ = false;
+  double ref_score_ = 0;   // the target's own score level, kept across a loss
+  bool have_ref_ = false;
 };
 
 }  // namespace sempose::pose

@@ -58,6 +58,12 @@ class Tracker {
   PoseEstimate update(const PoseFrame& frame) noexcept;
   // Switches the magnification step; out of range: ignored, returns false.
   bool select_pattern_set(std::uint8_t set) noexcept;
+  std::size_t pattern_set_count() const noexcept;
+  // The noise floors measured at setup (the best score pure noise reaches, mean + 5 sd over
+  // 8 noise frames) for the tracking ROI and the full-field search: never TRACKING at or
+  // below them.
+  float noise_floor_roi(std::size_t set) const noexcept;
+  float noise_floor_field(std::size_t set) const noexcept;
   std::uint8_t pattern_set() const noexcept;
   double nm_per_px() const noexcept;
   void request_reacquire() noexcept;

@@ -1,0 +1,103 @@
+#include "sempose/hal/frames_csv.hpp"
+
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <stdexcept>
+
+namespace sempose::hal {
+
+namespace {
+
+constexpr std::int64_t kMaxTimeNs = std::int64_t{1} << 62;  // far beyond any run, no overflow when added to
+constexpr long long kMaxFileBytes = 64ll << 20;
+
+std::string trim(const std::string& s) {
+  std::size_t a = 0, b = s.size();
+  while (a < b && (s[a] == ' ' || s[a] == '\t' || s[a] == '\r')) ++a;
+  while (b > a && (s[b - 1] == ' ' || s[b - 1] == '\t' || s[b - 1] == '\r')) --b;
+  return s.substr(a, b - a);
+}
+
+std::string shown(const std::string& s) {
+  std::string out = s.size() > 40 ? s.substr(0, 40) + "..." : s;
+  for (char& c : out) if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
+  return out;
+}
+
+// A whole number of decimal digits only, at most `max`; false otherwise.
+bool parse_count(const std::string& cell, std::int64_t max, std::int64_t& out) {
+  if (cell.empty() || cell.size() > 19) return false;
+  std::int64_t v = 0;
+  for (char c : cell) {
+    if (c < '0' || c > '9') return false;
+    if (v > (max - (c - '0')) / 10) return false;  // v·10 + digit would pass max (no overflow)
+    v = v * 10 + (c - '0');
+  }
+  out = v;
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::int64_t> parse_frames_csv(const std::string& text, std::size_t frame_count, const std::string& where) {
+  std::vector<std::int64_t> t_ns(frame_count, 0);
+  std::vector<std::size_t> line_of(frame_count, 0);
+  std::size_t pos = 0, line_no = 0;
+  bool header = true;
+  auto fail = [&](const std::string& what) { throw std::runtime_error(where + ":" + std::to_string(line_no) + ": " + what); };
+  while (pos < text.size()) {
+    std::size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    const std::string line = trim(text.substr(pos, end - pos));
+    pos = end + 1;
+    ++line_no;
+    if (header) {
+      header = false;
+      if (line.rfind("frame", 0) != 0) fail("expected the header 'frame,t_ns', got '" + shown(line) + "'");
+      continue;
+    }
+    if (line.empty()) continue;
+    const std::size_t comma = line.find(',');
+    if (comma == std::string::npos) fail("expected 'frame,t_ns', got '" + shown(line) + "'");
+    const std::size_t comma2 = line.find(',', comma + 1);
+    const std::string f = trim(line.substr(0, comma));
+    const std::string t = trim(line.substr(comma + 1, comma2 == std::string::npos ? std::string::npos : comma2 - comma - 1));
+    std::int64_t frame = 0, ns = 0;
+    const auto last = static_cast<std::int64_t>(frame_count) - 1;
+    if (!parse_count(f, std::max<std::int64_t>(last, 0), frame) || frame > last) {
+      fail("frame '" + shown(f) + "' is not a frame index in [0, " + std::to_string(last) + "] (" +
+           std::to_string(frame_count) + " PGM frames)");
+    }
+    if (!parse_count(t, kMaxTimeNs - 1, ns)) {
+      fail("t_ns '" + shown(t) + "' is not a whole number of nanoseconds in [0, 2^62)");
+    }
+    const auto i = static_cast<std::size_t>(frame);
+    if (line_of[i] != 0) fail("frame " + f + " is listed twice (first on line " + std::to_string(line_of[i]) + ")");
+    line_of[i] = line_no;
+    t_ns[i] = ns;
+  }
+  if (header) throw std::runtime_error(where + ": empty (expected the header 'frame,t_ns' and one row per frame)");
+  for (std::size_t i = 0; i < frame_count; ++i) {
+    if (line_of[i] == 0) throw std::runtime_error(where + ": frame " + std::to_string(i) + " has no t_ns row");
+  }
+  return t_ns;
+}
+
+std::vector<std::int64_t> read_frames_csv(const std::string& path, std::size_t frame_count) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw std::runtime_error(path + ": cannot open (" + std::strerror(errno) + ")");
+  if (!S_ISREG(st.st_mode)) throw std::runtime_error(path + ": not a regular file");
+  if (st.st_size > kMaxFileBytes) throw std::runtime_error(path + ": larger than 64 MiB");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  std::string text(static_cast<std::size_t>(st.st_size), '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  return parse_frames_csv(text, frame_count, path);
+}
+
+}  // namespace sempose::hal

@@ -1,0 +1,242 @@
+// Table-driven bad input for the config: NaN and ±inf for EVERY floating-point key the readers
+// know (taken from the readers' own key catalog, so a new key is covered without a new test),
+// every path key given a directory, a FIFO, a device and a missing folder, duplicate and
+// non-scalar keys. Each case must be refused with a message naming the key — and never block
+// (a FIFO is only stat()ed, never opened).
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "sempose/config/app_config.hpp"
+
+namespace sempose::config {
+namespace {
+
+const std::string kPattern = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
+
+// A config that uses every section and one item of every list, so every key is reachable.
+std::string base_yaml(const std::string& dir) {
+  return "source: sim\n"
+         "scan: {field_w: 640, field_h: 480}\n"
+         "sim:\n"
+         "  clock: virtual\n"
+         "  drift: [{amplitude_px: 0.4, period_s: 23, direction_deg: 10, phase_deg: 0}]\n"
+         "  background: {source: procedural, mean: 0.3, contrast: 0.5, grain_px: 3}\n"
+         "  targets:\n"
+         "    - {enabled: true, texture: {source: lamella}, size: [100, 64], brightness: 0.9, start: [320, 240, 0],\n"
+         "       trajectory: {kind: sine, amplitude_x_px: 20, amplitude_y_px: 10, amplitude_phi_deg: 5, period_s: 4}}\n"
+         "replay: {frames_dir: " + dir + ", loop: false}\n"
+         "targets:\n"
+         "  - name: t0\n"
+         "    pattern_sets: [{file: " + kPattern + ", nm_per_px: 40, mask: " + kPattern + "}]\n"
+         "tracker: {filter: {enabled: false}}\n"
+         "governor: {margin: 0.2}\n"
+         "pipeline: {schedule: [0]}\n"
+         "output: {poses_csv: " + dir + "/poses.csv, hist_dir: " + dir + "/hist}\n"
+         "can: {log_file: " + dir + "/can.log}\n"
+         "gpio: {chip: '', pose_valid_line: -1}\n";
+}
+
+std::string temp_dir() {
+  const std::string d = ::testing::TempDir() + "config_faults_" + std::to_string(::getpid());
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+// Sets the scalar at a dotted path with [i] indices (a.b[0].c) in a YAML tree.
+void set_path(YAML::Node root, const std::string& path, const std::string& value) {
+  std::vector<std::string> parts;
+  std::size_t a = 0;
+  while (a <= path.size()) {
+    const std::size_t b = std::min(path.find('.', a), path.size());
+    parts.push_back(path.substr(a, b - a));
+    a = b + 1;
+  }
+  YAML::Node node = root;
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    std::string key = parts[i];
+    int index = -1;
+    if (const auto lb = key.find('['); lb != std::string::npos) {
+      index = std::stoi(key.substr(lb + 1));
+      key = key.substr(0, lb);
+    }
+    YAML::Node child = node[key];
+    // Node::operator= assigns content into the referenced node: rebind with reset().
+    if (index >= 0) child.reset(YAML::Node(child[static_cast<std::size_t>(index)]));
+    if (i + 1 == parts.size()) {
+      child = YAML::Load(value);
+      return;
+    }
+    node.reset(child);
+  }
+}
+
+std::string with(const std::string& base, const std::string& path, const std::string& value) {
+  YAML::Node root = YAML::Load(base);
+  set_path(root, path, value);
+  YAML::Emitter out;
+  out << root;
+  return out.c_str();
+}
+
+TEST(ConfigFaults, BaseConfigIsValid) {
+  const std::string dir = temp_dir();
+  AppConfig c;
+  std::string e;
+  EXPECT_TRUE(parse_app_config(base_yaml(dir), dir + "/c.yaml", c, e)) << e;
+}
+
+TEST(ConfigFaults, NanAndInfinityAreRefusedForEveryFloatKey) {
+  const std::string dir = temp_dir();
+  const std::string base = base_yaml(dir);
+  int float_keys = 0;
+  for (const KeyInfo& k : config_keys(base)) {
+    if (k.kind != KeyKind::kFloat) continue;
+    ++float_keys;
+    // YAML's own spellings (refused as not finite) and C's (refused as not numbers).
+    for (const char* v : {".nan", ".NaN", ".inf", "-.inf", "+.Inf", "NaN", "inf", "-nan"}) {
+      AppConfig c;
+      std::string e;
+      const std::string text = with(base, k.path, v);
+      EXPECT_FALSE(parse_app_config(text, dir + "/c.yaml", c, e)) << k.path << " = " << v << " was accepted";
+      EXPECT_NE(e.find(k.path + ": '" + v + "' is not a"), std::string::npos)
+          << k.path << " = " << v << ":\n" << e;
+    }
+  }
+  std::printf("NaN/inf refused for %d floating-point keys\n", float_keys);
+  EXPECT_GE(float_keys, 60) << "the catalog lost keys (every section and list item is in the base config)";
+}
+
+TEST(ConfigFaults, HugeAndFractionalIntegersAreRefused) {
+  const std::string dir = temp_dir();
+  const std::string base = base_yaml(dir);
+  int int_keys = 0;
+  for (const KeyInfo& k : config_keys(base)) {
+    if (k.kind != KeyKind::kInteger) continue;
+    ++int_keys;
+    for (const char* v : {"1e300", "-1e300", "0.5", ".nan"}) {
+      AppConfig c;
+      std::string e;
+      EXPECT_FALSE(parse_app_config(with(base, k.path, v), dir + "/c.yaml", c, e)) << k.path << " = " << v;
+      EXPECT_NE(e.find(k.path + ":"), std::string::npos) << k.path << " = " << v << ":\n" << e;
+    }
+  }
+  std::printf("overflowing/fractional values refused for %d integer keys\n", int_keys);
+  EXPECT_GE(int_keys, 20);
+}
+
+struct PathCase {
+  const char* key;
+  bool output;     // an output file (device allowed: /dev/null, /dev/full)
+  bool directory;  // the key names a directory
+};
+
+TEST(ConfigFaults, PathKeysAreCheckedForTheirKindBeforeAnyOpen) {
+  const std::string dir = temp_dir();
+  const std::string fifo = dir + "/fifo";
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string a_file = dir + "/plain.txt";
+  std::ofstream(a_file) << "x";
+  const std::string base = base_yaml(dir);
+  const PathCase cases[] = {
+      {"targets[0].pattern_sets[0].file", false, false}, {"targets[0].pattern_sets[0].mask", false, false},
+      {"replay.frames_dir", false, true},                {"output.poses_csv", true, false},
+      {"can.log_file", true, false},                     {"output.hist_dir", true, true},
+  };
+  struct Kind {
+    const char* what;
+    std::string path;
+  };
+  const Kind kinds[] = {{"directory", dir},
+                        {"FIFO", fifo},
+                        {"character device", "/dev/zero"},
+                        {"missing folder", dir + "/no/such/folder/f"},
+                        {"below a regular file", a_file + "/f"}};
+  int refused = 0;
+  for (const PathCase& pc : cases) {
+    for (const Kind& k : kinds) {
+      // What is fine: a directory for a directory key; a device for an output file
+      // (/dev/null discards); a missing folder for an output (sempose creates it).
+      const std::string kind = k.what;
+      const bool ok = (kind == "directory" && pc.directory) || (kind == "character device" && pc.output && !pc.directory) ||
+                      (kind == "missing folder" && pc.output);
+      std::string text = with(base, pc.key, "'" + k.path + "'");
+      if (std::string(pc.key) == "replay.frames_dir") text = with(text, "source", "replay");
+      AppConfig c;
+      std::string e;
+      const bool accepted = parse_app_config(text, dir + "/c.yaml", c, e);
+      if (ok) {
+        EXPECT_TRUE(accepted) << pc.key << " = " << k.what << ":\n" << e;
+      } else {
+        ++refused;
+        EXPECT_FALSE(accepted) << pc.key << " = " << k.what << " was accepted";
+        EXPECT_NE(e.find(pc.key), std::string::npos) << pc.key << " = " << k.what << ":\n" << e;
+        EXPECT_NE(e.find(k.path), std::string::npos) << "the message names the path:\n" << e;
+      }
+    }
+  }
+  std::printf("%d bad path cases refused by name (6 keys x directory/FIFO/device/missing folder/below a file)\n",
+              refused);
+  ::unlink(fifo.c_str());
+}
+
+TEST(ConfigFaults, ConfigFileItselfMustBeARegularFile) {
+  const std::string dir = temp_dir();
+  const std::string fifo = dir + "/config_fifo";
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& p : {dir, fifo, std::string("/dev/zero"), dir + "/missing/c.yaml"}) {
+    AppConfig c;
+    std::string e;
+    EXPECT_FALSE(load_app_config(p, c, e)) << p;
+    EXPECT_NE(e.find(p + ": cannot read the config: it is "), std::string::npos) << e;
+  }
+  ::unlink(fifo.c_str());
+}
+
+TEST(ConfigFaults, DuplicateAndNonScalarKeysAreErrors) {
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config("tracker:\n  score_threshold: 0.3\n  score_threshold: 0.9\n", "d.yaml", c, e));
+  EXPECT_NE(e.find("d.yaml:3:3: tracker.score_threshold: duplicate key (first given on line 2)"), std::string::npos)
+      << e;
+  EXPECT_FALSE(parse_app_config("tracker:\n  ? [a, b]\n  : 1\n", "n.yaml", c, e));
+  EXPECT_NE(e.find("tracker: a key must be a plain name"), std::string::npos) << e;
+  EXPECT_FALSE(parse_app_config("? {x: 1}\n: 2\n", "n.yaml", c, e));
+  EXPECT_NE(e.find("a key must be a plain name"), std::string::npos) << e;
+}
+
+TEST(ConfigFaults, TrackingRoiLargerThanTheScanLimitIsRefused) {
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config("scan: {max_roi_w: 128, max_roi_h: 128}\ntracker: {roi_size_px: 192}\n", "r.yaml", c, e));
+  EXPECT_NE(e.find("tracker.roi_size_px: 192 gives a 192x192 ROI, larger than scan.max_roi_w/h 128x128"),
+            std::string::npos)
+      << e;
+  // The whole field is always allowed.
+  EXPECT_TRUE(parse_app_config("scan: {field_w: 160, field_h: 160, max_roi_w: 128, max_roi_h: 128}\n"
+                               "tracker: {roi_size_px: 192}\n",
+                               "r.yaml", c, e))
+      << e;
+}
+
+TEST(ConfigFaults, ScheduleMayNameTheSimulatorsOwnTargets) {
+  AppConfig c;
+  std::string e;
+  const std::string two = "sim:\n  targets:\n    - {texture: {source: lamella}}\n    - {texture: {source: gripper}}\n";
+  EXPECT_TRUE(parse_app_config(two + "pipeline: {schedule: [0, 1, 1]}\n", "s.yaml", c, e)) << e;
+  EXPECT_FALSE(parse_app_config(two + "pipeline: {schedule: [0, 2]}\n", "s.yaml", c, e));
+  EXPECT_NE(e.find("pipeline.schedule: 2 is not a target index (targets: 2"), std::string::npos) << e;
+}
+
+}  // namespace
+}  // namespace sempose::config

@@ -1,0 +1,145 @@
+// No false TRACKING: a target that vanishes or was never in the field, pure noise, blank and
+// saturated frames. The closed loop on the simulated SEM (real tracker, real renderer); every
+// case prints its measured shares so a regression shows by how much.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+
+#include "sim_harness.hpp"
+
+namespace pt = sempose::pose::testing;
+using sempose::pose::TrackState;
+
+namespace {
+
+struct Counts {
+  int tracking = 0, lost_streak_start = -1, tracking_after_gone = 0, first_lost_after_gone = -1;
+};
+
+sempose::config::TrackerConfig default_tracker() { return sempose::config::TrackerConfig{}; }
+
+void print_case(const char* name, const pt::RunStats& r, int extra = -1) {
+  std::printf("%-34s frames=%d tracked_share=%.3f%s\n", name, r.frames, r.tracked_share(),
+              extra >= 0 ? (" frames_to_lost=" + std::to_string(extra)).c_str() : "");
+}
+
+}  // namespace
+
+// A target tracked for 10 frames, then gone (only background left): LOST within a few frames
+// and never TRACKING again on the background.
+class Vanish : public ::testing::TestWithParam<std::tuple<std::string, double>> {};
+
+TEST_P(Vanish, GoesLostAndStaysLost) {
+  pt::Scenario s;
+  s.target = std::get<0>(GetParam());
+  s.dose_e = std::get<1>(GetParam());
+  s.motion = "smooth";
+  s.frames = 80;
+  s.vanish_after = 10;
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  const auto& poses = h.poses();
+  int tracked_before = 0;
+  for (int f = 0; f < s.vanish_after; ++f) tracked_before += poses[f].state == TrackState::kTracking;
+  EXPECT_GE(tracked_before, s.vanish_after - 1) << "the target must be tracked while it is there";
+  int first_not_tracking = -1, tracking_later = 0;
+  for (int f = s.vanish_after; f < s.frames; ++f) {
+    const bool tr = poses[static_cast<std::size_t>(f)].state == TrackState::kTracking;
+    if (!tr && first_not_tracking < 0) first_not_tracking = f - s.vanish_after;
+    if (tr && first_not_tracking >= 0) ++tracking_later;
+  }
+  std::printf("vanish %-12s dose %4.1f: tracked before %d/%d, frames to LOST %d, TRACKING after that %d/%d\n",
+              s.target.c_str(), s.dose_e, tracked_before, s.vanish_after, first_not_tracking, tracking_later,
+              s.frames - s.vanish_after);
+  ASSERT_GE(first_not_tracking, 0) << "never went LOST after the target vanished";
+  EXPECT_LE(first_not_tracking, 3);
+  EXPECT_EQ(tracking_later, 0) << "TRACKING on the background after the loss";
+}
+
+INSTANTIATE_TEST_SUITE_P(TargetsDoses, Vanish,
+                         ::testing::Combine(::testing::Values("needle_tip", "lamella_post"),
+                                            ::testing::Values(20.0, 6.0, 2.5, 1.0)));
+
+// The target is nowhere in the field from the start: nothing may ever be TRACKING.
+class NotInField : public ::testing::TestWithParam<std::tuple<std::string, double>> {};
+
+TEST_P(NotInField, NeverTracking) {
+  pt::Scenario s;
+  s.target = std::get<0>(GetParam());
+  s.dose_e = std::get<1>(GetParam());
+  s.motion = "static";
+  s.frames = 40;
+  s.target_in_field = false;
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  const pt::RunStats r = h.stats();
+  print_case(("not in field " + s.target + " dose " + std::to_string(s.dose_e).substr(0, 4)).c_str(), r);
+  if (s.dose_e >= 2.5) {
+    EXPECT_EQ(r.tracked, 0) << "TRACKING on the background of a field without the target";
+  } else {
+    // Below the paper's noise the attainable-score test cannot separate background from the
+    // target when noise dominates both: README, Known limitations (measured 1 frame in 40).
+    EXPECT_LE(r.tracked_share(), 0.05) << "TRACKING on the background of a field without the target";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(TargetsDoses, NotInField,
+                         ::testing::Combine(::testing::Values("needle_tip", "lamella_post"),
+                                            ::testing::Values(20.0, 6.0, 1.0)));
+
+// Pure noise (flat background, no target) at several doses, and blank and saturated frames.
+TEST(NoFalseTracking, PureNoiseNeverTracking) {
+  for (double dose : {20.0, 6.0, 1.0}) {
+    pt::Scenario s;
+    s.target = "needle_tip";
+    s.dose_e = dose;
+    s.motion = "static";
+    s.frames = 40;
+    s.background = false;
+    s.target_in_field = false;
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    const pt::RunStats r = h.stats();
+    print_case(("pure noise dose " + std::to_string(dose).substr(0, 4)).c_str(), r);
+    EXPECT_EQ(r.tracked, 0);
+  }
+}
+
+TEST(NoFalseTracking, BlankAndSaturatedFramesNeverTracking) {
+  for (auto kind : {pt::Scenario::Frames::kBlank, pt::Scenario::Frames::kSaturated}) {
+    pt::Scenario s;
+    s.target = "needle_tip";
+    s.frames = 12;
+    s.frames_kind = kind;
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    const pt::RunStats r = h.stats();
+    print_case(kind == pt::Scenario::Frames::kBlank ? "blank frames" : "saturated frames", r);
+    EXPECT_EQ(r.tracked, 0);
+    for (const auto& e : h.poses()) {
+      EXPECT_TRUE(std::isfinite(e.x_px) && std::isfinite(e.y_px) && std::isfinite(e.phi_deg) && std::isfinite(e.score));
+    }
+  }
+}
+
+// The target really comes back: found again (the decision is not a latch).
+TEST(NoFalseTracking, TargetThatReturnsIsFoundAgain) {
+  pt::Scenario s;
+  s.target = "needle_tip";
+  s.dose_e = 6.0;
+  s.motion = "jump";  // jumps every 0.5 s: lost and re-found
+  s.frames = 120;
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  const pt::RunStats r = h.stats();
+  print_case("jumping target (re-found)", r);
+  EXPECT_GE(r.tracked_share(), 0.95);
+  // A frame scanned while the target jumps may give one pose off (README, known limitations).
+  EXPECT_LE(r.false_tracking, 1);
+}
