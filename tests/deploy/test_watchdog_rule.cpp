@@ -120,20 +120,20 @@ TEST_F(NotifySocket, BadAddressIsReported) {
   EXPECT_NE(n.problem().find("relative/socket"), std::string::npos);
 }
 
-// The heartbeat carries the stall to the bus: bit 6 of byte 0, as ipc/sempose.dbc declares.
-TEST(HeartbeatStalledBit, EncodedAtBitSixAndDeclaredInTheDbc) {
+// The heartbeat carries the stall to the bus: bit 7 of byte 0, as ipc/sempose.dbc declares.
+TEST(HeartbeatStalledBit, EncodedAtBitSevenAndDeclaredInTheDbc) {
   sempose::ipc::Heartbeat h;
   h.stalled = true;
   std::uint8_t data[8];
   sempose::ipc::encode_heartbeat(h, data);
-  EXPECT_EQ(data[0] & 0x40, 0x40);
+  EXPECT_EQ(data[0] & 0x80, 0x80);
   sempose::ipc::Heartbeat back;
   ASSERT_TRUE(sempose::ipc::decode_heartbeat(data, 8, back));
   EXPECT_TRUE(back.stalled);
   EXPECT_EQ(back, h);
   h.stalled = false;
   sempose::ipc::encode_heartbeat(h, data);
-  EXPECT_EQ(data[0] & 0x40, 0);
+  EXPECT_EQ(data[0] & 0x80, 0);
   std::ifstream dbc(std::string(SEMPOSE_SOURCE_DIR) + "/ipc/sempose.dbc");
   bool declared = false;
   for (std::string line; std::getline(dbc, line);) declared = declared || line.find(" SG_ stalled : 7|1@1+ (1,0) [0|1]") == 0;

@@ -123,7 +123,7 @@ def heartbeats(can_log):
                 continue
             ident, data = parts[2].split("#", 1)
             if int(ident, 16) == HEARTBEAT_ID and len(data) >= 2:
-                out.append((float(parts[0].strip("()")), (int(data[0:2], 16) >> 6) & 1))
+                out.append((float(parts[0].strip("()")), (int(data[0:2], 16) >> 7) & 1))  # HEARTBEAT.stalled, bit 7 (ipc/sempose.dbc)
     return out
 
 
