@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "sempose/config/can_config.hpp"
+#include "sempose/config/comedi_config.hpp"
 #include "sempose/config/governor_config.hpp"
 #include "sempose/config/gpio_config.hpp"
 #include "sempose/config/pipeline_config.hpp"
@@ -18,10 +19,11 @@
 namespace sempose::config {
 
 struct AppConfig {
-  std::string source = "sim";  // "sim" | "replay": which scan source `sempose run` uses
+  std::string source = "sim";  // "sim" | "replay" | "comedi": which scan source `sempose run` uses
   ScanLimits scan;             // the scan generator (hal::ScanLimits)
   SimConfig sim;
   ReplayConfig replay;
+  ComediConfig comedi;         // source: comedi (external scan through a DAQ card)
   std::vector<TargetConfig> targets;  // pattern file names resolved against the config's folder
   TrackerConfig tracker;
   GovernorConfig governor;
