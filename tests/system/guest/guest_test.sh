@@ -27,7 +27,7 @@ CAN=${SYSTEST_CAN:-vcan0}
 SEMPOSE=${SEMPOSE_BIN:-sempose}
 HWTEST=${SEMPOSE_HW_TEST:-can_gpio_hw_test}
 COMEDI_HWTEST=${SEMPOSE_COMEDI_HW_TEST:-comedi_hw_test}
-COMEDI_RUN_S=4               # sempose run with source: comedi (the emulated SEM)
+COMEDI_RUN_S=6               # sempose run with source: comedi (the emulated SEM)
 TMP=$OUT/.tmp
 FAILED=""
 DURATION=5
@@ -200,7 +200,7 @@ comedi_dev_of() { # NAME -> /dev/comediN whose hardware device is NAME
   done
   return 1
 }
-COMEDI_TEST=${SYSTEST_COMEDI_TEST:-$(comedi_dev_of comedi_test)}
+COMEDI_TEST=${SYSTEST_COMEDI_TEST:-$(comedi_dev_of comedi_testd)}   # comedi_test's device name
 COMEDI_SEM=${SYSTEST_COMEDI_SEM:-$(comedi_dev_of sem_emul)}
 COMEDI_SKIP=""
 if [ -z "$COMEDI_TEST" ] || [ -z "$COMEDI_SEM" ]; then

@@ -139,7 +139,8 @@ static enum hrtimer_restart sem_tick(struct hrtimer *t)
 		if (p->ao_running) {
 			unsigned short xy[2];
 
-			if (comedi_buf_read_samples(ao, xy, 2) == 2) {
+			/* returns bytes, not samples */
+			if (comedi_buf_read_samples(ao, xy, 2) == comedi_samples_to_bytes(ao, 2)) {
 				p->beam_x = xy[0];
 				p->beam_y = xy[1];
 				if (ao->async->cmd.stop_src == TRIG_COUNT &&
