@@ -66,7 +66,7 @@ struct PipelineHistograms {
   // The governor's dwell: recorded as dwell_ns µs, so the 1 µs buckets read as 1 ns.
   rt::LatencyHistogram dwell_ns{"dwell_ns"};
   // Cost of arming a scan: the time spent in ScanSource::start() (a Comedi card: the command
-  // ioctls and the raster write; the simulator: rendering). Live sources only.
+  // ioctls and the raster write; the simulator: rendering). Wall clock, also in virtual time.
   rt::LatencyHistogram arm{"arm"};
 
   std::vector<rt::HistogramSnapshot> snapshot() const {
