@@ -144,6 +144,43 @@ TEST_F(ComediTestDevice, FramesAreExactRowMajorWithoutLostSamplesAndNoAllocation
   EXPECT_EQ(src.counters().scans, 3u);
 }
 
+// Two detector channels and oversampling: the sawtooth (channel 0) and comedi_test's flat
+// channel 2 (maxdata / 2) averaged over 2 scans per pixel. 2·pixel − 32767 is then the mean
+// of the pixel's two sawtooth samples, i.e. the sawtooth half a sample period after the
+// pixel's first scan; a pixel whose two samples straddle the sawtooth's wrap is off by half
+// its span, so at most one such pixel per sawtooth period is allowed.
+TEST_F(ComediTestDevice, TwoDetectorsAndOversamplingAverageTheRightSamples) {
+  config::ComediConfig cfg = sawtooth_config(dev_);
+  cfg.detector_channels = {0, 2};
+  cfg.oversample = 2;
+  ScanLimits lim = sawtooth_limits();
+  lim.min_dwell_ns = 2000;
+  lim.dwell_step_ns = 2000;
+  ComediScanSource src(lim, cfg);
+  FramePool pool(1, 64 * 48);
+  const Roi roi{3, 4, 32, 24};
+  ASSERT_EQ(src.start(ScanRequest{roi, 2000, 0}, pool[0]), StartResult::kStarted);
+  ASSERT_EQ(wait_done(src, 5'000'000'000), PollResult::kDone);
+  const RasterShape shape{cfg.settle_samples, cfg.flyback_samples, 2};
+  const int per_line = shape.scans_per_line(roi.w);
+  std::vector<double> t(static_cast<std::size_t>(roi.w * roi.h));
+  for (std::size_t i = 0; i < t.size(); ++i) t[i] = (2.0 * pool[0].pixels[i] - 32767.0) * kSawPeriodUs / kSawSpan;
+  const double period_us = 1.0;  // sample period: dwell 2000 ns / oversample 2
+  int bad = 0;
+  for (int r = 0; r < roi.h; ++r) {
+    for (int c = 0; c < roi.w; ++c) {
+      const double scans = static_cast<double>(r) * per_line + 2.0 * c;
+      double d = std::fmod(t[static_cast<std::size_t>(r * roi.w + c)] - t[0] - scans * period_us, kSawPeriodUs);
+      if (d > kSawPeriodUs / 2) d -= kSawPeriodUs;
+      if (d < -kSawPeriodUs / 2) d += kSawPeriodUs;
+      if (std::abs(d) > 0.25 * period_us) ++bad;
+    }
+  }
+  const double frame_us = static_cast<double>(src.scans_for(roi)) * period_us;
+  EXPECT_LE(bad, static_cast<int>(frame_us / kSawPeriodUs) + 1) << "pixels off their place in the raster";
+  EXPECT_NE(src.description().find("channel(s) 0 2"), std::string::npos) << src.description();
+}
+
 TEST_F(ComediTestDevice, CancelMidScanIsABadFrameAndTheNextScanIsExact) {
   const config::ComediConfig cfg = sawtooth_config(dev_);
   ComediScanSource src(sawtooth_limits(), cfg);
