@@ -84,4 +84,13 @@ TEST(ComediSection, SourceComediIsAcceptedByTheAppConfig) {
   EXPECT_EQ(app.comedi.device, "/dev/comedi1");
 }
 
+TEST(ComediSection, TheShippedNiExampleIsValid) {
+  cfg::AppConfig app;
+  std::string err;
+  EXPECT_TRUE(cfg::load_app_config(std::string(SEMPOSE_SOURCE_DIR) + "/config/comedi_ni625x.yaml", app, err)) << err;
+  EXPECT_EQ(app.source, "comedi");
+  EXPECT_EQ(app.comedi.trigger, "ai_start");
+  EXPECT_EQ(app.scan.min_dwell_ns, 1000u);
+}
+
 }  // namespace
