@@ -335,8 +335,9 @@ int sempose::cli::run(int argc, char** argv) {
   }
   if (comedi != nullptr) {
     const auto& k = comedi->counters();
-    std::printf("comedi: scans=%llu timeouts=%llu arm_errors=%llu cancelled=%llu (beam parked)\n",
-                static_cast<unsigned long long>(k.scans), static_cast<unsigned long long>(k.timeouts),
+    std::printf("comedi: scans=%llu stopped_early=%llu timeouts=%llu arm_errors=%llu cancelled=%llu (beam parked)\n",
+                static_cast<unsigned long long>(k.scans), static_cast<unsigned long long>(k.stopped),
+                static_cast<unsigned long long>(k.timeouts),
                 static_cast<unsigned long long>(k.arm_errors), static_cast<unsigned long long>(k.cancelled));
   }
   const auto& cc = can.sink->counters();

@@ -52,6 +52,7 @@ ComediDevice::ComediDevice(const std::string& path) : path_(path) {
     }
     subdevs_.push_back(std::move(s));
   }
+  subdinfo_ = std::move(info);
 }
 
 ComediDevice::~ComediDevice() {
@@ -139,6 +140,11 @@ bool ComediDevice::internal_trigger(unsigned sub) const noexcept {
   insn.data = data;
   insn.subdev = sub;
   return ::ioctl(fd_, COMEDI_INSN, &insn) >= 0;
+}
+
+bool ComediDevice::running(unsigned sub) noexcept {
+  if (sub >= subdinfo_.size() || ::ioctl(fd_, COMEDI_SUBDINFO, subdinfo_.data()) < 0) return true;  // unknown: wait
+  return (subdinfo_[sub].subd_flags & SDF_RUNNING) != 0;
 }
 
 bool ComediDevice::bufinfo(comedi_bufinfo& bi) const noexcept { return ::ioctl(fd_, COMEDI_BUFINFO, &bi) == 0; }

@@ -371,23 +371,38 @@ std::int64_t ComediScanSource::drain(const comedi_bufinfo& bi) noexcept {
   return taken_bytes;
 }
 
+// One ioctl: marks what the last call consumed as read, learns what has arrived since, and
+// assembles it. False when the ioctl failed.
+bool ComediScanSource::drain_available(unsigned& pending) noexcept {
+  comedi_bufinfo bi{};
+  bi.subdevice = ai_sub_;
+  bi.bytes_read = pending;
+  if (!dev_->bufinfo(bi)) return false;
+  const std::int64_t taken = ai_lsampl_ ? drain<std::uint32_t>(bi) : drain<std::uint16_t>(bi);
+  pending = static_cast<unsigned>(taken);
+  return true;
+}
+
 PollResult ComediScanSource::poll() noexcept {
   if (slot_ == nullptr) return PollResult::kIdle;
   if (failed_) {
     fail_scan();
     return PollResult::kError;
   }
-  // One ioctl: mark what the last poll consumed as read, learn what has arrived since.
-  comedi_bufinfo bi{};
-  bi.subdevice = ai_sub_;
-  bi.bytes_read = pending_read_bytes_;
-  if (!dev_->bufinfo(bi)) {
+  const std::int64_t before = assembler_->samples_done();
+  if (!drain_available(pending_read_bytes_)) {
     fail_scan();
     return PollResult::kError;
   }
-  pending_read_bytes_ = 0;
-  const std::int64_t taken = ai_lsampl_ ? drain<std::uint32_t>(bi) : drain<std::uint16_t>(bi);
-  pending_read_bytes_ = static_cast<unsigned>(taken);
+  if (!assembler_->complete() && assembler_->samples_done() == before && rt::now_ns() > expected_end_ns_ &&
+      !dev_->running(ai_sub_)) {
+    // Stopped early, or it ended between the two ioctls: one more look settles which.
+    if (!drain_available(pending_read_bytes_) || !assembler_->complete()) {
+      ++counters_.stopped;
+      fail_scan();
+      return PollResult::kError;
+    }
+  }
   if (assembler_->complete()) {
     FrameMeta& m = slot_->meta;
     m.t_scan_end_ns = rt::now_ns();  // the last sample has arrived

@@ -59,6 +59,9 @@ class ComediDevice {
   // buffer position.
   bool bufinfo(comedi_bufinfo& bi) const noexcept;
   bool write_single(unsigned sub, unsigned chanspec, unsigned value) const noexcept;
+  // Whether a command still runs on `sub` (COMEDI_SUBDINFO into a buffer sized at setup). A
+  // command that stopped before its last sample stopped on an error (overrun, underrun).
+  bool running(unsigned sub) noexcept;
 
  private:
   std::string path_;
@@ -66,6 +69,7 @@ class ComediDevice {
   std::string driver_, board_;
   int read_subdev_ = -1, write_subdev_ = -1;
   std::vector<ComediSubdevice> subdevs_;
+  std::vector<comedi_subdinfo> subdinfo_;  // running(): preallocated
   struct Mapping {
     void* addr;
     std::size_t bytes;

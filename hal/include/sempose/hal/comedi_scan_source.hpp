@@ -7,8 +7,9 @@
 // mmap'd AO buffer, issues the AI command, fires the internal trigger. poll() drains the
 // mmap'd AI buffer into the slot (one COMEDI_BUFINFO ioctl) without blocking; wait_fd() is the
 // device fd (readable while AI data wait), so acquisition sleeps in poll(2). The scan ends when
-// the last sample arrives. A scan whose data stop coming (timeout_ms past the expected end) or
-// whose arming failed is cancelled and reported as a bad frame (kError), never a hang.
+// the last sample arrives. A scan whose AI command stopped early (overrun, driver error: seen
+// once the expected end has passed), whose data stop coming (timeout_ms past the expected
+// end) or whose arming failed is cancelled and reported as a bad frame (kError), never a hang.
 // On destruction (stop) the beam is parked at park_volts.
 #pragma once
 
@@ -32,6 +33,7 @@ class ComediScanSource final : public ScanSource {
     std::uint64_t cancelled = 0;    // by cancel()
     std::uint64_t timeouts = 0;     // data stopped coming
     std::uint64_t arm_errors = 0;   // a command ioctl failed at start()
+    std::uint64_t stopped = 0;      // the AI command stopped before its last sample (driver error)
     std::int64_t last_arm_ns = 0;   // cost of the last start() (command ioctls + raster write)
   };
   // What COMEDI_CMDTEST said about the card (setup).
@@ -70,6 +72,7 @@ class ComediScanSource final : public ScanSource {
 
  private:
   void fail_scan() noexcept;
+  bool drain_available(unsigned& pending) noexcept;
   template <typename Sample>
   std::int64_t drain(const comedi_bufinfo& bi) noexcept;
 
