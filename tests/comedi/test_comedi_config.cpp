@@ -82,6 +82,9 @@ TEST(ComediSection, SourceComediIsAcceptedByTheAppConfig) {
   EXPECT_TRUE(cfg::load_app_config(path, app, err)) << err;
   EXPECT_EQ(app.source, "comedi");
   EXPECT_EQ(app.comedi.device, "/dev/comedi1");
+  EXPECT_EQ(cfg::scan_device_path(app), "/dev/comedi1");
+  app.source = "sim";
+  EXPECT_EQ(cfg::scan_device_path(app), "");
 }
 
 TEST(ComediSection, TheShippedNiExampleIsValid) {

@@ -34,6 +34,10 @@ struct AppConfig {
   std::string path;            // the file it was read from (for messages)
 };
 
+// The device node of the configured scan hardware ("" when frames come from the simulator or
+// files): what a pre-flight check (sempose check-rt, a systemd unit) must find and may open.
+inline std::string scan_device_path(const AppConfig& c) { return c.source == "comedi" ? c.comedi.device : ""; }
+
 // Reads and validates `path` into `out`. On failure returns false and error_text holds
 // one line per problem; `out` then holds defaults plus whatever could be read.
 bool load_app_config(const std::string& path, AppConfig& out, std::string& error_text);
