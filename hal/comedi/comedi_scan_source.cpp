@@ -290,7 +290,7 @@ StartResult ComediScanSource::start(const ScanRequest& req, FrameSlot& slot) noe
   assembler_->set_roi(req.roi, slot.pixels);
   slot_ = &slot;
   failed_ = false;
-  pending_read_bytes_ = 0;
+  consumed_ = marked_ = 0;
   FrameMeta& m = slot.meta;
   m.seq = seq_;
   m.roi = req.roi;
@@ -351,35 +351,35 @@ void ComediScanSource::cancel() noexcept {
   park();
 }
 
+// The AI samples this scan owns are [consumed_, marked_) bytes from the command's start (the
+// command reset the buffer, so the ring offset is the count modulo its size).
 template <typename Sample>
-std::int64_t ComediScanSource::drain(const comedi_bufinfo& bi) noexcept {
-  // The AI buffer holds a full field and the command reset it, but follow the ring anyway.
-  unsigned avail = bi.buf_write_count - bi.buf_read_count;
-  std::size_t ptr = bi.buf_read_ptr;
-  std::int64_t taken_bytes = 0;
-  while (avail >= sizeof(Sample) && !assembler_->complete()) {
-    const std::size_t contiguous = std::min<std::size_t>(avail, ai_buf_bytes_ - ptr) / sizeof(Sample);
-    if (contiguous == 0) break;
-    const std::int64_t took = assembler_->consume(reinterpret_cast<const Sample*>(ai_buf_ + ptr),
-                                                  static_cast<std::int64_t>(contiguous));
-    const std::size_t b = static_cast<std::size_t>(took) * sizeof(Sample);
-    taken_bytes += static_cast<std::int64_t>(b);
-    avail -= static_cast<unsigned>(b);
-    ptr = (ptr + b) % ai_buf_bytes_;
-    if (took < static_cast<std::int64_t>(contiguous)) break;
+void ComediScanSource::drain() noexcept {
+  while (consumed_ < marked_ && !assembler_->complete()) {
+    const std::size_t at = static_cast<std::size_t>(consumed_ % ai_buf_bytes_);
+    const std::size_t bytes = std::min<std::size_t>(static_cast<std::size_t>(marked_ - consumed_), ai_buf_bytes_ - at);
+    const std::int64_t n = static_cast<std::int64_t>(bytes / sizeof(Sample));
+    if (n == 0) break;
+    const std::int64_t took = assembler_->consume(reinterpret_cast<const Sample*>(ai_buf_ + at), n);
+    consumed_ += static_cast<std::uint64_t>(took) * sizeof(Sample);
+    if (took < n) break;
   }
-  return taken_bytes;
 }
 
-// One ioctl: marks what the last call consumed as read, learns what has arrived since, and
-// assembles it. False when the ioctl failed.
-bool ComediScanSource::drain_available(unsigned& pending) noexcept {
+// One ioctl: takes everything the driver has made readable. COMEDI_BUFINFO's bytes_read is
+// clamped by the kernel to the samples it has finished (munged), unlike buf_write_count,
+// which runs ahead while the driver is inside its write: reading by buf_write_count raced
+// with sem_emul's timer in the VM and duplicated a sample now and then (a frame shifted by
+// one pixel from there on). The accepted bytes are then read from the mmap'd buffer: freed,
+// but not overwritten, since the buffer holds a whole frame.
+bool ComediScanSource::drain_available() noexcept {
   comedi_bufinfo bi{};
   bi.subdevice = ai_sub_;
-  bi.bytes_read = pending;
+  bi.bytes_read = 0x7fffffffu;
   if (!dev_->bufinfo(bi)) return false;
-  const std::int64_t taken = ai_lsampl_ ? drain<std::uint32_t>(bi) : drain<std::uint16_t>(bi);
-  pending = static_cast<unsigned>(taken);
+  marked_ += bi.bytes_read;
+  if (ai_lsampl_) drain<std::uint32_t>();
+  else drain<std::uint16_t>();
   return true;
 }
 
@@ -390,27 +390,22 @@ PollResult ComediScanSource::poll() noexcept {
     return PollResult::kError;
   }
   const std::int64_t before = assembler_->samples_done();
-  if (!drain_available(pending_read_bytes_)) {
+  if (!drain_available()) {  // the kernel refuses BUFINFO once the command ended in an error
+    ++counters_.stopped;
     fail_scan();
     return PollResult::kError;
   }
   if (!assembler_->complete() && assembler_->samples_done() == before && rt::now_ns() > expected_end_ns_ &&
       !dev_->running(ai_sub_)) {
     // Stopped early, or it ended between the two ioctls: one more look settles which.
-    if (!drain_available(pending_read_bytes_) || !assembler_->complete()) {
+    if (!drain_available() || !assembler_->complete()) {
       ++counters_.stopped;
       fail_scan();
       return PollResult::kError;
     }
   }
   if (assembler_->complete()) {
-    FrameMeta& m = slot_->meta;
-    m.t_scan_end_ns = rt::now_ns();  // the last sample has arrived
-    comedi_bufinfo done{};
-    done.subdevice = ai_sub_;
-    done.bytes_read = pending_read_bytes_;
-    dev_->bufinfo(done);
-    pending_read_bytes_ = 0;
+    slot_->meta.t_scan_end_ns = rt::now_ns();  // the last sample has arrived
     ++seq_;
     ++counters_.scans;
     slot_ = nullptr;

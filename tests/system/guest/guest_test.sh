@@ -213,14 +213,16 @@ fi
 # comedi_test and sem_emul pace their samples with kernel timers, which on PREEMPT_RT run in
 # the ktimers/N threads (SCHED_FIFO 1): raised above sempose's stages (60/50/40) they are
 # never starved by them (a real card's IRQ thread needs the same, see the README).
-raise_ktimers() {
+set_ktimers() { # PRIORITY: only around the Comedi steps, so the other steps run as before
   for c in /proc/[0-9]*/comm; do
     read -r comm < "$c" 2>/dev/null || continue
     case "$comm" in ktimers/*) p=${c%/comm}; p=${p#/proc/}
-      chrt -f -p 80 "$p" > /dev/null && echo "$p $comm -> SCHED_FIFO 80" >> "$OUT/ktimers_priorities.txt" ;;
+      chrt -f -p "$1" "$p" > /dev/null && echo "$p $comm -> SCHED_FIFO $1" >> "$OUT/ktimers_priorities.txt" ;;
     esac
   done
 }
+raise_ktimers() { set_ktimers 80; }
+restore_ktimers() { set_ktimers 1; }   # PREEMPT_RT's default
 if [ -n "$COMEDI_SKIP" ]; then
   check comedi_hw_test SKIP "$COMEDI_SKIP"
 elif [ -n "$COMEDI_TEST" ] && [ -n "$COMEDI_SEM" ]; then
@@ -241,6 +243,7 @@ elif [ -n "$COMEDI_TEST" ] && [ -n "$COMEDI_SEM" ]; then
   else
     check comedi_hw_test FAIL "$COMEDI_HWTEST not found"
   fi
+  restore_ktimers
 fi
 
 # ---- cyclictest baseline (same duration, idle system) ----------------------------------
@@ -394,6 +397,7 @@ run_sempose_comedi() {
   rc=$?
   nap 0.2
   kill $CD 2>/dev/null; wait $CD 2>/dev/null; CD=""
+  restore_ktimers
   if [ $rc -ne 0 ]; then
     check comedi_run FAIL "exit code $rc: $(tail -c 300 "$C/sempose_stderr.txt" | tr '\n' ' ')"
   else

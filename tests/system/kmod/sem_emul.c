@@ -21,6 +21,8 @@
  *   AO (subdevice 1): start TRIG_INT or TRIG_EXT (starts with the AI command: "AI start
  *      trigger"), scan_begin TRIG_TIMER (the AI clock drives it), stop TRIG_COUNT.
  * Single AO writes move the beam; single AI reads sample at the beam.
+ * stall_after_scans / fail_after_scans make an AI command stop delivering (still running) or
+ * stop with an error part-way, for the scan source's timeout and early-stop paths.
  */
 #include <linux/module.h>
 #include <linux/hrtimer.h>
@@ -41,6 +43,21 @@ MODULE_PARM_DESC(electrons_white, "mean detected electrons per AI sample at whit
 static unsigned int tick_us = 250;
 module_param(tick_us, uint, 0444);
 MODULE_PARM_DESC(tick_us, "pacing timer period in microseconds");
+
+/* Fault injection for the source's error paths (0: off; writable at run time). */
+static unsigned int stall_after_scans;
+module_param(stall_after_scans, uint, 0644);
+MODULE_PARM_DESC(stall_after_scans, "AI stops delivering after this many scans, still running (a lost clock)");
+static unsigned int fail_after_scans;
+module_param(fail_after_scans, uint, 0644);
+MODULE_PARM_DESC(fail_after_scans, "AI stops with an error after this many scans (an overrun)");
+
+/* What the last AI command did (read-only, for a test's diagnosis). */
+static unsigned int last_ai_scans, last_ao_scans, last_stale_scans;
+module_param(last_ai_scans, uint, 0444);
+module_param(last_ao_scans, uint, 0444);
+module_param(last_stale_scans, uint, 0444);
+MODULE_PARM_DESC(last_stale_scans, "AI scans of the last command taken while AO ran but had no sample");
 
 #define SEM_MIN_PERIOD_NS 1000
 
@@ -136,11 +153,22 @@ static enum hrtimer_restart sem_tick(struct hrtimer *t)
 
 		if (cmd->stop_src == TRIG_COUNT && p->scans_done >= cmd->stop_arg)
 			break;
+		if (fail_after_scans && p->scans_done >= fail_after_scans) {
+			ai->async->events |= COMEDI_CB_ERROR;
+			more = false;
+			break;
+		}
+		if (stall_after_scans && p->scans_done >= stall_after_scans)
+			break;
 		if (p->ao_running) {
 			unsigned short xy[2];
+			unsigned int got = comedi_buf_read_samples(ao, xy, 2);	/* bytes, not samples */
 
-			/* returns bytes, not samples */
-			if (comedi_buf_read_samples(ao, xy, 2) == comedi_samples_to_bytes(ao, 2)) {
+			if (got == 0 && ao->async->scans_done < ao->async->cmd.stop_arg) {
+				/* not there yet (the writer lags): hold the beam, never skip */
+				last_stale_scans++;
+			} else if (got == comedi_samples_to_bytes(ao, 2)) {
+				last_ao_scans++;
 				p->beam_x = xy[0];
 				p->beam_y = xy[1];
 				if (ao->async->cmd.stop_src == TRIG_COUNT &&
@@ -161,6 +189,7 @@ static enum hrtimer_restart sem_tick(struct hrtimer *t)
 			more = false;	/* overrun: the event is set by the core */
 			break;
 		}
+		last_ai_scans++;
 		p->scans_done++;
 	}
 	if (cmd->stop_src == TRIG_COUNT && p->scans_done >= cmd->stop_arg) {
@@ -187,6 +216,7 @@ static void sem_start_ai(struct sem_priv *p)
 	spin_lock_irqsave(&p->lock, flags);
 	p->t0_ns = ktime_get_ns();
 	p->scans_done = 0;
+	last_ai_scans = last_ao_scans = last_stale_scans = 0;
 	p->ai_running = true;
 	if (p->ao_armed) {	/* AO waits for the AI start trigger */
 		p->ao_armed = false;

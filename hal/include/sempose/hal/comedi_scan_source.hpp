@@ -4,8 +4,9 @@
 // pixel), one AO update per AI scan, started together (trigger: internal | ai_start).
 //
 // start() arms: cancels leftovers, issues the AO command, writes the whole raster into the
-// mmap'd AO buffer, issues the AI command, fires the internal trigger. poll() drains the
-// mmap'd AI buffer into the slot (one COMEDI_BUFINFO ioctl) without blocking; wait_fd() is the
+// mmap'd AO buffer, issues the AI command, fires the internal trigger. poll() takes what the
+// driver has finished (one COMEDI_BUFINFO ioctl) and assembles it from the mmap'd AI buffer
+// into the slot without blocking; wait_fd() is the
 // device fd (readable while AI data wait), so acquisition sleeps in poll(2). The scan ends when
 // the last sample arrives. A scan whose AI command stopped early (overrun, driver error: seen
 // once the expected end has passed), whose data stop coming (timeout_ms past the expected
@@ -33,7 +34,7 @@ class ComediScanSource final : public ScanSource {
     std::uint64_t cancelled = 0;    // by cancel()
     std::uint64_t timeouts = 0;     // data stopped coming
     std::uint64_t arm_errors = 0;   // a command ioctl failed at start()
-    std::uint64_t stopped = 0;      // the AI command stopped before its last sample (driver error)
+    std::uint64_t stopped = 0;      // the AI command ended in an error / before its last sample
     std::int64_t last_arm_ns = 0;   // cost of the last start() (command ioctls + raster write)
   };
   // What COMEDI_CMDTEST said about the card (setup).
@@ -72,9 +73,9 @@ class ComediScanSource final : public ScanSource {
 
  private:
   void fail_scan() noexcept;
-  bool drain_available(unsigned& pending) noexcept;
+  bool drain_available() noexcept;
   template <typename Sample>
-  std::int64_t drain(const comedi_bufinfo& bi) noexcept;
+  void drain() noexcept;
 
   ScanLimits limits_;
   config::ComediConfig cfg_;
@@ -100,7 +101,8 @@ class ComediScanSource final : public ScanSource {
   std::uint64_t seq_ = 0;
   std::int64_t expected_end_ns_ = 0;
   std::int64_t deadline_ns_ = 0;
-  unsigned pending_read_bytes_ = 0;  // consumed, not yet marked read (marked by the next BUFINFO)
+  std::uint64_t marked_ = 0;    // AI bytes the kernel handed over (marked read) this scan
+  std::uint64_t consumed_ = 0;  // AI bytes assembled into the slot this scan
   Counters counters_;
   std::string description_;
 };
