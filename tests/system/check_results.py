@@ -124,7 +124,7 @@ def check_target_side(ctx):
         return FAIL, "; ".join(bad) + (f" (not recorded: {' '.join(missing)})" if missing else "")
     skipped = [n for n in TARGET_CHECKS if ctx.target[n][0] == SKIP]
     return PASS, (f"{len(TARGET_CHECKS)} target checks passed (PREEMPT_RT, CAN loop, gpio in/out/edge, "
-                  f"can_gpio_hw_test, commands acknowledged)" + (f"; skipped: {skipped}" if skipped else ""))
+                  f"can_gpio_hw_test, commands acknowledged, Comedi devices, comedi_hw_test, comedi run)" + (f"; skipped: {skipped}" if skipped else ""))
 
 
 def check_summary(ctx):
