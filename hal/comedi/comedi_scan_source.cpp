@@ -367,11 +367,11 @@ void ComediScanSource::drain() noexcept {
 }
 
 // One ioctl: takes everything the driver has made readable. COMEDI_BUFINFO's bytes_read is
-// clamped by the kernel to the samples it has finished (munged), unlike buf_write_count,
-// which runs ahead while the driver is inside its write: reading by buf_write_count raced
-// with sem_emul's timer in the VM and duplicated a sample now and then (a frame shifted by
-// one pixel from there on). The accepted bytes are then read from the mmap'd buffer: freed,
-// but not overwritten, since the buffer holds a whole frame.
+// clamped by the kernel to the samples it has finished (munged); buf_write_count can run
+// ahead of them while the driver is inside its write (reading by it and marking one call
+// later once gave a frame shifted by one sample in the VM, most likely from that). The
+// accepted bytes are then read from the mmap'd buffer: freed, but not overwritten, since the
+// buffer holds a whole frame.
 bool ComediScanSource::drain_available() noexcept {
   comedi_bufinfo bi{};
   bi.subdevice = ai_sub_;
