@@ -26,6 +26,7 @@
 #include "sempose/config/app_config.hpp"
 #include "sempose/config/reader.hpp"
 #include "sempose/hal/can_candump_log.hpp"
+#include "sempose/hal/comedi_scan_source.hpp"
 #include "sempose/hal/gpio_synced_source.hpp"
 #include "sempose/hal/source_factory.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
@@ -200,7 +201,7 @@ int sempose::cli::run(int argc, char** argv) {
   }
   // ---- setup: everything that allocates
   rt::Status st;
-  std::unique_ptr<hal::ScanSource> source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st);
+  std::unique_ptr<hal::ScanSource> source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st, cfg.comedi);
   if (!source) {
     std::fprintf(stderr, "sempose run: scan source: %s\n", st.message.c_str());
     return 2;
@@ -293,6 +294,8 @@ int sempose::cli::run(int argc, char** argv) {
   std::printf("sempose run: config %s, source %s%s%s, %zu target(s)\n", opt.config.c_str(), cfg.source.c_str(),
               scan->is_virtual_time() ? " (virtual time)" : "", frame_sync ? " + GPIO frame sync" : "",
               trackers.trackers.size());
+  const auto* comedi = dynamic_cast<const hal::ComediScanSource*>(source.get());
+  if (comedi != nullptr) std::printf("comedi: %s\n", comedi->description().c_str());
   for (std::size_t i = 0; i < trackers.names.size(); ++i) {
     std::printf("  target %zu %s: pattern %s\n", i, trackers.names[i].c_str(), trackers.pattern_origins[i].c_str());
   }
@@ -469,6 +472,13 @@ int sempose::cli::run(int argc, char** argv) {
   } else {
     std::printf("histograms: %s/latency_hist.txt (cyclictest layout), %s/latency_hist.json\n", hist_dir.c_str(),
                 hist_dir.c_str());
+  }
+  if (comedi != nullptr) {
+    const auto& k = comedi->counters();
+    std::printf("comedi: scans=%llu stopped_early=%llu timeouts=%llu arm_errors=%llu cancelled=%llu (beam parked)\n",
+                static_cast<unsigned long long>(k.scans), static_cast<unsigned long long>(k.stopped),
+                static_cast<unsigned long long>(k.timeouts),
+                static_cast<unsigned long long>(k.arm_errors), static_cast<unsigned long long>(k.cancelled));
   }
   const auto& cc = can.sink->counters();
   std::printf(

@@ -172,10 +172,11 @@ bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, A
   try {
     {
       Section root(node, "", errors);
-      root.opt_choice("source", out.source, {"sim", "replay"});
+      root.opt_choice("source", out.source, {"sim", "replay", "comedi"});
       read_section(root, "scan", read_scan, out.scan);
       read_section(root, "sim", read_sim, out.sim);
       read_section(root, "replay", read_replay, out.replay);
+      read_section(root, "comedi", read_comedi, out.comedi);
       read_targets(root, out.targets);
       for (auto& t : out.targets) {
         for (auto& p : t.pattern_sets) {

@@ -2,6 +2,7 @@
 
 #include <exception>
 
+#include "sempose/hal/comedi_scan_source.hpp"
 #include "sempose/hal/replay_source.hpp"
 #include "sempose/hal/sim_source.hpp"
 
@@ -9,7 +10,7 @@ namespace sempose::hal {
 
 std::unique_ptr<ScanSource> make_scan_source(const std::string& kind, const ScanLimits& limits,
                                              const config::SimConfig& sim, const config::ReplayConfig& replay,
-                                             rt::Status& status) {
+                                             rt::Status& status, const config::ComediConfig& comedi) {
   try {
     if (kind == "sim") {
       status = rt::Status::success();
@@ -23,9 +24,13 @@ std::unique_ptr<ScanSource> make_scan_source(const std::string& kind, const Scan
       status = rt::Status::success();
       return std::make_unique<ReplaySource>(limits, replay);
     }
-    status = rt::Status::failure("scan source '" + kind + "' is not one of: sim, replay");
+    if (kind == "comedi") {
+      status = rt::Status::success();
+      return std::make_unique<ComediScanSource>(limits, comedi);
+    }
+    status = rt::Status::failure("scan source '" + kind + "' is not one of: sim, replay, comedi");
   } catch (const std::exception& e) {
-    status = rt::Status::failure(std::string(kind == "sim" ? "simulated SEM: " : "replay: ") + e.what());
+    status = rt::Status::failure(std::string(kind == "sim" ? "simulated SEM: " : kind == "comedi" ? "" : "replay: ") + e.what());
   }
   return nullptr;
 }

@@ -283,6 +283,19 @@ TEST_F(FakeTree, ReplaySourceNeedsItsFolder) {
   EXPECT_EQ(find(run(), "scan-device").level, Level::kPass);
 }
 
+// source: comedi: the configured device node (under the tree's root) must exist; its fix
+// names the driver to load and the config key; only that line changes.
+TEST_F(FakeTree, ComediSourceNeedsItsDevice) {
+  cfg.source = "comedi";
+  cfg.comedi.device = "/dev/comedi0";
+  auto r = run();
+  EXPECT_EQ(find(r, "scan-device").level, Level::kFail);
+  EXPECT_NE(find(r, "scan-device").fix.find("comedi.device"), std::string::npos);
+  only(r, "scan-device");
+  put("dev/comedi0", "");
+  EXPECT_EQ(find(run(), "scan-device").level, Level::kPass);
+}
+
 TEST(CpuLists, ParseKernelFormats) {
   EXPECT_EQ(check_rt::parse_cpu_list("0-3,8,10-11\n"), (std::vector<int>{0, 1, 2, 3, 8, 10, 11}));
   EXPECT_EQ(check_rt::parse_cpu_list("(null)"), std::vector<int>{});

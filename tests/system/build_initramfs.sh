@@ -1,5 +1,5 @@
 #!/bin/bash
-# build_initramfs.sh ENV_FILE OUT_IMAGE GUEST_CFG_DIR [SEMPOSE_BINARY [CAN_GPIO_HW_TEST]]
+# build_initramfs.sh ENV_FILE OUT_IMAGE GUEST_CFG_DIR [SEMPOSE_BINARY [CAN_GPIO_HW_TEST [COMEDI_HW_TEST]]]
 # Builds the gzip'd newc initramfs for the system-test VM from what prepare_host.sh
 # extracted (ENV_FILE = CACHE/current.env): busybox + applet links, the kernel modules
 # (incl. the out-of-tree gpio-sim), can-utils, gpiod tools, cyclictest, sempose and
@@ -8,7 +8,7 @@
 # test script. GUEST_CFG_DIR is copied to /cfg. No root needed: the device nodes
 # (/dev/console, /dev/null) go into a second, hand-written cpio member.
 set -euo pipefail
-ENV_FILE=${1:?}; OUT=${2:?}; CFG=${3:?}; SEMPOSE=${4:-}; HWTEST=${5:-}
+ENV_FILE=${1:?}; OUT=${2:?}; CFG=${3:?}; SEMPOSE=${4:-}; HWTEST=${5:-}; COMEDI_HWTEST=${6:-}
 HERE=$(cd "$(dirname "$0")" && pwd)
 # shellcheck disable=SC1090
 . "$ENV_FILE"
@@ -21,7 +21,8 @@ for a in $("$S/bin/busybox" --list-full); do
   [ -e "$S/$a" ] || ln -s /bin/busybox "$S/$a"
 done
 
-for m in drivers/net/can/dev/can-dev drivers/net/can/vcan net/can/can net/can/can-raw fs/configfs/configfs; do
+for m in drivers/net/can/dev/can-dev drivers/net/can/vcan net/can/can net/can/can-raw fs/configfs/configfs \
+         drivers/comedi/comedi drivers/comedi/drivers/comedi_test; do
   f=$(ls "$M/$m".ko* | head -1)
   case "$f" in
     *.xz) xz -dc "$f" > "$S/modules/$(basename "$m").ko" ;;
@@ -30,6 +31,7 @@ for m in drivers/net/can/dev/can-dev drivers/net/can/vcan net/can/can net/can/ca
   esac
 done
 cp "$GPIOSIM" "$S/modules/gpio-sim.ko"
+cp "$SEMEMUL" "$S/modules/sem_emul.ko"
 strip --strip-debug "$S"/modules/*.ko 2>/dev/null || true
 
 LIBPATH="$ROOT/usr/lib/x86_64-linux-gnu:$ROOT/lib/x86_64-linux-gnu"
@@ -56,11 +58,16 @@ fi
 if [ -n "$HWTEST" ] && [ -x "$HWTEST" ]; then
   add_bin "$HWTEST" usr/bin/can_gpio_hw_test
 fi
+if [ -n "$COMEDI_HWTEST" ] && [ -x "$COMEDI_HWTEST" ]; then
+  add_bin "$COMEDI_HWTEST" usr/bin/comedi_hw_test
+fi
 strip --strip-unneeded "$S"/lib/x86_64-linux-gnu/* 2>/dev/null || true
 
 install -m 0755 "$HERE/guest/init" "$S/init"
 install -m 0755 "$HERE/guest/guest_test.sh" "$S/bin/guest_test.sh"
 cp -r "$CFG"/. "$S/cfg/"
+# sem_emul's scene goes through the firmware loader (direct load from /lib/firmware).
+if [ -f "$CFG/sem_scene.pgm" ]; then mkdir -p "$S/lib/firmware"; cp "$CFG/sem_scene.pgm" "$S/lib/firmware/"; fi
 echo "root:x:0:0:root:/:/bin/sh" > "$S/etc/passwd"
 
 (cd "$S" && find . -mindepth 1 | LC_ALL=C sort | cpio -o -H newc --quiet -R 0:0) > "$OUT.cpio"

@@ -13,6 +13,7 @@ Prints one line per check and RESULT; exit 0 when nothing failed.
 """
 import argparse
 import csv
+import io
 import json
 import os
 import re
@@ -26,10 +27,12 @@ PASS, FAIL, SKIP = "PASS", "FAIL", "SKIP"
 # Target-side checks that must all have passed (the infrastructure and the sempose run).
 TARGET_CHECKS = ["preempt_rt", "can_if", "gpio_sim", "can_selfcheck", "gpio_input", "gpio_output", "gpio_edge",
                  "can_gpio_hw_test", "cyclictest", "sempose_can_bound", "sempose_gpio_requested",
-                 "cmd_select", "cmd_reacquire", "cmd_malformed", "sempose_exit", "check_rt"]
+                 "cmd_select", "cmd_reacquire", "cmd_malformed", "sempose_exit", "check_rt",
+                 "comedi_devices", "comedi_hw_test", "comedi_run"]
 BASE = 0x100
 ID_XY, ID_ATTR, ID_HB, ID_CMD = BASE + 0x00, BASE + 0x01, BASE + 0x40, BASE + 0x50
 SCALES_NM_PER_PX = (40.0, 20.0)   # system.yaml: pattern set 0 and 1
+NM_PER_PX_COMEDI = 40.0          # system_comedi.yaml
 REASON_BAD_FRAME = 16             # LostReason bit: the frame was flagged bad (e.g. no frame-sync edge)
 
 
@@ -121,7 +124,7 @@ def check_target_side(ctx):
         return FAIL, "; ".join(bad) + (f" (not recorded: {' '.join(missing)})" if missing else "")
     skipped = [n for n in TARGET_CHECKS if ctx.target[n][0] == SKIP]
     return PASS, (f"{len(TARGET_CHECKS)} target checks passed (PREEMPT_RT, CAN loop, gpio in/out/edge, "
-                  f"can_gpio_hw_test, commands acknowledged)" + (f"; skipped: {skipped}" if skipped else ""))
+                  f"can_gpio_hw_test, commands acknowledged, Comedi devices, comedi_hw_test, comedi run)" + (f"; skipped: {skipped}" if skipped else ""))
 
 
 def check_summary(ctx):
@@ -489,9 +492,86 @@ def check_histograms(ctx):
     return PASS, f"cyclictest_hist.txt and latency_hist.{{txt,json}} side by side ({len(names)} sempose series)"
 
 
+def check_comedi_end_to_end(ctx):
+    """`sempose run` with source: comedi on the emulated SEM (sem_emul behind the real Comedi
+    ioctls and mmap): rt_allocs=0, the poses on vcan (DBC-decoded) match the scene's known
+    truth within what the simulator gives at the same dose (sim_reference.txt, measured on the
+    host by `sempose replay` of simulated frames), and the arming cost is a histogram series."""
+    if ctx.target.get("comedi_run", (SKIP, ""))[0] == SKIP:
+        return SKIP, "no Comedi run (native box without comedi_test/sem_emul)"
+    out = ctx.read("comedi/sempose_stdout.txt")
+    summ = {}
+    for line in reversed(out.splitlines()):
+        if line.startswith("summary:"):
+            summ = dict(re.findall(r"(\w+)=(\S+)", line))
+            break
+    if not summ:
+        return FAIL, "no summary line in comedi/sempose_stdout.txt"
+    bad = []
+    if not re.search(r"^comedi: /dev/comedi\d+ \(sem_emul", out, re.M):
+        bad.append("no 'comedi: /dev/comediN (sem_emul ...' setup line")
+    if summ.get("rt_allocs") != "0":
+        bad.append(f"rt_allocs={summ.get('rt_allocs')}")
+    poses, frames = int(summ.get("poses", 0)), int(summ.get("frames", 0))
+    if poses < 20:
+        bad.append(f"only {poses} poses")
+    if int(summ.get("scan_errors", 0)) > 0.05 * max(frames, 1):
+        bad.append(f"scan_errors={summ.get('scan_errors')} of {frames} frames")
+    truth = {}
+    for row in csv.DictReader(io.StringIO(ctx.read("comedi/sem_scene_truth.csv"))):
+        truth = {"x": float(row["x_px"]), "y": float(row["y_px"]), "phi": float(row["phi_deg"])}
+        break
+    ref = dict(re.findall(r"(\w+)=([-\d.]+)", ctx.read("comedi/sim_reference.txt")))
+    if not truth or "rms_px" not in ref:
+        return FAIL, "missing sem_scene_truth.csv or sim_reference.txt in the comedi artifacts"
+    frames_log = ctx.load_log("comedi/candump.log") or []
+    xy, attr = [], []
+    for t, i, d in frames_log:
+        name, sig = ctx.db.decode(i, d)
+        if i == ID_XY:
+            xy.append(sig)
+        elif i == ID_ATTR:
+            attr.append(sig)
+    if len(xy) != int(summ.get("can_sent", -1)) or len(xy) != len(attr):
+        bad.append(f"{len(xy)} XY / {len(attr)} ATTR frames on vcan vs can_sent={summ.get('can_sent')}")
+    err_px, err_deg = [], []
+    for sxy, sat in zip(xy, attr):
+        if int(sat["state"]) != 0:   # TRACKING only
+            continue
+        dx, dy = sxy["x"] / NM_PER_PX_COMEDI - truth["x"], sxy["y"] / NM_PER_PX_COMEDI - truth["y"]
+        err_px.append((dx * dx + dy * dy) ** 0.5)
+        err_deg.append((sat["phi"] - truth["phi"] + 180) % 360 - 180)
+    if len(err_px) < 0.8 * max(len(xy), 1):
+        bad.append(f"only {len(err_px)} of {len(xy)} poses TRACKING")
+    rms = lambda v: (sum(e * e for e in v) / len(v)) ** 0.5 if v else float("inf")
+    rms_px, rms_deg = rms(err_px), rms(err_deg)
+    sim_px, sim_deg = float(ref["rms_px"]), float(ref["rms_deg"])
+    lim_px, lim_deg = max(1.5 * sim_px, sim_px + 0.25), max(1.5 * sim_deg, sim_deg + 0.5)
+    if rms_px > lim_px or rms_deg > lim_deg:
+        bad.append(f"RMS error {rms_px:.3f} px / {rms_deg:.3f} deg above {lim_px:.3f} px / {lim_deg:.3f} deg "
+                   f"(simulator at the same dose: {sim_px:.3f} px / {sim_deg:.3f} deg)")
+    arm = ""
+    try:
+        with open(ctx.path("comedi/latency_hist.json")) as f:
+            sem = json.load(f)
+        series = sem.get("series", sem) if isinstance(sem, dict) else sem
+        items = dict(series.items()) if isinstance(series, dict) else {s.get("name"): s for s in series}
+        a = items.get("arm")
+        if not a or not a.get("count"):
+            bad.append("no arm series in comedi/latency_hist.json")
+        else:
+            arm = f"; arming cost n={a.get('count')} p50={a.get('p50_us', '?')} us p99={a.get('p99_us', '?')} us"
+    except (OSError, ValueError) as e:
+        bad.append(f"comedi/latency_hist.json: {e}")
+    d = (f"{poses} poses, {len(err_px)} TRACKING on vcan: RMS {rms_px:.3f} px / {rms_deg:.3f} deg vs truth "
+         f"({truth['x']:.2f}, {truth['y']:.2f}, {truth['phi']:.2f}); simulator at the same dose {sim_px:.3f} px / "
+         f"{sim_deg:.3f} deg; rt_allocs=0{arm}")
+    return (FAIL, "; ".join(bad) + " | " + d) if bad else (PASS, d)
+
+
 CHECKS = [check_target_side, check_summary, check_rt_setup, check_pose_frames, check_sequence,
           check_values_vs_csv, check_heartbeat, check_commands, check_gpio_outputs, check_frame_sync,
-          check_histograms]
+          check_histograms, check_comedi_end_to_end]
 
 
 def main():

@@ -40,3 +40,27 @@ rc=0; "$SEMPOSE" run --config "$W/full.yaml" --duration 0.1 > "$W/full.log" 2>&1
 if grep -q "invalid config" "$W/full.log" || ! grep -q "sempose-no-such-chip" "$W/full.log"; then
   cat "$W/full.log"; echo "prepare_config: $CONFIG does not validate (rc $rc)"; exit 1
 fi
+
+# The Comedi end-to-end run: sem_emul's scene (the simulator's expected image of scene_sim.yaml),
+# its truth, the electrons per sample that match the simulator's noise, and the simulator's own
+# accuracy at that dose (`sempose replay` of simulated frames with the same tracker settings),
+# which the host check holds the run on the emulated SEM to.
+cp "$HERE/system_comedi.yaml" "$DEST/system_comedi.yaml"
+sed 's/^  noise: true/  noise: false/' "$HERE/scene_sim.yaml" > "$W/scene_clean.yaml"
+"$SEMPOSE" sim --out "$W/scene" --frames 1 --dwell 2000 --config "$W/scene_clean.yaml" > "$W/scene.log" 2>&1 ||
+  { cat "$W/scene.log"; echo "prepare_config: sempose sim (scene) failed"; exit 1; }
+REF_DWELL_NS=250
+"$SEMPOSE" sim --out "$W/ref" --frames 40 --dwell $REF_DWELL_NS --config "$HERE/scene_sim.yaml" > "$W/ref.log" 2>&1 ||
+  { cat "$W/ref.log"; echo "prepare_config: sempose sim (reference) failed"; exit 1; }
+/usr/bin/python3 "$HERE/make_sem_scene.py" "$W/scene" "$W/ref" "$DEST" || { echo "prepare_config: make_sem_scene.py failed"; exit 1; }
+sed -e "s|@OUT@|$W|g" -e 's|@CAN_IF@||g' -e 's|@COMEDI_SEM@|/dev/comedi-none|g' "$HERE/system_comedi.yaml" > "$W/comedi.yaml"
+"$SEMPOSE" replay --frames "$W/ref" --config "$W/comedi.yaml" --truth "$W/ref/ground_truth.csv" \
+  --out "$W/ref_poses.csv" > "$W/ref_replay.log" 2>&1 || { cat "$W/ref_replay.log"; echo "prepare_config: replay of the reference failed"; exit 1; }
+truth_line=$(grep '^truth:' "$W/ref_replay.log") || { cat "$W/ref_replay.log"; echo "prepare_config: no truth line from replay"; exit 1; }
+echo "$truth_line dwell_ns=$REF_DWELL_NS $(cat "$DEST/sem_electrons.env")" > "$DEST/sim_reference.txt"
+echo "[prepare_config] simulator reference at the emulated SEM's dose: $(cat "$DEST/sim_reference.txt")"
+# Preflight of the comedi config: valid, and failing only where the device is missing.
+rc=0; "$SEMPOSE" run --config "$W/comedi.yaml" --duration 0.1 > "$W/comedi_run.log" 2>&1 || rc=$?
+if grep -q "invalid config" "$W/comedi_run.log" || ! grep -q "cannot open '/dev/comedi-none'" "$W/comedi_run.log"; then
+  cat "$W/comedi_run.log"; echo "prepare_config: system_comedi.yaml does not validate (rc $rc)"; exit 1
+fi

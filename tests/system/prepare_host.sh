@@ -4,7 +4,8 @@
 #  - fetches Debian's PREEMPT_RT kernel (ABI resolved at run time), busybox-static,
 #    can-utils, gpiod/libgpiod2, rt-tests and linux-source-6.1 with `apt-get download`;
 #  - extracts the kernel, its modules and an uncompressed ELF vmlinux (PVH boot);
-#  - builds gpio-sim (+ irq_sim) out of tree against linux-headers-<KVER>;
+#  - builds gpio-sim (+ irq_sim) and the emulated-SEM Comedi driver (kmod/sem_emul.c) out of
+#    tree against linux-headers-<KVER>;
 #  - writes CACHE_DIR/current.env describing the result (KVER, paths).
 # Needs root only to apt-get install linux-headers-<KVER> (and gcc/make) when absent.
 set -euo pipefail
@@ -75,28 +76,41 @@ PY
   mv "$VMLINUX.tmp" "$VMLINUX"
 fi
 
-# gpio-sim out of tree (Debian's RT kernel has CONFIG_GPIO_SIM / IRQ_SIM unset).
-GPIOSIM="$CACHE/gpio-sim-$KVER.ko"
-if [ ! -s "$GPIOSIM" ]; then
-  HDR="/usr/src/linux-headers-$KVER"
+# Out-of-tree modules (gpio-sim, the emulated-SEM Comedi driver) build against the headers.
+HDR="/usr/src/linux-headers-$KVER"
+need_headers() {
   if [ ! -f "$HDR/Makefile" ]; then
     log "apt-get install linux-headers-$KVER"
     DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
       "linux-headers-$KVER=$KPKG_VER" gcc make >&2
   fi
-  SRCDIR="$CACHE/linux-source-gpio-sim-$KPKG_VER"
-  if [ ! -f "$SRCDIR/irq_sim.c" ]; then
-    deb=$(fetch "linux-source-6.1=$KPKG_VER")
-    log "extract gpio-sim sources from $(basename "$deb")"
-    tmp=$(mktemp -d); mkdir -p "$SRCDIR"
-    dpkg-deb --fsys-tarfile "$deb" | tar -x -C "$tmp" --wildcards './usr/src/linux-source-6.1.tar.xz'
-    tar -xJf "$tmp/usr/src/linux-source-6.1.tar.xz" -C "$tmp" \
-      linux-source-6.1/drivers/gpio/gpio-sim.c linux-source-6.1/drivers/gpio/gpiolib.h \
-      linux-source-6.1/kernel/irq/irq_sim.c
-    cp "$tmp"/linux-source-6.1/drivers/gpio/{gpio-sim.c,gpiolib.h} "$tmp"/linux-source-6.1/kernel/irq/irq_sim.c "$SRCDIR/"
-    rm -rf "$tmp"
-    rm -f "$deb"   # 139 MB for three files: keep only those
-  fi
+}
+# The few kernel source files the modules need, from linux-source-6.1 (fetched once, 139 MB,
+# deleted after extraction): gpio-sim + irq_sim, and Comedi's driver-side headers
+# (include/linux/comedi/*.h are not in the headers package).
+SRCDIR="$CACHE/linux-source-gpio-sim-$KPKG_VER"
+COMEDI_SRC="$CACHE/linux-source-comedi-$KPKG_VER"
+if [ ! -f "$SRCDIR/irq_sim.c" ] || [ ! -f "$COMEDI_SRC/include/linux/comedi/comedidev.h" ]; then
+  deb=$(fetch "linux-source-6.1=$KPKG_VER")
+  log "extract gpio-sim and comedi sources from $(basename "$deb")"
+  tmp=$(mktemp -d); mkdir -p "$SRCDIR" "$COMEDI_SRC"
+  dpkg-deb --fsys-tarfile "$deb" | tar -x -C "$tmp" --wildcards './usr/src/linux-source-6.1.tar.xz'
+  tar -xJf "$tmp/usr/src/linux-source-6.1.tar.xz" -C "$tmp" \
+    linux-source-6.1/drivers/gpio/gpio-sim.c linux-source-6.1/drivers/gpio/gpiolib.h \
+    linux-source-6.1/kernel/irq/irq_sim.c linux-source-6.1/include/linux/comedi \
+    linux-source-6.1/drivers/comedi/drivers/comedi_test.c
+  cp "$tmp"/linux-source-6.1/drivers/gpio/{gpio-sim.c,gpiolib.h} "$tmp"/linux-source-6.1/kernel/irq/irq_sim.c "$SRCDIR/"
+  mkdir -p "$COMEDI_SRC/include/linux"
+  cp -r "$tmp"/linux-source-6.1/include/linux/comedi "$COMEDI_SRC/include/linux/"
+  cp "$tmp"/linux-source-6.1/drivers/comedi/drivers/comedi_test.c "$COMEDI_SRC/"
+  rm -rf "$tmp"
+  rm -f "$deb"   # 139 MB for a few files: keep only those
+fi
+
+# gpio-sim out of tree (Debian's RT kernel has CONFIG_GPIO_SIM / IRQ_SIM unset).
+GPIOSIM="$CACHE/gpio-sim-$KVER.ko"
+if [ ! -s "$GPIOSIM" ]; then
+  need_headers
   B=$(mktemp -d)
   cp "$SRCDIR/gpio-sim.c" "$B/gpio-sim-main.c"
   cp "$SRCDIR/gpiolib.h" "$B/"
@@ -114,12 +128,28 @@ MK
   rm -rf "$B"
 fi
 
+# The emulated SEM behind Comedi (kmod/sem_emul.c), built against the headers plus Comedi's
+# driver-side headers from linux-source; cached per kernel and source checksum.
+SEM_SUM=$(md5sum "$HERE/kmod/sem_emul.c" | cut -c1-8)
+SEMEMUL="$CACHE/sem_emul-$KVER-$SEM_SUM.ko"
+if [ ! -s "$SEMEMUL" ]; then
+  need_headers
+  B=$(mktemp -d)
+  cp "$HERE/kmod/sem_emul.c" "$B/"
+  printf 'obj-m := sem_emul.o\nccflags-y := -I%s/include\n' "$COMEDI_SRC" > "$B/Makefile"
+  log "build sem_emul.ko against $HDR"
+  make -s -C "$HDR" M="$B" modules >&2
+  cp "$B/sem_emul.ko" "$SEMEMUL.tmp" && mv "$SEMEMUL.tmp" "$SEMEMUL"
+  rm -rf "$B"
+fi
+
 cat > "$CACHE/current.env.tmp" <<ENV
 KVER=$KVER
 ROOT=$ROOT
 VMLINUX=$VMLINUX
 VMLINUZ=$VMLINUZ
 GPIOSIM=$GPIOSIM
+SEMEMUL=$SEMEMUL
 ENV
 mv "$CACHE/current.env.tmp" "$CACHE/current.env"
 log "ready: $(cat "$CACHE/current.env" | tr '\n' ' ')"

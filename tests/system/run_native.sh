@@ -6,7 +6,9 @@
 # Env: SYSTEST_CAN (default vcan0; created with `ip link add ... type vcan` when absent; a
 #      real interface such as can0 must be up, at a bitrate, with another node or
 #      `loopback on` so frames are acknowledged), SEMPOSE_SYSTEM_DURATION (5),
-#      SEMPOSE_SYSTEM_CONFIG (system.yaml), SYSTEST_ALLOW_NON_RT=1 to accept a non-RT kernel.
+#      SEMPOSE_SYSTEM_CONFIG (system.yaml), SYSTEST_ALLOW_NON_RT=1 to accept a non-RT kernel,
+#      SEMPOSE_COMEDI_HW_TEST (the comedi_hw_test binary: with comedi_test and sem_emul loaded
+#      (tests/system/guest/init shows how) the Comedi steps run too, else they are skipped).
 # Needs: root, can-utils (candump, cansend), gpiod (gpioinfo/gpioget/gpioset/gpiomon),
 #        rt-tests (cyclictest), util-linux (chrt), modules can-raw, vcan and gpio-sim
 #        (CONFIG_GPIO_SIM; Debian's RT kernel lacks it: prepare_host.sh builds it out of tree).
@@ -38,6 +40,8 @@ mkdir -p "$OUT/artifacts"
 "$HERE/prepare_config.sh" "$SEMPOSE" "$CONFIG" "$OUT/cfg" "$DURATION" || { echo "FAIL: config preflight"; exit 1; }
 BIN=$(mktemp -d); trap 'rm -rf "$BIN"' EXIT
 ln -s "$SEMPOSE" "$BIN/sempose"; ln -s "$HWTEST" "$BIN/can_gpio_hw_test"
+# Comedi (optional natively: checked only when comedi_test and sem_emul are loaded).
+[ -n "${SEMPOSE_COMEDI_HW_TEST:-}" ] && ln -s "$(readlink -f "$SEMPOSE_COMEDI_HW_TEST")" "$BIN/comedi_hw_test"
 : > "$OUT/artifacts/results.txt"
 PATH="$BIN:$PATH" SYSTEST_NATIVE=1 SYSTEST_TAR=0 SYSTEST_CFG="$OUT/cfg" SYSTEST_OUT="$OUT/artifacts" \
   SYSTEST_RESULTS="$OUT/artifacts/results.txt" SYSTEST_CAN="$CAN" bash "$HERE/guest/guest_test.sh"

@@ -1,5 +1,5 @@
 #!/bin/bash
-# run_system_test.sh SEMPOSE_BINARY OUT_DIR [CAN_GPIO_HW_TEST_BINARY]
+# run_system_test.sh SEMPOSE_BINARY OUT_DIR [CAN_GPIO_HW_TEST_BINARY [COMEDI_HW_TEST_BINARY]]
 # The sempose system test (issue 7): boots Debian's PREEMPT_RT kernel in QEMU (TCG), brings
 # up vcan0 + a gpio-sim chip, runs can_gpio_hw_test, candump, cyclictest and `sempose run`
 # inside (guest/guest_test.sh), copies the artifacts out over a second serial port and checks
@@ -12,6 +12,7 @@ set -uo pipefail
 SEMPOSE=${1:?usage: run_system_test.sh SEMPOSE_BINARY OUT_DIR [CAN_GPIO_HW_TEST]}
 OUT=${2:?usage: run_system_test.sh SEMPOSE_BINARY OUT_DIR [CAN_GPIO_HW_TEST]}
 HWTEST=${3:-}
+COMEDI_HWTEST=${4:-}
 HERE=$(cd "$(dirname "$0")" && pwd)
 SRC=$(cd "$HERE/../.." && pwd)
 CACHE=${SEMPOSE_SYSTEM_CACHE:-/var/cache/sempose-system-test}
@@ -33,6 +34,9 @@ fi
 if [ -z "$HWTEST" ] || [ ! -x "$HWTEST" ]; then
   echo "FAIL: can_gpio_hw_test binary '${HWTEST}' missing (build the can_gpio_hw_test target)"; exit 1
 fi
+if [ -z "$COMEDI_HWTEST" ] || [ ! -x "$COMEDI_HWTEST" ]; then
+  echo "FAIL: comedi_hw_test binary '${COMEDI_HWTEST}' missing (build the comedi_hw_test target)"; exit 1
+fi
 
 mkdir -p "$OUT"; OUT=$(cd "$OUT" && pwd)
 rm -rf "$OUT"/attempt-* "$OUT/artifacts" "$OUT/guest-cfg" "$OUT/report.txt"
@@ -48,7 +52,7 @@ grep '^\[prepare\]' "$OUT/prepare.log" | tail -n 1
 if ! "$HERE/prepare_config.sh" "$SEMPOSE" "$CONFIG" "$OUT/guest-cfg" "$DURATION"; then
   echo "FAIL: the system-test config does not run on the host (see above)"; exit 1
 fi
-if ! "$HERE/build_initramfs.sh" "$CACHE/current.env" "$OUT/initramfs.img" "$OUT/guest-cfg" "$SEMPOSE" "$HWTEST" 2>&1; then
+if ! "$HERE/build_initramfs.sh" "$CACHE/current.env" "$OUT/initramfs.img" "$OUT/guest-cfg" "$SEMPOSE" "$HWTEST" "$COMEDI_HWTEST" 2>&1; then
   echo "FAIL: initramfs build failed"; exit 1
 fi
 . "$CACHE/current.env"
@@ -58,7 +62,7 @@ log "host ready"
 # a guest that reports failure is never retried.
 BOOT_STALL_S=${SEMPOSE_SYSTEM_BOOT_STALL:-25}   # no console progress before /init
 BOOT_MAX_S=${SEMPOSE_SYSTEM_BOOT_MAX:-90}       # /init not reached at all
-VM_MAX_S=$(( 180 + 4 * DURATION ))              # whole guest run
+VM_MAX_S=$(( 240 + 4 * DURATION ))              # whole guest run (incl. the Comedi steps)
 status=""; ATT=""
 for attempt in $(seq 1 "$BOOTS"); do
   ATT="$OUT/attempt-$attempt"; mkdir -p "$ATT"

@@ -360,8 +360,22 @@ void check_gpio(const config::GpioConfig& g, LiveProbe& probe, std::vector<Check
   if (!any) out.push_back(pass("gpio", "no GPIO lines configured"));
 }
 
-void check_scan_source(const config::AppConfig& cfg, std::vector<CheckResult>& out) {
-  if (cfg.source == "sim") {
+void check_scan_source(const SystemTree& tree, const config::AppConfig& cfg, std::vector<CheckResult>& out) {
+  if (cfg.source == "comedi") {
+    // The card's device node must exist and be read/writable by this user (the package's
+    // udev rule gives the sempose group /dev/comedi*); the card itself is probed at start.
+    const std::string dev = config::scan_device_path(cfg);
+    const std::string rel = !dev.empty() && dev[0] == '/' ? dev.substr(1) : dev;
+    if (dev.empty() || !tree.exists(rel)) {
+      out.push_back(fail("scan-device", "Comedi device '" + dev + "' missing",
+                         "load the card's driver (e.g. modprobe ni_pcimio) and check comedi.device against /dev/comedi*"));
+    } else if (!tree.writable(rel)) {
+      out.push_back(fail("scan-device", "Comedi device '" + dev + "' not writable by this user",
+                         "add the user to the sempose group (package udev rule) or fix the node's permissions"));
+    } else {
+      out.push_back(pass("scan-device", "Comedi device " + dev + " present and writable"));
+    }
+  } else if (cfg.source == "sim") {
     out.push_back(pass("scan-device", "simulated SEM: no scan device needed"));
   } else if (cfg.source == "replay") {
     std::error_code ec;
@@ -390,7 +404,7 @@ std::vector<CheckResult> run_checks(const SystemTree& tree, const config::AppCon
   check_limits(tree, p, out);
   check_can(tree, cfg.can, probe, out);
   check_gpio(cfg.gpio, probe, out);
-  check_scan_source(cfg, out);
+  check_scan_source(tree, cfg, out);
   return out;
 }
 

@@ -290,7 +290,10 @@ void Pipeline::acquisition_loop() noexcept {
     req.roi = hal::Roi{plan.x, plan.y, plan.w, plan.h};
     req.dwell_ns = plan.dwell_ns;
     req.target = target;
+    // The arming cost is wall-clock CPU time even on the virtual clock (rendering, ioctls).
+    const std::int64_t t_arm = rt::now_ns();
     const hal::StartResult sr = source_.start(req, pool_[slot]);
+    if (sr == hal::StartResult::kStarted) histograms_.arm.record_ns(rt::now_ns() - t_arm);
     if (sr == hal::StartResult::kStarted) {
       scanning = slot;
       const std::uint64_t lo = counters_.dwell_min_ns.get();

@@ -16,7 +16,9 @@
 #   SYSTEST_CFG  (/cfg)  system.yaml, pattern_*.pgm, params.env     SYSTEST_OUT (/out) artifacts
 #   SYSTEST_RESULTS (/dev/ttyS1)    SYSTEST_CAN (vcan0; created when it is a vcan name and absent)
 #   SYSTEST_TAR (1: send $OUT as base64 on $R)   SYSTEST_ALLOW_NON_RT (0: a non-PREEMPT_RT kernel fails)
-#   SEMPOSE_BIN (sempose), SEMPOSE_HW_TEST (can_gpio_hw_test)
+#   SEMPOSE_BIN (sempose), SEMPOSE_HW_TEST (can_gpio_hw_test), SEMPOSE_COMEDI_HW_TEST (comedi_hw_test)
+#   SYSTEST_COMEDI_TEST / SYSTEST_COMEDI_SEM: the comedi_test / sem_emul device (found in sysfs
+#   when unset); natively, Comedi checks skip when neither exists, in the VM they fail.
 export PATH=/usr/bin:/usr/sbin:/bin:/sbin:$PATH
 CFG=${SYSTEST_CFG:-/cfg}
 OUT=${SYSTEST_OUT:-/out}
@@ -24,6 +26,8 @@ R=${SYSTEST_RESULTS:-/dev/ttyS1}
 CAN=${SYSTEST_CAN:-vcan0}
 SEMPOSE=${SEMPOSE_BIN:-sempose}
 HWTEST=${SEMPOSE_HW_TEST:-can_gpio_hw_test}
+COMEDI_HWTEST=${SEMPOSE_COMEDI_HW_TEST:-comedi_hw_test}
+COMEDI_RUN_S=6               # sempose run with source: comedi (the emulated SEM)
 TMP=$OUT/.tmp
 FAILED=""
 DURATION=5
@@ -187,6 +191,61 @@ if [ -n "$SIM" ]; then
   fi
 fi
 
+# ---- Comedi: the real driver path (comedi_test) and the emulated SEM (sem_emul) ---------
+# Which /dev/comediN is which: the class device's parent is the driver's own device.
+comedi_dev_of() { # NAME -> /dev/comediN whose hardware device is NAME
+  for d in /sys/class/comedi/comedi[0-9]*; do
+    [ -e "$d/device" ] || continue
+    [ "$(basename "$(readlink -f "$d/device")")" = "$1" ] && { echo "/dev/${d##*/}"; return 0; }
+  done
+  return 1
+}
+COMEDI_TEST=${SYSTEST_COMEDI_TEST:-$(comedi_dev_of comedi_testd)}   # comedi_test's device name
+COMEDI_SEM=${SYSTEST_COMEDI_SEM:-$(comedi_dev_of sem_emul)}
+COMEDI_SKIP=""
+if [ -z "$COMEDI_TEST" ] || [ -z "$COMEDI_SEM" ]; then
+  if [ "${SYSTEST_NATIVE:-0}" = 1 ]; then
+    COMEDI_SKIP="no comedi_test/sem_emul device on this box"; check comedi_devices SKIP "$COMEDI_SKIP"
+  else check comedi_devices FAIL "comedi_test='$COMEDI_TEST' sem_emul='$COMEDI_SEM': $(ls /dev/comedi* 2>&1 | tr '\n' ' ')"; fi
+else
+  check comedi_devices PASS "comedi_test on $COMEDI_TEST, sem_emul on $COMEDI_SEM"
+fi
+# comedi_test and sem_emul pace their samples with kernel timers, which on PREEMPT_RT run in
+# the ktimers/N threads (SCHED_FIFO 1): raised above sempose's stages (60/50/40) they are
+# never starved by them (a real card's IRQ thread needs the same, see the README).
+set_ktimers() { # PRIORITY: only around the Comedi steps, so the other steps run as before
+  for c in /proc/[0-9]*/comm; do
+    read -r comm < "$c" 2>/dev/null || continue
+    case "$comm" in ktimers/*) p=${c%/comm}; p=${p#/proc/}
+      chrt -f -p "$1" "$p" > /dev/null && echo "$p $comm -> SCHED_FIFO $1" >> "$OUT/ktimers_priorities.txt" ;;
+    esac
+  done
+}
+raise_ktimers() { set_ktimers 80; }
+restore_ktimers() { set_ktimers 1; }   # PREEMPT_RT's default
+if [ -n "$COMEDI_SKIP" ]; then
+  check comedi_hw_test SKIP "$COMEDI_SKIP"
+elif [ -n "$COMEDI_TEST" ] && [ -n "$COMEDI_SEM" ]; then
+  say "STAGE comedi_hw_test"
+  raise_ktimers
+  if command -v "$COMEDI_HWTEST" >/dev/null 2>&1; then
+    SEMPOSE_COMEDI_TEST_DEVICE=$COMEDI_TEST SEMPOSE_COMEDI_SEM_DEVICE=$COMEDI_SEM \
+      SEMPOSE_COMEDI_SEM_SCENE=$CFG/sem_scene.pgm "$COMEDI_HWTEST" --gtest_brief=0 > "$OUT/comedi_hw_test.txt" 2>&1
+    rc=$?
+    summary=$(grep -E '^\[ *(PASSED|FAILED|SKIPPED) *\]' "$OUT/comedi_hw_test.txt" | tr -s ' ' | tr '\n' ' ')
+    if grep -q '^\[  SKIPPED \]' "$OUT/comedi_hw_test.txt"; then
+      check comedi_hw_test FAIL "skips where the devices exist (rc $rc): $summary"
+    elif [ $rc -ne 0 ]; then
+      check comedi_hw_test FAIL "rc $rc: $summary $(grep -m3 -E 'Failure|FAILED|error' "$OUT/comedi_hw_test.txt" | tr '\n' ' ' | head -c 300)"
+    else
+      check comedi_hw_test PASS "$summary"
+    fi
+  else
+    check comedi_hw_test FAIL "$COMEDI_HWTEST not found"
+  fi
+  restore_ktimers
+fi
+
 # ---- cyclictest baseline (same duration, idle system) ----------------------------------
 say "STAGE cyclictest ${DURATION}s"
 cyclictest -q -m -t1 -p80 -i1000 -D "$DURATION" -h 2000 > "$OUT/cyclictest_hist.txt" 2>"$OUT/cyclictest_stderr.txt"
@@ -326,6 +385,40 @@ run_sempose() {
   fi
 }
 if [ -n "$SIM" ]; then run_sempose; else check sempose_exit FAIL "no gpio-sim chip, sempose not run"; fi
+
+# ---- sempose run on the emulated SEM through Comedi (source: comedi) ----------------------
+# The scene's target is static at a known pose (sem_scene_truth.csv); poses go to vcan0 and
+# are read back by candump; the host compares them with the truth (check_results.py).
+run_sempose_comedi() {
+  C=$OUT/comedi; mkdir -p "$C"
+  cp "$CFG/sem_scene_truth.csv" "$CFG/sim_reference.txt" "$C/" 2>/dev/null
+  sed -e "s|@COMEDI_SEM@|$COMEDI_SEM|g" -e "s|@CAN_IF@|$CAN|g" -e "s|@OUT@|$C|g" \
+      "$CFG/system_comedi.yaml" > "$CFG/system_comedi.run.yaml"
+  cp "$CFG/system_comedi.run.yaml" "$C/system_comedi.yaml"
+  base=$(can_rx_count)
+  candump -L "$CAN" > "$C/candump.log" 2>"$C/candump_stderr.txt" &
+  CD=$!
+  wait_for 10000 can_rx_more_than "$base" || check comedi_candump_bound FAIL "candump never bound its socket"
+  raise_ktimers
+  say "STAGE sempose run source=comedi ${COMEDI_RUN_S}s on $COMEDI_SEM"
+  "$SEMPOSE" run --config "$CFG/system_comedi.run.yaml" --duration "$COMEDI_RUN_S" --hist-dir "$C" \
+      > "$C/sempose_stdout.txt" 2> "$C/sempose_stderr.txt"
+  rc=$?
+  nap 0.2
+  kill $CD 2>/dev/null; wait $CD 2>/dev/null; CD=""
+  restore_ktimers
+  # The host reads the JSON; the cyclictest-layout text (~600 KB) would only lengthen the
+  # artifact transfer over the emulated serial port.
+  rm -f "$C/latency_hist.txt"
+  if [ $rc -ne 0 ]; then
+    check comedi_run FAIL "exit code $rc: $(tail -c 300 "$C/sempose_stderr.txt" | tr '\n' ' ')"
+  else
+    check comedi_run PASS "$(tail -n 1 "$C/sempose_stdout.txt" | head -c 400)"
+  fi
+}
+if [ -n "$COMEDI_SKIP" ]; then check comedi_run SKIP "$COMEDI_SKIP"
+elif [ -n "$COMEDI_SEM" ]; then run_sempose_comedi
+else check comedi_run FAIL "no sem_emul device"; fi
 
 # ---- artifacts ------------------------------------------------------------------------
 dmesg > "$OUT/dmesg.txt" 2>&1

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "sempose/config/can_config.hpp"
+#include "sempose/config/comedi_config.hpp"
 #include "sempose/config/governor_config.hpp"
 #include "sempose/config/gpio_config.hpp"
 #include "sempose/config/pipeline_config.hpp"
@@ -20,10 +21,11 @@
 namespace sempose::config {
 
 struct AppConfig {
-  std::string source = "sim";  // "sim" | "replay": which scan source `sempose run` uses
+  std::string source = "sim";  // "sim" | "replay" | "comedi": which scan source `sempose run` uses
   ScanLimits scan;             // the scan generator (hal::ScanLimits)
   SimConfig sim;
   ReplayConfig replay;
+  ComediConfig comedi;         // source: comedi (external scan through a DAQ card)
   std::vector<TargetConfig> targets;  // pattern file names resolved against the config's folder
   TrackerConfig tracker;
   GovernorConfig governor;
@@ -34,6 +36,10 @@ struct AppConfig {
   ServiceConfig service;        // systemd watchdog stall rule, SIGTERM drain bound
   std::string path;            // the file it was read from (for messages)
 };
+
+// The device node of the configured scan hardware ("" when frames come from the simulator or
+// files): what a pre-flight check (sempose check-rt, a systemd unit) must find and may open.
+inline std::string scan_device_path(const AppConfig& c) { return c.source == "comedi" ? c.comedi.device : ""; }
 
 // Reads and validates `path` into `out`. On failure returns false and error_text holds
 // one line per problem; `out` then holds defaults plus whatever could be read.

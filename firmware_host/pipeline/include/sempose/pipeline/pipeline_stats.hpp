@@ -66,10 +66,13 @@ struct PipelineHistograms {
   rt::LatencyHistogram scan_time{"scan_time"};    // scan start -> scan end (dwell × pixels + flyback)
   // The governor's dwell: recorded as dwell_ns µs, so the 1 µs buckets read as 1 ns.
   rt::LatencyHistogram dwell_ns{"dwell_ns"};
+  // Cost of arming a scan: the time spent in ScanSource::start() (a Comedi card: the command
+  // ioctls and the raster write; the simulator: rendering). Wall clock, also in virtual time.
+  rt::LatencyHistogram arm{"arm"};
 
   std::vector<rt::HistogramSnapshot> snapshot() const {
     return {poll_lag.snapshot(), queue.snapshot(), compute.snapshot(), output.snapshot(),
-            end_to_end.snapshot(), scan_time.snapshot(), dwell_ns.snapshot()};
+            end_to_end.snapshot(), scan_time.snapshot(), dwell_ns.snapshot(), arm.snapshot()};
   }
 };
 
