@@ -87,10 +87,19 @@ TEST(ComediSection, SourceComediIsAcceptedByTheAppConfig) {
   EXPECT_EQ(cfg::scan_device_path(app), "");
 }
 
+// The example names a pattern the operator records on the microscope (gripper_x2000.pgm beside
+// the config); the config check requires it to exist, so the test puts a stand-in beside a copy.
 TEST(ComediSection, TheShippedNiExampleIsValid) {
+  const std::string dir = ::testing::TempDir();
+  {
+    std::ifstream in(std::string(SEMPOSE_SOURCE_DIR) + "/config/comedi_ni625x.yaml");
+    std::ofstream(dir + "comedi_ni625x.yaml") << in.rdbuf();
+    std::ofstream pgm(dir + "gripper_x2000.pgm", std::ios::binary);
+    pgm << "P5\n128 128\n255\n" << std::string(128 * 128, '\x80');
+  }
   cfg::AppConfig app;
   std::string err;
-  EXPECT_TRUE(cfg::load_app_config(std::string(SEMPOSE_SOURCE_DIR) + "/config/comedi_ni625x.yaml", app, err)) << err;
+  EXPECT_TRUE(cfg::load_app_config(dir + "comedi_ni625x.yaml", app, err)) << err;
   EXPECT_EQ(app.source, "comedi");
   EXPECT_EQ(app.comedi.trigger, "ai_start");
   EXPECT_EQ(app.scan.min_dwell_ns, 1000u);
