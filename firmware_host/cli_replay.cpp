@@ -1,13 +1,15 @@
 // `sempose replay --frames DIR --pattern P.pgm [--mask M.pgm] [--pattern Q.pgm ...] [--config FILE]
 //                 [--truth ground_truth.csv] --out poses.csv`
-// Tracks through a recorded sequence (README: Replay and recording) exactly as on the microscope: every
-// target's tracker asks for its next ROI, gets it as a crop of the current full-field frame,
-// and starts with a full-field search (no start pose needed). Writes
-// frame,t_ns,x_px,y_px,phi_deg,score,status[,target] and ends with one line
+// Tracks through a recorded sequence (README: Replay and recording) on the offline runner:
+// the recording is a ReplaySource on the virtual clock (every scan is the requested ROI cut
+// from the next full-field frame), the trackers come from the same setup as `sempose run`'s
+// and the poses go through the same CsvPoseSink, so the CSV is the pipeline's:
+// frame,t_ns,x_px,y_px,phi_deg,score,status[,target] (t_ns = scan end, target = index).
+// Each target starts with a full-field search (no start pose needed). Ends with one line
 //   summary: frames=N tracked_share=F compute_us_p50=A compute_us_p99=B compute_us_max=C acquire_ms=D
-// compute = the tracker's update() per tracked-ROI pose (correlation + orientation), file I/O
-// excluded; acquire = the first full-field search. With --truth: RMS/max position and angle
-// errors over TRACKING poses, on a line before the summary.
+// compute = the tracker's update() per ROI pose (wall time, file I/O excluded); acquire = the
+// first full-field search. With --truth: RMS/max position and angle errors over TRACKING
+// poses, on a line before the summary.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -22,16 +24,11 @@
 
 #include "cli.hpp"
 #include "sempose/config/app_config.hpp"
-#include "sempose/pipeline/pose_input.hpp"
-#include "sempose/config/reader.hpp"
-#include "sempose/config/tracker_config.hpp"
-#include "sempose/hal/frames_csv.hpp"
-#include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
-#include "sempose/pipeline/pose_input.hpp"
+#include "sempose/pipeline/csv_pose_sink.hpp"
+#include "sempose/pipeline/offline_runner.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
 #include "sempose/pose/tracker.hpp"
-#include "sempose/rt/clock.hpp"
 
 namespace {
 
@@ -48,13 +45,36 @@ int usage(std::FILE* out) {
   return out == stdout ? 0 : 2;
 }
 
-struct Target {
-  std::string name;
-  std::unique_ptr<pose::Tracker> tracker;
-};
-
 struct Truth {
   double x = 0, y = 0, phi = 0;
+};
+
+// Passes every pose on to the CSV and compares TRACKING poses with the --truth rows of their
+// (frame, target).
+class TruthCheckSink final : public pipeline::PoseSink {
+ public:
+  TruthCheckSink(pipeline::PoseSink& out, const std::map<std::pair<long, int>, Truth>& truth) : out_(out), truth_(truth) {}
+  pipeline::PublishResult publish(const pipeline::PoseRecord& p, std::int64_t t_now_ns) noexcept override {
+    const auto it = truth_.find({static_cast<long>(p.frame_seq), static_cast<int>(p.target)});
+    if (it != truth_.end() && p.state == pose::TrackState::kTracking) {
+      const double d = std::hypot(p.x_px - it->second.x, p.y_px - it->second.y);
+      const double a = std::fabs(std::fmod(p.phi_deg - it->second.phi + 540.0, 360.0) - 180.0);
+      sum_px2 += d * d;
+      sum_deg2 += a * a;
+      max_px = std::max(max_px, d);
+      max_deg = std::max(max_deg, a);
+      ++compared;
+    }
+    return out_.publish(p, t_now_ns);
+  }
+  void flush() override { out_.flush(); }
+
+  double sum_px2 = 0, max_px = 0, sum_deg2 = 0, max_deg = 0;
+  long compared = 0;
+
+ private:
+  pipeline::PoseSink& out_;
+  const std::map<std::pair<long, int>, Truth>& truth_;
 };
 
 // frame,t_ns (frames.csv) or frame,x,y,phi[,target] (ground truth): numeric rows after a header.
@@ -118,70 +138,51 @@ int run_replay(int argc, char** argv) {
   }
   if (frames_dir.empty() || out_path.empty()) return usage(stderr);
 
-  config::TrackerConfig tracker_cfg;
-  std::vector<config::TargetConfig> targets_cfg;
+  config::AppConfig app;
+  app.path = "sempose replay";
   if (!config_path.empty()) {
-    config::AppConfig app;
     std::string errors;
     if (!config::load_app_config(config_path, app, errors)) {
       std::fprintf(stderr, "sempose replay: %s", errors.c_str());
       return 2;
     }
-    tracker_cfg = app.tracker;
-    targets_cfg = app.targets;
   }
   if (!patterns.empty()) {
-    targets_cfg.clear();
+    app.targets.clear();
     for (std::size_t i = 0; i < patterns.size(); ++i) {
       config::TargetConfig t;
       t.name = std::filesystem::path(patterns[i]).stem().string();
       t.pattern_sets.push_back({patterns[i], 1.0, masks[i]});
-      targets_cfg.push_back(t);
+      app.targets.push_back(t);
     }
   }
-  if (targets_cfg.empty()) {
+  if (app.targets.empty()) {
     std::fprintf(stderr, "sempose replay: no pattern: give --pattern P.pgm or targets: in --config\n");
     return 2;
   }
-  if (targets_cfg.size() > static_cast<std::size_t>(hal::kMaxTargets)) {
-    std::fprintf(stderr, "sempose replay: %zu targets, at most %d\n", targets_cfg.size(), hal::kMaxTargets);
+  if (app.targets.size() > static_cast<std::size_t>(hal::kMaxTargets)) {
+    std::fprintf(stderr, "sempose replay: %zu targets, at most %d\n", app.targets.size(), hal::kMaxTargets);
     return 2;
   }
+  // The recording, served on the virtual clock whatever the config says: offline, as fast as
+  // the CPU allows, and the same timestamps as `sempose run` on it.
+  config::ReplayConfig replay_cfg = app.replay;
+  replay_cfg.frames_dir = frames_dir;
+  replay_cfg.clock = "virtual";
+  replay_cfg.loop = false;
+  hal::ReplaySource source(app.scan, replay_cfg);
 
-  const std::vector<std::string> names = hal::list_pgm_frames(frames_dir);
-  hal::Image frame = hal::read_pgm(names.front());
-  hal::ScanLimits limits;
-  limits.field_w = frame.width;
-  limits.field_h = frame.height;
-  limits.bits = frame.bits;
-
-  std::vector<Target> targets;
-  for (const auto& tc : targets_cfg) {
-    std::vector<pose::PatternSet> sets;
-    for (const auto& ps : tc.pattern_sets) {
-      pose::PatternSet set;
-      const rt::Status loaded = pipeline::load_pattern_set(ps, set);
-      if (!loaded.ok) {
-        std::fprintf(stderr, "sempose replay: target '%s': %s\n", tc.name.c_str(), loaded.message.c_str());
-        return 2;
-      }
-      sets.push_back(std::move(set));
-    }
-    rt::Status st;
-    Target t{tc.name, pose::Tracker::create(tracker_cfg, std::move(sets), limits, st)};
-    if (!t.tracker) {
-      std::fprintf(stderr, "sempose replay: target '%s': %s\n", tc.name.c_str(), st.message.c_str());
-      return 2;
-    }
-    if (!st.message.empty()) std::fprintf(stderr, "%s\n", st.message.c_str());
-    std::fprintf(stderr, "target '%s': pattern bank, spectra and buffers %.1f MB\n", tc.name.c_str(),
-                 t.tracker->memory_bytes() / 1e6);
-    targets.push_back(std::move(t));
+  pipeline::TrackerSetup trackers;
+  const rt::Status made = pipeline::make_trackers(app, source.limits(), trackers);
+  if (!made.ok) {
+    std::fprintf(stderr, "sempose replay: %s\n", made.message.c_str());
+    return 2;
+  }
+  for (std::size_t i = 0; i < trackers.names.size(); ++i) {
+    std::fprintf(stderr, "target %zu '%s': pattern bank, spectra and buffers %.1f MB\n", i, trackers.names[i].c_str(),
+                 trackers.trackers[i]->memory_bytes() / 1e6);
   }
 
-  std::vector<std::int64_t> t_ns;
-  const std::string frames_csv = (std::filesystem::path(frames_dir) / "frames.csv").string();
-  if (std::filesystem::exists(frames_csv)) t_ns = hal::read_frames_csv(frames_csv, names.size());
   std::map<std::pair<long, int>, Truth> truth;
   if (!truth_path.empty()) {
     for (const auto& r : read_numeric_csv(truth_path)) {
@@ -196,77 +197,42 @@ int run_replay(int argc, char** argv) {
     }
   }
 
-  std::FILE* out = std::fopen(out_path.c_str(), "w");
-  if (!out) throw std::runtime_error(out_path + ": cannot write");
-  const bool multi = targets.size() > 1;
-  std::fprintf(out, "frame,t_ns,x_px,y_px,phi_deg,score,status%s\n", multi ? ",target" : "");
-
-  std::vector<hal::Pixel> crop(static_cast<std::size_t>(frame.width) * frame.height);
-  std::vector<double> compute_us;
-  compute_us.reserve(names.size() * targets.size());
-  double acquire_ms = -1;
-  long poses = 0, tracked = 0;
-  double sum_px2 = 0, max_px = 0, sum_deg2 = 0, max_deg = 0;
-  long err_n = 0;
-  for (std::size_t f = 0; f < names.size(); ++f) {
-    if (f > 0) frame = hal::read_pgm(names[f]);
-    if (frame.width != limits.field_w || frame.height != limits.field_h) {
-      throw std::runtime_error(names[f] + ": " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
-                               " differs from the first frame's " + std::to_string(limits.field_w) + "x" +
-                               std::to_string(limits.field_h) + " (all frames must share one size)");
-    }
-    const std::int64_t t_frame = f < t_ns.size() ? t_ns[f] : 0;
-    for (std::size_t k = 0; k < targets.size(); ++k) {
-      pose::Tracker& tr = *targets[k].tracker;
-      hal::FrameMeta meta;
-      meta.seq = f;
-      meta.roi = tr.next_roi();
-      meta.field_w = frame.width;
-      meta.field_h = frame.height;
-      meta.bits = frame.bits;
-      meta.target = static_cast<std::uint8_t>(k);
-      meta.t_scan_start_ns = t_frame;
-      for (int y = 0; y < meta.roi.h; ++y) {
-        std::memcpy(crop.data() + static_cast<std::size_t>(y) * meta.roi.w,
-                    frame.pixels.data() + static_cast<std::size_t>(meta.roi.y + y) * frame.width + meta.roi.x,
-                    sizeof(hal::Pixel) * static_cast<std::size_t>(meta.roi.w));
-      }
-      const std::int64_t t0 = rt::now_ns();
-      const pose::PoseEstimate e = tr.update(pipeline::to_pose_frame(meta, crop.data()));
-      const double us = (rt::now_ns() - t0) * 1e-3;
-      if (e.searched) {
-        if (acquire_ms < 0) acquire_ms = us * 1e-3;
-      } else {
-        compute_us.push_back(us);
-      }
-      ++poses;
-      if (e.state == pose::TrackState::kTracking) ++tracked;
-      std::fprintf(out, "%zu,%lld,%.4f,%.4f,%.4f,%.5f,%s", f, static_cast<long long>(t_frame), e.x_px, e.y_px,
-                   e.phi_deg, static_cast<double>(e.score), pose::to_string(e.state));
-      if (multi) std::fprintf(out, ",%s", targets[k].name.c_str());
-      std::fputc('\n', out);
-      const auto it = truth.find({static_cast<long>(f), static_cast<int>(k)});
-      if (it != truth.end() && e.state == pose::TrackState::kTracking) {
-        const double d = std::hypot(e.x_px - it->second.x, e.y_px - it->second.y);
-        const double a = std::fabs(std::fmod(e.phi_deg - it->second.phi + 540.0, 360.0) - 180.0);
-        sum_px2 += d * d;
-        sum_deg2 += a * a;
-        max_px = std::max(max_px, d);
-        max_deg = std::max(max_deg, a);
-        ++err_n;
-      }
-    }
+  // Every check is done: only now is the output file created.
+  pipeline::CsvPoseSink csv(out_path, 1024, trackers.trackers.size() > 1);
+  if (const rt::Status opened = csv.open(); !opened.ok) {
+    std::fprintf(stderr, "sempose replay: %s\n", opened.message.c_str());
+    return 2;
   }
-  std::fclose(out);
+  TruthCheckSink sink(csv, truth);
+  std::vector<pose::Tracker*> raw;
+  for (auto& t : trackers.trackers) raw.push_back(t.get());
+  const pipeline::VirtualStageClock clock(app.pipeline.virtual_compute_ns);
+  pipeline::OfflineRunner runner(app.pipeline, app.governor, source, raw, sink, clock);
+  pipeline::OfflineRunStats stats;
+  const rt::Status ran = runner.run(0, stats);
+  if (!ran.ok) {
+    std::fprintf(stderr, "sempose replay: %s\n", ran.message.c_str());
+    return 2;
+  }
+  if (!csv.close() || stats.publish_failures != 0) {
+    std::fprintf(stderr, "sempose replay: %s: %llu pose lines not written (%s)\n", out_path.c_str(),
+                 static_cast<unsigned long long>(csv.lost_lines() + csv.dropped()), std::strerror(csv.last_errno()));
+    return 4;
+  }
   if (!truth_path.empty()) {
-    std::printf("truth: poses_compared=%ld rms_px=%.4f max_px=%.4f rms_deg=%.4f max_deg=%.4f\n", err_n,
-                err_n ? std::sqrt(sum_px2 / err_n) : 0.0, max_px, err_n ? std::sqrt(sum_deg2 / err_n) : 0.0, max_deg);
+    const long n = sink.compared;
+    std::printf("truth: poses_compared=%ld rms_px=%.4f max_px=%.4f rms_deg=%.4f max_deg=%.4f\n", n,
+                n ? std::sqrt(sink.sum_px2 / n) : 0.0, sink.max_px, n ? std::sqrt(sink.sum_deg2 / n) : 0.0, sink.max_deg);
   }
-  std::printf("summary: frames=%zu tracked_share=%.4f compute_us_p50=%.1f compute_us_p99=%.1f compute_us_max=%.1f "
+  std::vector<double> compute_us;
+  for (const std::int64_t ns : stats.roi_compute_ns) compute_us.push_back(ns * 1e-3);
+  std::printf("summary: frames=%llu tracked_share=%.4f compute_us_p50=%.1f compute_us_p99=%.1f compute_us_max=%.1f "
               "acquire_ms=%.2f\n",
-              names.size(), poses ? static_cast<double>(tracked) / poses : 0.0, percentile(compute_us, 0.5),
-              percentile(compute_us, 0.99), compute_us.empty() ? 0.0 : *std::max_element(compute_us.begin(), compute_us.end()),
-              std::max(0.0, acquire_ms));
+              static_cast<unsigned long long>(stats.frames),
+              stats.poses ? static_cast<double>(stats.tracked) / static_cast<double>(stats.poses) : 0.0,
+              percentile(compute_us, 0.5), percentile(compute_us, 0.99),
+              compute_us.empty() ? 0.0 : *std::max_element(compute_us.begin(), compute_us.end()),
+              stats.search_compute_ns.empty() ? 0.0 : stats.search_compute_ns.front() * 1e-6);
   return 0;
 }
 

@@ -31,6 +31,7 @@
 #include "sempose/hal/source_factory.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/pipeline.hpp"
+#include "sempose/pipeline/stage_clock.hpp"
 #include "sempose/pipeline/stall_watchdog.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
 #include "sempose/pose/tracker.hpp"
@@ -216,7 +217,8 @@ int sempose::cli::run(int argc, char** argv) {
   }
   if (frame_sync) {
     synced = std::make_unique<hal::GpioSyncedSource>(*source, *frame_sync,
-                                                     static_cast<std::int64_t>(cfg.gpio.frame_sync_timeout_us) * 1000);
+                                                     static_cast<std::int64_t>(cfg.gpio.frame_sync_timeout_us) * 1000,
+                                                     !pipeline::uses_virtual_clock(cfg));
     scan = synced.get();
   }
 
@@ -283,16 +285,17 @@ int sempose::cli::run(int argc, char** argv) {
 
   std::vector<pose::Tracker*> raw;
   for (auto& t : trackers.trackers) raw.push_back(t.get());
+  const std::unique_ptr<pipeline::StageClock> clock = pipeline::make_stage_clock(cfg);
   std::unique_ptr<pipeline::Pipeline> pipe;
   try {
-    pipe = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *scan, raw, *sink);
+    pipe = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *scan, raw, *sink, *clock);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sempose run: %s\n", e.what());
     return 2;
   }
 
   std::printf("sempose run: config %s, source %s%s%s, %zu target(s)\n", opt.config.c_str(), cfg.source.c_str(),
-              scan->is_virtual_time() ? " (virtual time)" : "", frame_sync ? " + GPIO frame sync" : "",
+              clock->real_time() ? "" : " (virtual time)", frame_sync ? " + GPIO frame sync" : "",
               trackers.trackers.size());
   const auto* comedi = dynamic_cast<const hal::ComediScanSource*>(source.get());
   if (comedi != nullptr) std::printf("comedi: %s\n", comedi->description().c_str());

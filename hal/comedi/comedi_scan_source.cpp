@@ -301,7 +301,7 @@ StartResult ComediScanSource::start(const ScanRequest& req, FrameSlot& slot) noe
   m.target = req.target;
   m.truth_count = 0;
   m.status = FrameStatus::kOk;
-  m.t_scan_end_ns = m.t_seen_ns = m.t_pose_done_ns = m.t_sent_ns = 0;
+  m.t_scan_end_ns = m.t_seen_ns = m.t_pose_done_ns = 0;
 
   // Leftovers of the previous scan: a finished AO command keeps its subdevice busy.
   dev_->cancel(ao_sub_);

@@ -58,7 +58,7 @@ PollResult GpioSyncedSource::poll() noexcept {
     inner_done_ = true;
   }
   if (edge_seen_) {
-    if (!inner_.is_virtual_time() && edge_ns_ > slot_->meta.t_scan_end_ns) slot_->meta.t_scan_end_ns = edge_ns_;
+    if (adopt_edge_time_ && edge_ns_ > slot_->meta.t_scan_end_ns) slot_->meta.t_scan_end_ns = edge_ns_;
     pending_ = false;
     return PollResult::kDone;
   }

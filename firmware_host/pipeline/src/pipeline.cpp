@@ -1,5 +1,6 @@
 #include "sempose/pipeline/pipeline.hpp"
 #include "sempose/pipeline/pose_input.hpp"
+#include "sempose/pipeline/pose_record.hpp"
 
 #include <poll.h>
 
@@ -33,15 +34,16 @@ std::size_t slot_pixels(const hal::ScanLimits& l) {
 }  // namespace
 
 Pipeline::Pipeline(const config::PipelineConfig& pipeline, const config::GovernorConfig& governor,
-                   hal::ScanSource& source, std::vector<pose::Tracker*> trackers, PoseSink& sink)
+                   hal::ScanSource& source, std::vector<pose::Tracker*> trackers, PoseSink& sink,
+                   const StageClock& clock)
     : config_(pipeline),
+      clock_(clock),
       source_(source),
       trackers_(std::move(trackers)),
       sink_(sink),
       governor_(governor, source.limits(), std::max<int>(1, static_cast<int>(trackers_.size()))),
-      acquire_dwell_ns_(0),
-      virtual_time_(source.is_virtual_time()),
-      spin_(pipeline.polling == "spin"),
+      spin_(clock.real_time() && pipeline.polling == "spin"),
+      sleep_polling_(clock.real_time() && pipeline.polling != "spin"),
       frame_ring_depth_(std::clamp<std::uint32_t>(pipeline.frame_ring, 2, kFrameRingCapacity)),
       pose_ring_depth_(std::clamp<std::uint32_t>(pipeline.pose_ring, 2, kPoseRingCapacity)),
       pool_(std::clamp<std::size_t>(pipeline.frame_pool_slots, frame_ring_depth_ + 3, kFreeRingCapacity),
@@ -53,8 +55,6 @@ Pipeline::Pipeline(const config::PipelineConfig& pipeline, const config::Governo
   for (auto* t : trackers_) {
     if (t == nullptr) throw std::invalid_argument("pipeline: a target has no tracker");
   }
-  // The dwell of full-field (start search) scans: the governor's initial dwell, quantized.
-  acquire_dwell_ns_ = governor_.initial_dwell_ns();
   if (pipeline.schedule.size() > kMaxSchedule) {
     throw std::invalid_argument("pipeline.schedule: at most " + std::to_string(kMaxSchedule) + " entries");
   }
@@ -84,7 +84,7 @@ Pipeline::~Pipeline() {
 }
 
 void Pipeline::idle_wait(std::int64_t until_ns) const noexcept {
-  if (spin_ && !virtual_time_) {
+  if (spin_) {
     for (int i = 0; i < 64; ++i) cpu_relax();
     return;
   }
@@ -103,7 +103,7 @@ void Pipeline::publish_plan(std::uint8_t target, bool enabled) noexcept {
   plan.y = roi.y;
   plan.w = roi.w;
   plan.h = roi.h;
-  plan.dwell_ns = full_field ? acquire_dwell_ns_ : governor_.next_dwell_ns(target, roi.w, roi.h);
+  plan.dwell_ns = governor_.dwell_for_scan(target, roi.w, roi.h, full_field);
   plan.enabled = enabled ? 1 : 0;
   plans_[target].publish(plan);
 }
@@ -195,7 +195,7 @@ void Pipeline::acquisition_loop() noexcept {
   };
   auto finish = [&](hal::FramePool::Index i, bool ok) noexcept {
     hal::FrameMeta& m = pool_[i].meta;
-    m.t_seen_ns = virtual_time_ ? m.t_scan_end_ns : rt::now_ns();
+    m.t_seen_ns = clock_.seen_ns(m.t_scan_end_ns);
     if (!ok) m.status = hal::FrameStatus::kBad;
     histograms_.poll_lag.record_ns(m.t_seen_ns - m.t_scan_end_ns);
     histograms_.scan_time.record_ns(m.t_scan_end_ns - m.t_scan_start_ns);
@@ -215,7 +215,7 @@ void Pipeline::acquisition_loop() noexcept {
     if (waiting != kNone && hand_on(waiting)) waiting = kNone;
 
     if (scanning != kNone) {
-      if (!virtual_time_ && !spin_) {
+      if (sleep_polling_) {
         const std::int64_t due = source_.expected_done_ns();
         if (due - slack_ns > rt::now_ns()) rt::sleep_until_ns(due - slack_ns);
       }
@@ -225,13 +225,13 @@ void Pipeline::acquisition_loop() noexcept {
         scanning = kNone;
         ++scanned;
       } else if (r == hal::PollResult::kBusy) {
-        if (!virtual_time_ && !spin_ && sync_fd >= 0) {
+        if (sleep_polling_ && sync_fd >= 0) {
           // ISR-like: sleep in the kernel until the scan generator's frame-done edge (or
           // 1 ms, so the source can time out a missed edge), instead of polling on a timer.
           pollfd pfd{sync_fd, POLLIN, 0};
           const timespec timeout{0, 1'000'000};
           ppoll(&pfd, 1, &timeout, nullptr);
-        } else if (!virtual_time_ && !spin_ && rt::now_ns() > source_.expected_done_ns() + 2 * slack_ns) {
+        } else if (sleep_polling_ && rt::now_ns() > source_.expected_done_ns() + 2 * slack_ns) {
           rt::sleep_until_ns(rt::now_ns() + 10 * rt::kNsPerUs);  // late source: do not hog a shared core
         } else {
           cpu_relax();
@@ -247,9 +247,9 @@ void Pipeline::acquisition_loop() noexcept {
                       (stop_after_frames_ != 0 && scanned >= stop_after_frames_);
     if (stop) break;
 
-    // Virtual time: start the next scan only once correlation took every frame, so a test
-    // run is the same sequence of frames on any machine.
-    if (virtual_time_ && (waiting != kNone || frames_taken_.load(std::memory_order_acquire) !=
+    // Lock step (virtual time): start the next scan only once correlation took every frame,
+    // so a test run is the same sequence of frames on any machine.
+    if (clock_.lock_step() && (waiting != kNone || frames_taken_.load(std::memory_order_acquire) !=
                                                   frames_handed_.load(std::memory_order_relaxed))) {
       idle_wait(0);
       continue;
@@ -373,13 +373,12 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   const std::uint8_t target = m.target < trackers_.size() ? m.target : 0;
   pose::Tracker& tracker = *trackers_[target];
 
-  const std::int64_t t_start = virtual_time_ ? std::max(m.t_seen_ns, prev_pose_done_ns_) : rt::now_ns();
+  const std::int64_t t_start = clock_.pose_start_ns(m.t_seen_ns, prev_pose_done_ns_);
   const std::int64_t wall0 = rt::now_ns();
   const pose::PoseEstimate est = tracker.update(to_pose_frame(m, s.pixels));
   const std::int64_t wall1 = rt::now_ns();
-  std::int64_t compute_ns = wall1 - wall0;
-  if (virtual_time_ && config_.virtual_compute_ns != 0) compute_ns = config_.virtual_compute_ns;
-  m.t_pose_done_ns = virtual_time_ ? t_start + compute_ns : wall1;
+  const std::int64_t compute_ns = clock_.compute_ns(wall1 - wall0);
+  m.t_pose_done_ns = clock_.pose_done_ns(t_start, compute_ns, wall1);
 
   // The frame waited for the tracker: a deadline overrun (not counted after a start search,
   // which is long by design).
@@ -413,28 +412,8 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   if (tracking) tc.tracked.add();
   if (est.searched) tc.searches.add();
 
-  PoseRecord p;
-  p.frame_seq = m.seq;
-  p.pose_seq = pose_seq_[target]++;
-  p.target = target;
-  p.pattern_set = est.pattern_set;
-  p.state = est.state;
-  p.reason_bits = est.reason_bits;
-  p.x_px = est.x_px;
-  p.y_px = est.y_px;
-  p.phi_deg = est.phi_deg;
-  p.score = est.score;
-  p.psr = est.psr;
-  p.dwell_ns = m.dwell_ns;
-  p.nm_per_px = nm_per_px_override_[target] > 0 ? nm_per_px_override_[target] : tracker.nm_per_px();
-  p.t_scan_end_ns = m.t_scan_end_ns;
-  p.t_pose_done_ns = m.t_pose_done_ns;
-  if (target < m.truth_count && m.truth[target].present) {
-    p.truth_present = true;
-    p.truth_x_px = m.truth[target].x_px;
-    p.truth_y_px = m.truth[target].y_px;
-    p.truth_phi_deg = m.truth[target].phi_deg;
-  }
+  const double nm_per_px = nm_per_px_override_[target] > 0 ? nm_per_px_override_[target] : tracker.nm_per_px();
+  const PoseRecord p = make_pose_record(m, est, target, pose_seq_[target]++, nm_per_px);
   if (poses_.size() >= pose_ring_depth_ || !poses_.try_push(p)) counters_.poses_ring_full.add();
 }
 
@@ -497,7 +476,7 @@ bool Pipeline::output_step() noexcept {
   PoseRecord p;
   while (poses_.try_pop(p)) {
     worked = true;
-    const std::int64_t t_sent = virtual_time_ ? p.t_pose_done_ns : rt::now_ns();
+    const std::int64_t t_sent = clock_.output_now_ns(p.t_pose_done_ns);
     const PublishResult r = sink_.publish(p, t_sent);
     if (r == PublishResult::kSent) {
       counters_.sent.add();
@@ -522,12 +501,8 @@ bool Pipeline::output_step() noexcept {
   status.fault_bits = faults_.load(std::memory_order_relaxed);
   // A stalled source produces no poses: the last pose's TRACKING must not stand for "valid".
   if (status.fault_bits & (kFaultSourceStalled | kFaultStageStalled)) status.state = pose::TrackState::kLost;
-  if (virtual_time_) {
-    if (worked) last_virtual_now_ns_ = p.t_pose_done_ns;
-    sink_.service(status, last_virtual_now_ns_);
-  } else {
-    sink_.service(status, rt::now_ns());
-  }
+  if (worked) last_pose_done_ns_ = p.t_pose_done_ns;
+  sink_.service(status, clock_.output_now_ns(last_pose_done_ns_));
   Command c;
   // Only take a command when there is room for it: the sink keeps the rest.
   while (commands_.size() < kCommandRingCapacity && sink_.next_command(c)) {

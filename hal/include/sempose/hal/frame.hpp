@@ -41,8 +41,7 @@ struct FrameMeta {
   std::int64_t t_scan_start_ns = 0;
   std::int64_t t_scan_end_ns = 0;  // the "interrupt"
   std::int64_t t_seen_ns = 0;      // acquisition's poll saw it
-  std::int64_t t_pose_done_ns = 0;
-  std::int64_t t_sent_ns = 0;
+  std::int64_t t_pose_done_ns = 0;  // the send time is the output stage's (PoseSink::publish)
   TargetTruth truth[kMaxTargets];
 };
 

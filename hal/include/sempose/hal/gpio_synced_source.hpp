@@ -8,8 +8,9 @@
 //             completed anyway, flagged FrameStatus::kBad
 //   late      the first edge after a missed one (it belonged to the previous frame)
 //   spurious  edges while no scan was pending, or extra edges during one scan
-// With a live (non-virtual) inner source the frame's t_scan_end_ns becomes the edge's
-// kernel timestamp when that is later than the inner source's own.
+// With adopt_edge_time (an inner source on CLOCK_MONOTONIC, like the edge) the frame's
+// t_scan_end_ns becomes the edge's kernel timestamp when that is later than the inner
+// source's own; a virtual-time inner source keeps its own clock.
 #pragma once
 
 #include <atomic>
@@ -30,16 +31,14 @@ struct FrameSyncCounters {
 
 class GpioSyncedSource final : public ScanSource {
  public:
-  GpioSyncedSource(ScanSource& inner, EdgeSource& edges, std::int64_t timeout_ns) noexcept
-      : inner_(inner), edges_(edges), timeout_ns_(timeout_ns) {}
+  GpioSyncedSource(ScanSource& inner, EdgeSource& edges, std::int64_t timeout_ns, bool adopt_edge_time = true) noexcept
+      : inner_(inner), edges_(edges), timeout_ns_(timeout_ns), adopt_edge_time_(adopt_edge_time) {}
 
   const ScanLimits& limits() const noexcept override { return inner_.limits(); }
   StartResult start(const ScanRequest& req, FrameSlot& slot) noexcept override;
   PollResult poll() noexcept override;
   std::int64_t now_ns() const noexcept override { return inner_.now_ns(); }
   std::int64_t expected_done_ns() const noexcept override { return inner_.expected_done_ns(); }
-  bool is_virtual_time() const noexcept override { return inner_.is_virtual_time(); }
-  void advance_virtual_ns(std::int64_t ns) noexcept override { inner_.advance_virtual_ns(ns); }
   int wait_fd() const noexcept override { return edges_.fd(); }
 
   const FrameSyncCounters& counters() const noexcept { return counters_; }
@@ -54,6 +53,7 @@ class GpioSyncedSource final : public ScanSource {
   ScanSource& inner_;
   EdgeSource& edges_;
   std::int64_t timeout_ns_;
+  bool adopt_edge_time_;
   FrameSlot* slot_ = nullptr;
   bool pending_ = false;       // a scan was started and not yet reported done
   bool inner_done_ = false;

@@ -1,5 +1,6 @@
 // The scan-source boundary: the simulated SEM, replay of recorded frames, and real scan
-// generators all implement this. Every method after construction is RT-safe: noexcept, no
+// generators all implement this, and only what scanning hardware does: how the stages pace
+// themselves and stamp time (virtual time for tests) is the pipeline's StageClock. Every method after construction is RT-safe: noexcept, no
 // allocation, no blocking. Errors are return codes.
 //
 // A real scan generator implements it as: start() writes the ROI and dwell to the
@@ -52,10 +53,6 @@ class ScanSource {
   virtual std::int64_t now_ns() const noexcept = 0;
   // When the scan in progress is expected to complete (for sleep-then-poll); 0 if idle.
   virtual std::int64_t expected_done_ns() const noexcept = 0;
-  // True when now_ns() is a deterministic virtual clock (tests, benchmarks).
-  virtual bool is_virtual_time() const noexcept { return false; }
-  // Virtual time only: lets time pass (e.g. the modelled compute time) without scanning.
-  virtual void advance_virtual_ns(std::int64_t /*ns*/) noexcept {}
   // An fd that becomes readable when a scan completes (e.g. a GPIO frame-done edge), so a
   // caller can wait in poll(2) with a timeout; -1 when the source has none.
   virtual int wait_fd() const noexcept { return -1; }

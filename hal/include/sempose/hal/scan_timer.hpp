@@ -42,7 +42,7 @@ class ScanTimer {
     m.status = FrameStatus::kOk;
     m.t_scan_start_ns = t0_ns;
     m.t_scan_end_ns = t0_ns + limits.scan_time_ns(req.roi.w, req.roi.h, dwell_ns);
-    m.t_seen_ns = m.t_pose_done_ns = m.t_sent_ns = 0;
+    m.t_seen_ns = m.t_pose_done_ns = 0;
     end_ns_ = m.t_scan_end_ns;
     slot_ = &slot;
   }
@@ -72,8 +72,10 @@ class TimedScanSource : public ScanSource {
   PollResult poll() noexcept override { return timer_.poll(); }
   std::int64_t now_ns() const noexcept override { return timer_.now_ns(); }
   std::int64_t expected_done_ns() const noexcept override { return timer_.expected_done_ns(); }
-  bool is_virtual_time() const noexcept override { return timer_.is_virtual(); }
-  void advance_virtual_ns(std::int64_t ns) noexcept override { timer_.advance_virtual_ns(ns); }
+  // The simulator's and replay's own clock (not part of ScanSource): deterministic virtual
+  // time, which tests may let pass without scanning.
+  bool is_virtual_time() const noexcept { return timer_.is_virtual(); }
+  void advance_virtual_ns(std::int64_t ns) noexcept { timer_.advance_virtual_ns(ns); }
 
  protected:
   explicit TimedScanSource(bool virtual_time) noexcept : timer_(virtual_time) {}

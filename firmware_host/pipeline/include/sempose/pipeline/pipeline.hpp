@@ -17,10 +17,8 @@
 // Everything is allocated in the constructor; the loops are noexcept, lock-free and make no
 // heap calls, no blocking syscalls other than clock_nanosleep (sleep polling), no I/O.
 //
-// Virtual-time sources (tests): acquisition starts a scan only once correlation has taken
-// every frame (no drops; the run is a deterministic sequence of frames), and stage
-// timestamps are derived on the source's clock: seen = scan end, pose done = max(seen,
-// previous done) + compute time (virtual_compute_ns, or the measured one when 0).
+// Time stamps and pacing come from an injected StageClock (stage_clock.hpp): live
+// (CLOCK_MONOTONIC) or virtual (tests, benchmarks, replay: lock step, modelled compute).
 #pragma once
 
 #include <array>
@@ -37,6 +35,7 @@
 #include "sempose/pipeline/pipeline_stats.hpp"
 #include "sempose/pipeline/pose_sink.hpp"
 #include "sempose/pipeline/scan_speed_governor.hpp"
+#include "sempose/pipeline/stage_clock.hpp"
 #include "sempose/rt/mailbox.hpp"
 #include "sempose/rt/result.hpp"
 #include "sempose/rt/rt_thread.hpp"
@@ -74,10 +73,11 @@ class Pipeline {
   static constexpr std::size_t kCommandRingCapacity = 16;
   static constexpr std::size_t kMaxSchedule = 16;
 
-  // Setup (allocates the frame pool and histograms). trackers[i] tracks target i; sink must
-  // outlive the pipeline. Throws std::invalid_argument with a message on impossible settings.
+  // Setup (allocates the frame pool and histograms). trackers[i] tracks target i; sink and
+  // clock must outlive the pipeline. Throws std::invalid_argument with a message on
+  // impossible settings.
   Pipeline(const config::PipelineConfig& pipeline, const config::GovernorConfig& governor,
-           hal::ScanSource& source, std::vector<pose::Tracker*> trackers, PoseSink& sink);
+           hal::ScanSource& source, std::vector<pose::Tracker*> trackers, PoseSink& sink, const StageClock& clock);
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
@@ -133,13 +133,13 @@ class Pipeline {
   void idle_wait(std::int64_t until_ns) const noexcept;
 
   config::PipelineConfig config_;
+  const StageClock& clock_;
   hal::ScanSource& source_;
   std::vector<pose::Tracker*> trackers_;
   PoseSink& sink_;
   ScanSpeedGovernor governor_;
-  std::uint32_t acquire_dwell_ns_;
-  bool virtual_time_;
-  bool spin_;
+  bool spin_;           // spin-poll (a live clock and polling: spin)
+  bool sleep_polling_;  // sleep until a scan is due (a live clock and polling: sleep)
   std::uint32_t frame_ring_depth_;
   std::uint32_t pose_ring_depth_;
   std::array<std::uint8_t, kMaxSchedule> schedule_{};
@@ -163,7 +163,7 @@ class Pipeline {
   // Acquisition only: the plan version of each target's last full-field scan (0: none).
   std::array<std::uint32_t, hal::kMaxTargets> full_field_version_{};
   rt::Mailbox<StatusWords> status_;  // correlation -> output (heartbeat contents)
-  std::int64_t last_virtual_now_ns_ = 0;  // output-owned: the virtual "now" for service()
+  std::int64_t last_pose_done_ns_ = 0;  // output-owned: "now" for service() on a virtual clock
 
   PipelineCounters counters_;
   PipelineHistograms histograms_;

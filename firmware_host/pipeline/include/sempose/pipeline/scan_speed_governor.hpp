@@ -36,6 +36,13 @@ class ScanSpeedGovernor {
   // Dwell for the next w×h ROI of `target` (updates that target's hysteresis state).
   std::uint32_t next_dwell_ns(std::uint8_t target, std::int32_t w, std::int32_t h) noexcept;
 
+  // Dwell for the next scan of `target`: a full-field scan (start search) gets the initial
+  // dwell and leaves the ROI hysteresis alone; a ROI gets next_dwell_ns. The one rule the RT
+  // pipeline and the offline runner share.
+  std::uint32_t dwell_for_scan(std::uint8_t target, std::int32_t w, std::int32_t h, bool full_field) noexcept {
+    return full_field ? initial_dwell_ns() : next_dwell_ns(target, w, h);
+  }
+
   // The dwell the estimate alone asks for, before hysteresis (for tests and plots).
   std::uint32_t wanted_dwell_ns(std::uint8_t target, std::int32_t w, std::int32_t h) const noexcept;
 
