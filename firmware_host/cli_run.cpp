@@ -21,20 +21,13 @@
 #include <vector>
 
 #include "cli.hpp"
-#include "sempose/can_output/factory.hpp"
-#include "sempose/can_output/gpio_pose_sink.hpp"
+#include "sempose/session/run_setup.hpp"
+#include "sempose/session/run_summary.hpp"
 #include "sempose/config/app_config.hpp"
 #include "sempose/config/reader.hpp"
-#include "sempose/hal/can_candump_log.hpp"
 #include "sempose/hal/comedi_scan_source.hpp"
-#include "sempose/hal/gpio_synced_source.hpp"
-#include "sempose/hal/source_factory.hpp"
-#include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/pipeline.hpp"
-#include "sempose/pipeline/stage_clock.hpp"
 #include "sempose/pipeline/stall_watchdog.hpp"
-#include "sempose/pipeline/tracker_setup.hpp"
-#include "sempose/pose/tracker.hpp"
 #include "sempose/rt/alloc_counter.hpp"
 #include "sempose/rt/clock.hpp"
 #include "sempose/rt/latency_histogram.hpp"
@@ -200,111 +193,38 @@ int sempose::cli::run(int argc, char** argv) {
     std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
     return 0;
   }
-  // ---- setup: everything that allocates
-  rt::Status st;
-  std::unique_ptr<hal::ScanSource> source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st, cfg.comedi);
-  if (!source) {
-    std::fprintf(stderr, "sempose run: scan source: %s\n", st.message.c_str());
-    return 2;
-  }
-  hal::ScanSource* scan = source.get();
-  std::unique_ptr<hal::GpioFrameSync> frame_sync;
-  std::unique_ptr<hal::GpioSyncedSource> synced;
-  st = can_output::make_frame_sync(cfg.gpio, frame_sync);
-  if (!st) {
-    std::fprintf(stderr, "sempose run: gpio: %s\n", st.message.c_str());
-    return 2;
-  }
-  if (frame_sync) {
-    synced = std::make_unique<hal::GpioSyncedSource>(*source, *frame_sync,
-                                                     static_cast<std::int64_t>(cfg.gpio.frame_sync_timeout_us) * 1000,
-                                                     !pipeline::uses_virtual_clock(cfg));
-    scan = synced.get();
-  }
-
-  if (const int sig = pending_stop_signal(signals)) {
-    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
-    return 0;
-  }
-  pipeline::TrackerSetup trackers;
-  st = pipeline::make_trackers(cfg, scan->limits(), trackers);
+  // ---- setup: everything that allocates (session::RunSetup), inputs first
+  session::RunSetup run;
+  rt::Status st = session::build_inputs(cfg, run);
   if (!st) {
     std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
     return 2;
   }
-
   // Setup is done up to the outputs: a SIGINT/SIGTERM that came meanwhile stops here, before
   // any output file is created or truncated.
   if (const int sig = pending_stop_signal(signals)) {
     std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
     return 0;
   }
-  // Output files may name folders that do not exist yet (out/demo/...): make them now, after
-  // every check and the setup work, so a refused run leaves nothing behind.
-  for (const std::string& file : {cfg.output.poses_csv, opt.can_log.empty() && cfg.can.interface.empty()
-                                                          ? cfg.can.log_file
-                                                          : opt.can_log}) {
-    const auto parent = std::filesystem::path(file).parent_path();
-    std::error_code ec;
-    if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
-  }
-
-  can_output::CanOutput can;
-  st = can_output::make_can_output(cfg.can, opt.can_log, can);
+  st = session::build_outputs(cfg, opt.can_log, run);
   if (!st) {
-    std::fprintf(stderr, "sempose run: can: %s\n", st.message.c_str());
+    std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
     return 2;
   }
-  std::unique_ptr<hal::GpioOutputs> gpio_out;
-  st = can_output::make_gpio_outputs(cfg.gpio, gpio_out);
-  if (!st) {
-    std::fprintf(stderr, "sempose run: gpio: %s\n", st.message.c_str());
-    return 2;
-  }
-  std::unique_ptr<pipeline::CsvPoseSink> csv;
-  if (!cfg.output.poses_csv.empty()) {
-    csv = std::make_unique<pipeline::CsvPoseSink>(cfg.output.poses_csv, cfg.output.csv_buffer_poses,
-                                                  trackers.trackers.size() > 1);
-    st = csv->open();
-    if (!st) {
-      std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
-      return 2;
-    }
-  }
-  pipeline::PoseSink* sink = can.sink.get();
-  std::unique_ptr<pipeline::TeePoseSink> tee;
-  if (csv) {
-    tee = std::make_unique<pipeline::TeePoseSink>(can.sink.get(), csv.get());
-    sink = tee.get();
-  }
-  std::unique_ptr<can_output::GpioPoseSink> gpio_sink;
-  if (gpio_out) {
-    gpio_sink = std::make_unique<can_output::GpioPoseSink>(*sink, *gpio_out);
-    sink = gpio_sink.get();
-  }
-
-  std::vector<pose::Tracker*> raw;
-  for (auto& t : trackers.trackers) raw.push_back(t.get());
-  const std::unique_ptr<pipeline::StageClock> clock = pipeline::make_stage_clock(cfg);
-  std::unique_ptr<pipeline::Pipeline> pipe;
-  try {
-    pipe = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *scan, raw, *sink, *clock);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sempose run: %s\n", e.what());
-    return 2;
-  }
+  pipeline::Pipeline* pipe = run.pipeline.get();
 
   std::printf("sempose run: config %s, source %s%s%s, %zu target(s)\n", opt.config.c_str(), cfg.source.c_str(),
-              clock->real_time() ? "" : " (virtual time)", frame_sync ? " + GPIO frame sync" : "",
-              trackers.trackers.size());
-  const auto* comedi = dynamic_cast<const hal::ComediScanSource*>(source.get());
+              run.clock->real_time() ? "" : " (virtual time)", run.frame_sync ? " + GPIO frame sync" : "",
+              run.trackers.trackers.size());
+  const auto* comedi = dynamic_cast<const hal::ComediScanSource*>(run.source.get());
   if (comedi != nullptr) std::printf("comedi: %s\n", comedi->description().c_str());
-  for (std::size_t i = 0; i < trackers.names.size(); ++i) {
-    std::printf("  target %zu %s: pattern %s\n", i, trackers.names[i].c_str(), trackers.pattern_origins[i].c_str());
+  for (std::size_t i = 0; i < run.trackers.names.size(); ++i) {
+    std::printf("  target %zu %s: pattern %s\n", i, run.trackers.names[i].c_str(), run.trackers.pattern_origins[i].c_str());
   }
-  std::printf("memory: pattern banks + spectra %.1f MiB, frame pool %.1f MiB\n", trackers.memory_bytes / 1048576.0,
+  std::printf("memory: pattern banks + spectra %.1f MiB, frame pool %.1f MiB\n", run.trackers.memory_bytes / 1048576.0,
               pipe->frame_pool_bytes() / 1048576.0);
-  std::printf("output: %s%s%s\n", can.description.c_str(), csv ? ", CSV " : "", csv ? cfg.output.poses_csv.c_str() : "");
+  std::printf("output: %s%s%s\n", run.can.description.c_str(), run.csv ? ", CSV " : "",
+              run.csv ? cfg.output.poses_csv.c_str() : "");
 
   // ---- RT memory and latency setup, then start
   pin_non_rt_thread(cfg.pipeline.non_rt_cpu);
@@ -361,11 +281,7 @@ int sempose::cli::run(int argc, char** argv) {
   std::int64_t next_status = t0 + period_ns;
   const auto& c = pipe->counters();
   int stop_signal = 0;
-  auto* candump = dynamic_cast<hal::CandumpLogChannel*>(can.channel.get());
-  auto output_write_errors = [&] {
-    return (csv ? csv->write_errors() : 0) + (candump ? candump->write_errors() : 0);
-  };
-  pipeline::StallWatchdog source_watchdog(pipeline::StallWatchdog::timeout_for(scan->limits()), t0);
+  pipeline::StallWatchdog source_watchdog(pipeline::StallWatchdog::timeout_for(run.scan->limits()), t0);
   while (!pipe->finished()) {
     const std::int64_t now = rt::now_ns();
     // Stall watchdog (non-RT): frames must keep coming while running. Virtual-time sources
@@ -400,12 +316,10 @@ int sempose::cli::run(int argc, char** argv) {
     if (rt::now_ns() >= watchdog.next_due_ns()) watchdog.poll(rt::now_ns());
     if (rt::now_ns() >= next_status) {
       next_status += period_ns;
-      if (csv) csv->write_pending();
-      if (can.sink) can.sink->flush();
-      if (output_write_errors() > 0 && !(pipe->faults() & pipeline::kFaultOutputWrite)) {
+      run.flush_outputs();
+      if (run.output_write_errors() > 0 && !(pipe->faults() & pipeline::kFaultOutputWrite)) {
         pipe->set_fault(pipeline::kFaultOutputWrite, true);
-        std::printf("fault: writing an output file failed (%s)\n",
-                    std::strerror(csv && csv->last_errno() ? csv->last_errno() : candump ? candump->last_errno() : 0));
+        std::printf("fault: writing an output file failed (%s)\n", std::strerror(run.last_output_errno()));
         std::fflush(stdout);
       }
       if (cfg.output.print_status) {
@@ -418,7 +332,7 @@ int sempose::cli::run(int argc, char** argv) {
                     static_cast<unsigned long long>(c.overruns.get()),
                     static_cast<unsigned long long>(c.dwell_min_ns.get()),
                     static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99),
-                    static_cast<unsigned long long>(output_write_errors()), source_watchdog.stalled() ? " STALLED" : "");
+                    static_cast<unsigned long long>(run.output_write_errors()), source_watchdog.stalled() ? " STALLED" : "");
         std::fflush(stdout);
       }
     }
@@ -430,8 +344,7 @@ int sempose::cli::run(int argc, char** argv) {
   const std::int64_t drain_deadline = rt::now_ns() + static_cast<std::int64_t>(cfg.service.stop_timeout_ms) * rt::kNsPerMs;
   while (!pipe->finished() && rt::now_ns() < drain_deadline) rt::sleep_until_ns(rt::now_ns() + 5 * rt::kNsPerMs);
   if (!pipe->finished()) {
-    if (csv) csv->write_pending();
-    if (can.sink) can.sink->flush();
+    run.flush_outputs();
     dump_histograms(hist_dir, *pipe);
     std::printf("sempose run: the stages did not drain within service.stop_timeout_ms=%u ms; exiting without them\n",
                 cfg.service.stop_timeout_ms);
@@ -439,19 +352,14 @@ int sempose::cli::run(int argc, char** argv) {
     std::_Exit(6);  // joining would wait for the stuck stage forever
   }
   pipe->join();
-  sink->flush();
-  const bool csv_ok = csv ? csv->close() : true;
-  const std::uint64_t can_log_pending = candump ? candump->bytes_pending() : 0;
-  const std::uint64_t output_errors = output_write_errors();
+  run.sink->flush();
+  const bool csv_ok = run.csv ? run.csv->close() : true;
   if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
   if (pipe->source_ended()) std::printf("the source ended\n");
   dump_histograms(hist_dir, *pipe);
 
   // ---- summary
-  const auto series = pipe->histograms().snapshot();
-  const rt::HistogramSnapshot* e2e = nullptr;
-  for (const auto& s : series) {
-    if (s.name == "end_to_end") e2e = &s;
+  for (const auto& s : pipe->histograms().snapshot()) {
     // dwell_ns is recorded with 1 ns per bucket (see pipeline_stats.hpp): its unit is ns.
     const char* unit = s.name == "dwell_ns" ? "ns" : "us";
     std::printf("%-7s %-10s n=%llu min=%.1f%s p50=%.0f%s p99=%.0f%s p99.9=%.0f%s max=%.1f%s\n",
@@ -459,14 +367,10 @@ int sempose::cli::run(int argc, char** argv) {
                 static_cast<unsigned long long>(s.count), s.min_ns / 1e3, unit, s.percentile_us(0.5), unit,
                 s.percentile_us(0.99), unit, s.percentile_us(0.999), unit, s.max_ns / 1e3, unit);
   }
-  std::uint64_t poses = 0;
-  std::uint64_t tracked = 0;
   for (int t = 0; t < pipe->target_count(); ++t) {
     const auto& tc = c.targets[static_cast<std::size_t>(t)];
-    poses += tc.poses.get();
-    tracked += tc.tracked.get();
     std::printf("target %d %s: poses=%llu poses_per_s=%.1f tracked_share=%.3f start_searches=%llu\n", t,
-                trackers.names[static_cast<std::size_t>(t)].c_str(), static_cast<unsigned long long>(tc.poses.get()),
+                run.trackers.names[static_cast<std::size_t>(t)].c_str(), static_cast<unsigned long long>(tc.poses.get()),
                 tc.poses.get() / run_s, tc.poses.get() ? double(tc.tracked.get()) / tc.poses.get() : 0.0,
                 static_cast<unsigned long long>(tc.searches.get()));
   }
@@ -483,42 +387,15 @@ int sempose::cli::run(int argc, char** argv) {
                 static_cast<unsigned long long>(k.timeouts),
                 static_cast<unsigned long long>(k.arm_errors), static_cast<unsigned long long>(k.cancelled));
   }
-  const auto& cc = can.sink->counters();
-  std::printf(
-      "summary: poses=%llu poses_per_s=%.1f tracked_share=%.3f dropped=%llu overruns=%llu rt_allocs=%llu "
-      "e2e_us_p50=%.0f e2e_us_p99=%.0f e2e_us_p999=%.0f e2e_us_max=%.1f dwell_ns_min=%llu dwell_ns_max=%llu "
-      "frames=%llu scan_errors=%llu can_sent=%llu can_dropped=%llu can_bad_commands=%llu commands=%llu "
-      "duration_s=%.2f can_bus_state=%s",
-      static_cast<unsigned long long>(poses), poses / run_s, poses ? double(tracked) / poses : 0.0,
-      static_cast<unsigned long long>(pipe->dropped_frames()), static_cast<unsigned long long>(c.overruns.get()),
-      static_cast<unsigned long long>(rt::alloc::allocations() - allocs_at_start), e2e ? e2e->percentile_us(0.5) : 0.0,
-      e2e ? e2e->percentile_us(0.99) : 0.0, e2e ? e2e->percentile_us(0.999) : 0.0, e2e ? e2e->max_ns / 1e3 : 0.0,
-      static_cast<unsigned long long>(c.dwell_min_ns.get()), static_cast<unsigned long long>(c.dwell_max_ns.get()),
-      static_cast<unsigned long long>(c.frames_scanned.get()), static_cast<unsigned long long>(c.scan_errors.get()),
-      static_cast<unsigned long long>(cc.poses_sent.load()), static_cast<unsigned long long>(cc.poses_dropped.load()),
-      static_cast<unsigned long long>(cc.bad_commands.load()), static_cast<unsigned long long>(c.commands.get()),
-      run_s, hal::to_string(can.channel->bus_state()));
-  if (synced) {
-    const auto& sc = synced->counters();
-    std::printf(" sync_edges=%llu sync_missed=%llu sync_late=%llu sync_spurious=%llu",
-                static_cast<unsigned long long>(sc.edges.load()), static_cast<unsigned long long>(sc.missed.load()),
-                static_cast<unsigned long long>(sc.late.load()), static_cast<unsigned long long>(sc.spurious.load()));
-  }
-  std::printf(" output_errors=%llu csv_lines_lost=%llu can_log_bytes_lost=%llu commands_rejected=%llu "
-              "command_overflows=%llu source_stalls=%llu",
-              static_cast<unsigned long long>(output_errors),
-              static_cast<unsigned long long>(csv ? csv->lost_lines() : 0),
-              static_cast<unsigned long long>(can_log_pending),
-              static_cast<unsigned long long>(c.commands_rejected.get()),
-              static_cast<unsigned long long>(cc.commands_overflowed.load()),
-              static_cast<unsigned long long>(source_watchdog.stalls()));
-  std::printf("\n");
+  const session::RunSummary summary =
+      session::collect_summary(run, run_s, rt::alloc::allocations() - allocs_at_start, source_watchdog.stalls());
+  session::print_summary(stdout, summary);
   // Exit code: 0 only when nothing was lost. 4: an output failed to write; 5: the source stalled;
   // 6 (above): the stages did not drain within service.stop_timeout_ms.
-  if (output_errors > 0 || !csv_ok || can_log_pending > 0) {
+  if (summary.output_errors > 0 || !csv_ok || summary.can_log_bytes_lost > 0) {
     std::fprintf(stderr, "sempose run: output write errors (csv lines lost %llu, candump log bytes lost %llu)\n",
-                 static_cast<unsigned long long>(csv ? csv->lost_lines() : 0),
-                 static_cast<unsigned long long>(can_log_pending));
+                 static_cast<unsigned long long>(summary.csv_lines_lost),
+                 static_cast<unsigned long long>(summary.can_log_bytes_lost));
     return 4;
   }
   if (source_watchdog.stalls() > 0) {

@@ -1,0 +1,53 @@
+// Everything `sempose run` builds before its stages start, in two phases so a stop signal or
+// a bad input between them leaves no output file behind:
+//   build_inputs   scan source (+ GPIO frame sync), trackers, stage clock — reads files only;
+//   build_outputs  output folders, CAN channel and sink, GPIO outputs, CSV sink, the sink
+//                  chain (GPIO ← tee(CAN, CSV)) and the pipeline — creates the outputs.
+// Allocates; never on an RT thread. Errors name the section and the problem.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "sempose/can_output/factory.hpp"
+#include "sempose/can_output/gpio_pose_sink.hpp"
+#include "sempose/config/app_config.hpp"
+#include "sempose/hal/gpio_synced_source.hpp"
+#include "sempose/hal/scan_source.hpp"
+#include "sempose/pipeline/csv_pose_sink.hpp"
+#include "sempose/pipeline/pipeline.hpp"
+#include "sempose/pipeline/stage_clock.hpp"
+#include "sempose/pipeline/tracker_setup.hpp"
+#include "sempose/rt/result.hpp"
+
+namespace sempose::session {
+
+struct RunSetup {
+  // Inputs.
+  std::unique_ptr<hal::ScanSource> source;
+  std::unique_ptr<hal::GpioFrameSync> frame_sync;
+  std::unique_ptr<hal::GpioSyncedSource> synced;  // source behind the frame-sync edge, or null
+  hal::ScanSource* scan = nullptr;                // what the pipeline scans: synced or source
+  pipeline::TrackerSetup trackers;
+  std::unique_ptr<pipeline::StageClock> clock;
+  // Outputs.
+  can_output::CanOutput can;
+  std::unique_ptr<hal::GpioOutputs> gpio_out;
+  std::unique_ptr<pipeline::CsvPoseSink> csv;   // output.poses_csv, or null
+  std::unique_ptr<pipeline::TeePoseSink> tee;
+  std::unique_ptr<can_output::GpioPoseSink> gpio_sink;
+  pipeline::PoseSink* sink = nullptr;           // the head of the chain the pipeline publishes to
+  std::unique_ptr<pipeline::Pipeline> pipeline;
+
+  // Failed writes of the file outputs so far (CSV, candump log).
+  std::uint64_t output_write_errors() const;
+  int last_output_errno() const;
+  // Writes what the file sinks hold (non-RT; the status period and shutdown).
+  void flush_outputs();
+};
+
+rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out);
+// can_log_override: `--can-log FILE` (empty: the config's CAN output).
+rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, RunSetup& out);
+
+}  // namespace sempose::session

@@ -1,0 +1,89 @@
+#include "sempose/session/run_setup.hpp"
+
+#include <exception>
+#include <filesystem>
+
+#include "sempose/hal/can_candump_log.hpp"
+#include "sempose/hal/source_factory.hpp"
+#include "sempose/pose/tracker.hpp"
+
+namespace sempose::session {
+
+rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out) {
+  rt::Status st;
+  out.source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st, cfg.comedi);
+  if (!out.source) return rt::Status::failure("scan source: " + st.message);
+  out.scan = out.source.get();
+  st = can_output::make_frame_sync(cfg.gpio, out.frame_sync);
+  if (!st) return rt::Status::failure("gpio: " + st.message);
+  if (out.frame_sync) {
+    // The edge's kernel time stamp is CLOCK_MONOTONIC: the scan end only on a live clock.
+    out.synced = std::make_unique<hal::GpioSyncedSource>(
+        *out.source, *out.frame_sync, static_cast<std::int64_t>(cfg.gpio.frame_sync_timeout_us) * 1000,
+        !pipeline::uses_virtual_clock(cfg));
+    out.scan = out.synced.get();
+  }
+  out.clock = pipeline::make_stage_clock(cfg);
+  return pipeline::make_trackers(cfg, out.scan->limits(), out.trackers);
+}
+
+rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, RunSetup& out) {
+  // Output files may name folders that do not exist yet (out/demo/...): made now, after every
+  // check and the input setup, so a refused run leaves nothing behind.
+  const std::string can_log = can_log_override.empty() && cfg.can.interface.empty() ? cfg.can.log_file : can_log_override;
+  for (const std::string& file : {cfg.output.poses_csv, can_log}) {
+    const auto parent = std::filesystem::path(file).parent_path();
+    std::error_code ec;
+    if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
+  }
+  rt::Status st = can_output::make_can_output(cfg.can, can_log_override, out.can);
+  if (!st) return rt::Status::failure("can: " + st.message);
+  st = can_output::make_gpio_outputs(cfg.gpio, out.gpio_out);
+  if (!st) return rt::Status::failure("gpio: " + st.message);
+  if (!cfg.output.poses_csv.empty()) {
+    out.csv = std::make_unique<pipeline::CsvPoseSink>(cfg.output.poses_csv, cfg.output.csv_buffer_poses,
+                                                      out.trackers.trackers.size() > 1);
+    st = out.csv->open();
+    if (!st) return st;
+  }
+  out.sink = out.can.sink.get();
+  if (out.csv) {
+    out.tee = std::make_unique<pipeline::TeePoseSink>(out.can.sink.get(), out.csv.get());
+    out.sink = out.tee.get();
+  }
+  if (out.gpio_out) {
+    out.gpio_sink = std::make_unique<can_output::GpioPoseSink>(*out.sink, *out.gpio_out);
+    out.sink = out.gpio_sink.get();
+  }
+  std::vector<pose::Tracker*> raw;
+  for (auto& t : out.trackers.trackers) raw.push_back(t.get());
+  try {
+    out.pipeline = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *out.scan, raw, *out.sink, *out.clock);
+  } catch (const std::exception& e) {
+    return rt::Status::failure(e.what());
+  }
+  return rt::Status::success();
+}
+
+namespace {
+const hal::CandumpLogChannel* candump_of(const RunSetup& s) {
+  return dynamic_cast<const hal::CandumpLogChannel*>(s.can.channel.get());
+}
+}  // namespace
+
+std::uint64_t RunSetup::output_write_errors() const {
+  const auto* candump = candump_of(*this);
+  return (csv ? csv->write_errors() : 0) + (candump ? candump->write_errors() : 0);
+}
+
+int RunSetup::last_output_errno() const {
+  const auto* candump = candump_of(*this);
+  return csv && csv->last_errno() ? csv->last_errno() : candump ? candump->last_errno() : 0;
+}
+
+void RunSetup::flush_outputs() {
+  if (csv) csv->write_pending();
+  if (can.sink) can.sink->flush();
+}
+
+}  // namespace sempose::session
