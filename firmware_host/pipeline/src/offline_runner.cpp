@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <string>
 
+#include "sempose/pipeline/pipeline.hpp"
 #include "sempose/pipeline/pose_input.hpp"
 #include "sempose/pipeline/pose_record.hpp"
 #include "sempose/pose/tracker.hpp"
@@ -13,11 +14,6 @@ namespace {
 
 // A source that refuses or loses this many scans in a row will not recover by retrying.
 constexpr int kMaxConsecutiveScanErrors = 100;
-
-std::size_t slot_pixels(const hal::ScanLimits& l) {
-  return std::max(static_cast<std::size_t>(l.field_w) * static_cast<std::size_t>(l.field_h),
-                  static_cast<std::size_t>(l.max_roi_w) * static_cast<std::size_t>(l.max_roi_h));
-}
 
 }  // namespace
 
@@ -30,7 +26,7 @@ OfflineRunner::OfflineRunner(const config::PipelineConfig& pipeline, const confi
       trackers_(std::move(trackers)),
       sink_(sink),
       governor_(governor, source.limits(), std::max<int>(1, static_cast<int>(trackers_.size()))),
-      pool_(1, slot_pixels(source.limits())) {
+      pool_(1, frame_slot_pixels(source.limits())) {
   for (int t : pipeline.schedule) {
     if (t >= 0 && t < static_cast<int>(trackers_.size())) schedule_.push_back(static_cast<std::uint8_t>(t));
   }

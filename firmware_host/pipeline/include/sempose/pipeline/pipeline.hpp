@@ -47,6 +47,14 @@ class Tracker;
 
 namespace sempose::pipeline {
 
+// Pixels one frame-pool slot holds: the full field (the start search scans it) or the
+// largest ROI, whichever is more. Setup only.
+inline std::size_t frame_slot_pixels(const hal::ScanLimits& l) noexcept {
+  const auto field = static_cast<std::size_t>(l.field_w) * static_cast<std::size_t>(l.field_h);
+  const auto roi = static_cast<std::size_t>(l.max_roi_w) * static_cast<std::size_t>(l.max_roi_h);
+  return field > roi ? field : roi;
+}
+
 // What acquisition scans next for one target (latest value, from correlation). A trivial
 // type (no member initializers): the mailbox copies it as raw words.
 struct ScanPlan {
