@@ -292,16 +292,8 @@ StartResult ComediScanSource::start(const ScanRequest& req, FrameSlot& slot) noe
   failed_ = false;
   consumed_ = marked_ = 0;
   FrameMeta& m = slot.meta;
-  m.seq = seq_;
-  m.roi = req.roi;
-  m.field_w = limits_.field_w;
-  m.field_h = limits_.field_h;
-  m.dwell_ns = dwell;
-  m.bits = limits_.bits;
-  m.target = req.target;
-  m.truth_count = 0;
-  m.status = FrameStatus::kOk;
-  m.t_scan_end_ns = m.t_seen_ns = m.t_pose_done_ns = 0;
+  begin_frame_meta(m, req, limits_, dwell, seq_);
+  m.truth_count = 0;  // a microscope knows no truth
 
   // Leftovers of the previous scan: a finished AO command keeps its subdevice busy.
   dev_->cancel(ao_sub_);

@@ -5,20 +5,14 @@
 namespace sempose::service {
 
 ProgressMonitor::ProgressMonitor(std::int64_t stall_timeout_ns, std::int64_t start_ns) noexcept
-    : timeout_ns_(stall_timeout_ns) {
-  last_move_ns_.fill(start_ns);
-}
+    : stages_{pipeline::ProgressWatch(stall_timeout_ns, start_ns), pipeline::ProgressWatch(stall_timeout_ns, start_ns),
+              pipeline::ProgressWatch(stall_timeout_ns, start_ns)} {}
 
 std::uint8_t ProgressMonitor::update(std::int64_t now_ns, const StageCounts& c, bool expect_progress) noexcept {
   const std::array<std::uint64_t, 3> now_count{c.frames, c.poses, c.published};
   stalled_ = 0;
   for (int s = 0; s < 3; ++s) {
-    if (now_count[s] != last_count_[s] || !expect_progress) {
-      last_count_[s] = now_count[s];
-      last_move_ns_[s] = now_ns;
-    } else if (now_ns - last_move_ns_[s] >= timeout_ns_) {
-      stalled_ |= static_cast<std::uint8_t>(1u << s);
-    }
+    if (stages_[s].stalled(now_count[s], now_ns, expect_progress)) stalled_ |= static_cast<std::uint8_t>(1u << s);
   }
   return stalled_;
 }

@@ -25,6 +25,22 @@ struct ScanRequest {
 // What the scan generator can do (from config, section `scan:`); one definition, in config.
 using ScanLimits = config::ScanLimits;
 
+// A source starting the scan of req (dwell already checked and rounded): the frame's identity
+// fields, status OK and every time stamp "not reached". The one way all sources fill them;
+// the source then sets the times it knows (and the truth, when simulated).
+inline void begin_frame_meta(FrameMeta& m, const ScanRequest& req, const ScanLimits& limits, std::uint32_t dwell_ns,
+                             std::uint64_t seq) noexcept {
+  m.seq = seq;
+  m.roi = req.roi;
+  m.field_w = limits.field_w;
+  m.field_h = limits.field_h;
+  m.dwell_ns = dwell_ns;
+  m.bits = limits.bits;
+  m.target = req.target;
+  m.status = FrameStatus::kOk;
+  m.t_scan_start_ns = m.t_scan_end_ns = m.t_seen_ns = m.t_pose_done_ns = 0;
+}
+
 enum class StartResult : std::uint8_t {
   kStarted = 0,
   kBusy,         // a scan is still in progress

@@ -32,17 +32,9 @@ class ScanTimer {
   void begin(FrameSlot& slot, const ScanRequest& req, const ScanLimits& limits, std::uint32_t dwell_ns,
              std::uint64_t seq, std::int64_t t0_ns) noexcept {
     FrameMeta& m = slot.meta;
-    m.seq = seq;
-    m.roi = req.roi;
-    m.field_w = limits.field_w;
-    m.field_h = limits.field_h;
-    m.dwell_ns = dwell_ns;
-    m.bits = limits.bits;
-    m.target = req.target;
-    m.status = FrameStatus::kOk;
+    begin_frame_meta(m, req, limits, dwell_ns, seq);
     m.t_scan_start_ns = t0_ns;
     m.t_scan_end_ns = t0_ns + limits.scan_time_ns(req.roi.w, req.roi.h, dwell_ns);
-    m.t_seen_ns = m.t_pose_done_ns = 0;
     end_ns_ = m.t_scan_end_ns;
     slot_ = &slot;
   }

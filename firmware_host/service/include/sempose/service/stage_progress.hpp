@@ -1,13 +1,16 @@
 // The stall rule behind the watchdog: each RT stage has a counter that only moves when the
 // stage did its job (acquisition: frames scanned; correlation: poses made; output: poses
 // published, sent or dropped by a full bus). A stage whose counter has not moved for the
-// stall timeout while scanning is enabled is stalled. Pure and clock-free (times are
-// passed in), so the rule is tested without threads.
+// stall timeout while scanning is enabled is stalled — pipeline::ProgressWatch, the rule the
+// source's stall watchdog uses too. Pure and clock-free (times are passed in), so the rule is
+// tested without threads.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <string>
+
+#include "sempose/pipeline/stall_watchdog.hpp"
 
 namespace sempose::service {
 
@@ -27,12 +30,10 @@ class ProgressMonitor {
   std::uint8_t update(std::int64_t now_ns, const StageCounts& counts, bool expect_progress) noexcept;
   std::uint8_t stalled() const noexcept { return stalled_; }
   // ns since the given stage (0 acquisition, 1 correlation, 2 output) last moved.
-  std::int64_t idle_ns(int stage, std::int64_t now_ns) const noexcept { return now_ns - last_move_ns_[stage]; }
+  std::int64_t idle_ns(int stage, std::int64_t now_ns) const noexcept { return stages_[stage].idle_ns(now_ns); }
 
  private:
-  std::int64_t timeout_ns_;
-  std::array<std::uint64_t, 3> last_count_{};
-  std::array<std::int64_t, 3> last_move_ns_{};
+  std::array<pipeline::ProgressWatch, 3> stages_;
   std::uint8_t stalled_ = 0;
 };
 
