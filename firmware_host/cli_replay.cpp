@@ -16,14 +16,13 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
-#include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "cli.hpp"
 #include "sempose/config/app_config.hpp"
+#include "sempose/hal/frames_csv.hpp"
 #include "sempose/hal/replay_source.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/offline_runner.hpp"
@@ -76,29 +75,6 @@ class TruthCheckSink final : public pipeline::PoseSink {
   pipeline::PoseSink& out_;
   const std::map<std::pair<long, int>, Truth>& truth_;
 };
-
-// frame,t_ns (frames.csv) or frame,x,y,phi[,target] (ground truth): numeric rows after a header.
-std::vector<std::vector<double>> read_numeric_csv(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw std::runtime_error(path + ": cannot open");
-  std::vector<std::vector<double>> rows;
-  std::string line;
-  int n = 0;
-  while (std::getline(f, line)) {
-    if (++n == 1 || line.empty()) continue;
-    std::vector<double> row;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) {
-      char* end = nullptr;
-      const double v = std::strtod(cell.c_str(), &end);
-      if (end == cell.c_str()) throw std::runtime_error(path + ":" + std::to_string(n) + ": '" + cell + "' is not a number");
-      row.push_back(v);
-    }
-    rows.push_back(std::move(row));
-  }
-  return rows;
-}
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
@@ -185,8 +161,7 @@ int run_replay(int argc, char** argv) {
 
   std::map<std::pair<long, int>, Truth> truth;
   if (!truth_path.empty()) {
-    for (const auto& r : read_numeric_csv(truth_path)) {
-      if (r.size() < 4) throw std::runtime_error(truth_path + ": expected frame,x_px,y_px,phi_deg[,target]");
+    for (const auto& r : hal::read_numeric_csv(truth_path, 4)) {
       // A row naming no frame or target, or with a non-finite value, is not truth (and a NaN
       // or huge value must not reach an integer conversion).
       if (!(std::fabs(r[0]) < 1e15) || (r.size() >= 5 && !(std::fabs(r[4]) < 1e6)) || !std::isfinite(r[1]) ||

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstring>
 #include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 namespace sempose::hal {
@@ -98,6 +99,32 @@ std::vector<std::int64_t> read_frames_csv(const std::string& path, std::size_t f
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   text.resize(static_cast<std::size_t>(in.gcount()));
   return parse_frames_csv(text, frame_count, path);
+}
+
+std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::size_t min_cols) {
+  std::ifstream f(path);
+  if (!f) throw std::runtime_error(path + ": cannot open");
+  std::vector<std::vector<double>> rows;
+  std::string line;
+  std::size_t line_no = 0;
+  while (std::getline(f, line)) {
+    ++line_no;
+    if (line_no == 1 || line.empty()) continue;  // header
+    std::vector<double> row;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) {
+      char* end = nullptr;
+      const double v = std::strtod(cell.c_str(), &end);
+      if (end == cell.c_str()) throw std::runtime_error(path + ":" + std::to_string(line_no) + ": '" + cell + "' is not a number");
+      row.push_back(v);
+    }
+    if (row.size() < min_cols) {
+      throw std::runtime_error(path + ":" + std::to_string(line_no) + ": expected at least " + std::to_string(min_cols) + " columns");
+    }
+    rows.push_back(std::move(row));
+  }
+  return rows;
 }
 
 }  // namespace sempose::hal

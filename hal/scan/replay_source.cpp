@@ -33,36 +33,6 @@ std::vector<std::string> list_pgm_frames(const std::string& dir) {
   return names;
 }
 
-namespace {
-
-// Reads rows of a small CSV with a header; returns the numeric fields per row.
-std::vector<std::vector<double>> read_csv(const std::string& path, std::size_t min_cols) {
-  std::ifstream f(path);
-  std::vector<std::vector<double>> rows;
-  std::string line;
-  std::size_t line_no = 0;
-  while (std::getline(f, line)) {
-    ++line_no;
-    if (line_no == 1 || line.empty()) continue;  // header
-    std::vector<double> row;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) {
-      char* end = nullptr;
-      const double v = std::strtod(cell.c_str(), &end);
-      if (end == cell.c_str()) throw std::runtime_error(path + ":" + std::to_string(line_no) + ": '" + cell + "' is not a number");
-      row.push_back(v);
-    }
-    if (row.size() < min_cols) {
-      throw std::runtime_error(path + ":" + std::to_string(line_no) + ": expected at least " + std::to_string(min_cols) + " columns");
-    }
-    rows.push_back(std::move(row));
-  }
-  return rows;
-}
-
-}  // namespace
-
 ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig& cfg)
     : TimedScanSource(cfg.clock != "real"), limits_(limits), loop_(cfg.loop) {
   const std::vector<std::string> names = list_pgm_frames(cfg.frames_dir);
@@ -96,7 +66,7 @@ ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig&
   const fs::path gt = fs::path(cfg.frames_dir) / "ground_truth.csv";
   if (fs::exists(gt)) {
     truth_.assign(frames_.size(), {});
-    for (const auto& row : read_csv(gt.string(), 4)) {
+    for (const auto& row : read_numeric_csv(gt.string(), 4)) {
       // Rows that name no frame or target here, or carry a non-finite value, are not truth.
       if (!(row[0] >= 0 && row[0] < static_cast<double>(frames_.size())) || (row.size() >= 5 && !(row[4] >= 0 && row[4] < kMaxTargets)) ||
           !std::isfinite(row[1]) || !std::isfinite(row[2]) || !std::isfinite(row[3])) {

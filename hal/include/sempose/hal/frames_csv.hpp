@@ -18,4 +18,9 @@ std::vector<std::int64_t> parse_frames_csv(const std::string& text, std::size_t 
 // Reads the file (a regular file of at most 64 MiB) and parses it.
 std::vector<std::int64_t> read_frames_csv(const std::string& path, std::size_t frame_count);
 
+// The other CSVs of a recording (ground_truth.csv: frame,x_px,y_px,phi_deg[,target]): the
+// numeric fields of every row after the header; a cell that is no number, a row with fewer
+// than min_cols fields or a file that cannot be opened throws, naming file and line.
+std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::size_t min_cols);
+
 }  // namespace sempose::hal
