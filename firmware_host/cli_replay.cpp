@@ -23,10 +23,10 @@
 #include "cli.hpp"
 #include "sempose/config/app_config.hpp"
 #include "sempose/hal/frames_csv.hpp"
-#include "sempose/hal/replay_source.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/offline_runner.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
+#include "sempose/session/run_setup.hpp"
 #include "sempose/pose/tracker.hpp"
 
 namespace {
@@ -141,15 +141,10 @@ int run_replay(int argc, char** argv) {
     return 2;
   }
   // The recording, served on the virtual clock whatever the config says: offline, as fast as
-  // the CPU allows, and the same timestamps as `sempose run` on it.
-  config::ReplayConfig replay_cfg = app.replay;
-  replay_cfg.frames_dir = frames_dir;
-  replay_cfg.clock = "virtual";
-  replay_cfg.loop = false;
-  hal::ReplaySource source(app.scan, replay_cfg);
-
-  pipeline::TrackerSetup trackers;
-  const rt::Status made = pipeline::make_trackers(app, source.limits(), trackers);
+  // the CPU allows, and the same inputs and time stamps as `sempose run` on it.
+  session::RunSetup run;
+  const rt::Status made = session::build_inputs(session::replay_config(app, frames_dir), run);
+  const pipeline::TrackerSetup& trackers = run.trackers;
   if (!made.ok) {
     std::fprintf(stderr, "sempose replay: %s\n", made.message.c_str());
     return 2;
@@ -181,8 +176,7 @@ int run_replay(int argc, char** argv) {
   TruthCheckSink sink(csv, truth);
   std::vector<pose::Tracker*> raw;
   for (auto& t : trackers.trackers) raw.push_back(t.get());
-  const pipeline::VirtualStageClock clock(app.pipeline.virtual_compute_ns);
-  pipeline::OfflineRunner runner(app.pipeline, app.governor, source, raw, sink, clock);
+  pipeline::OfflineRunner runner(app.pipeline, app.governor, *run.scan, raw, sink, *run.clock);
   pipeline::OfflineRunStats stats;
   const rt::Status ran = runner.run(0, stats);
   if (!ran.ok) {

@@ -27,6 +27,16 @@ rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out) {
   return pipeline::make_trackers(cfg, out.scan->limits(), out.trackers);
 }
 
+config::AppConfig replay_config(const config::AppConfig& cfg, const std::string& frames_dir) {
+  config::AppConfig out = cfg;
+  out.source = "replay";
+  out.replay.frames_dir = frames_dir;
+  out.replay.clock = "virtual";
+  out.replay.loop = false;
+  out.gpio.chip.clear();
+  return out;
+}
+
 rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, RunSetup& out) {
   // Output files may name folders that do not exist yet (out/demo/...): made now, after every
   // check and the input setup, so a refused run leaves nothing behind.

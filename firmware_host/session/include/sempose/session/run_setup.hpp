@@ -47,6 +47,10 @@ struct RunSetup {
 };
 
 rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out);
+// What `sempose replay` tracks: cfg with the recording in frames_dir as its scan source, on
+// the virtual clock, played once, without a GPIO frame sync (offline there is no scan
+// generator) — the inputs `sempose run` would build for the same recording.
+config::AppConfig replay_config(const config::AppConfig& cfg, const std::string& frames_dir);
 // can_log_override: `--can-log FILE` (empty: the config's CAN output).
 rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, RunSetup& out);
 
