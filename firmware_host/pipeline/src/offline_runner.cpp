@@ -4,8 +4,6 @@
 #include <string>
 
 #include "sempose/pipeline/pipeline.hpp"
-#include "sempose/pipeline/pose_input.hpp"
-#include "sempose/pipeline/pose_record.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "sempose/rt/clock.hpp"
 
@@ -25,7 +23,7 @@ OfflineRunner::OfflineRunner(const config::PipelineConfig& pipeline, const confi
       source_(source),
       trackers_(std::move(trackers)),
       sink_(sink),
-      governor_(governor, source.limits(), std::max<int>(1, static_cast<int>(trackers_.size()))),
+      step_(governor, source.limits(), trackers_, clock),
       pool_(1, frame_slot_pixels(source.limits())) {
   for (int t : pipeline.schedule) {
     if (t >= 0 && t < static_cast<int>(trackers_.size())) schedule_.push_back(static_cast<std::uint8_t>(t));
@@ -43,29 +41,18 @@ rt::Status OfflineRunner::run(std::uint64_t max_frames, OfflineRunStats& stats) 
   if (schedule_.size() != (config_.schedule.empty() ? trackers_.size() : config_.schedule.size())) {
     return rt::Status::failure("pipeline.schedule: an entry is not a target index");
   }
-  const hal::ScanLimits& limits = source_.limits();
   hal::FrameSlot& slot = pool_[0];
-  std::vector<std::uint32_t> pose_seq(trackers_.size(), 0);
-  std::int64_t prev_pose_done_ns = 0;
   int consecutive_errors = 0;
   // Each target's next scan, planned right after its last pose as the pipeline's correlation
   // stage does (the governor's state then matches the pipeline's at every decision).
   std::vector<hal::ScanRequest> plans(trackers_.size());
-  auto plan_next_scan = [&](std::uint8_t target) {
-    hal::ScanRequest& req = plans[target];
-    req.roi = trackers_[target]->next_roi();
-    req.target = target;
-    req.dwell_ns = governor_.dwell_for_scan(target, req.roi.w, req.roi.h,
-                                            limits.is_full_field(req.roi.x, req.roi.y, req.roi.w, req.roi.h));
-  };
-  for (std::size_t t = 0; t < trackers_.size(); ++t) plan_next_scan(static_cast<std::uint8_t>(t));
+  for (std::size_t t = 0; t < trackers_.size(); ++t) plans[t] = step_.next_scan(static_cast<std::uint8_t>(t));
   for (std::size_t schedule_pos = 0; max_frames == 0 || stats.frames < max_frames;
        schedule_pos = (schedule_pos + 1) % schedule_.size()) {
     if (consecutive_errors >= kMaxConsecutiveScanErrors) {
       return rt::Status::failure("scan source: " + std::to_string(consecutive_errors) + " scans in a row failed");
     }
     const std::uint8_t target = schedule_[schedule_pos];
-    pose::Tracker& tracker = *trackers_[target];
     const hal::StartResult started = source_.start(plans[target], slot);
     if (started == hal::StartResult::kEnded) {
       stats.source_ended = true;
@@ -97,24 +84,17 @@ rt::Status OfflineRunner::run(std::uint64_t max_frames, OfflineRunStats& stats) 
     }
     ++stats.frames;
     m.t_seen_ns = clock_.seen_ns(m.t_scan_end_ns);
-    const std::int64_t t_start = clock_.pose_start_ns(m.t_seen_ns, prev_pose_done_ns);
 
     const std::int64_t wall0 = rt::now_ns();
-    const pose::PoseEstimate est = tracker.update(to_pose_frame(m, slot.pixels));
-    const std::int64_t wall1 = rt::now_ns();
-    (est.searched ? stats.search_compute_ns : stats.roi_compute_ns).push_back(wall1 - wall0);
-    const std::int64_t compute_ns = clock_.compute_ns(wall1 - wall0);
-    m.t_pose_done_ns = clock_.pose_done_ns(t_start, compute_ns, wall1);
-    prev_pose_done_ns = m.t_pose_done_ns;
-    const bool tracking = est.state == pose::TrackState::kTracking;
-    governor_.observe(target, compute_ns, est.score, est.psr, tracking && !est.searched);
-    plan_next_scan(target);
+    const TrackingStep::Outcome o = step_.track(m, slot.pixels);
+    (o.est.searched ? stats.search_compute_ns : stats.roi_compute_ns).push_back(rt::now_ns() - wall0);
+    plans[o.target] = step_.next_scan(o.target);
 
-    const PoseRecord p = make_pose_record(m, est, target, pose_seq[target]++, tracker.nm_per_px());
+    const PoseRecord p = step_.record(m, o, trackers_[o.target]->nm_per_px());
     if (sink_.publish(p, clock_.output_now_ns(p.t_pose_done_ns)) != PublishResult::kSent) ++stats.publish_failures;
     sink_.flush();  // off the RT path: write every pose at once, so no sink ring can overflow
     ++stats.poses;
-    if (tracking) ++stats.tracked;
+    if (o.est.state == pose::TrackState::kTracking) ++stats.tracked;
   }
   return rt::Status::success();
 }

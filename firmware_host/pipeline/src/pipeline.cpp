@@ -19,7 +19,7 @@ Pipeline::Pipeline(const config::PipelineConfig& pipeline, const config::Governo
       source_(source),
       trackers_(std::move(trackers)),
       sink_(sink),
-      governor_(governor, source.limits(), std::max<int>(1, static_cast<int>(trackers_.size()))),
+      step_(governor, source.limits(), trackers_, clock),
       spin_(clock.real_time() && pipeline.polling == "spin"),
       sleep_polling_(clock.real_time() && pipeline.polling != "spin"),
       frame_ring_depth_(std::clamp<std::uint32_t>(pipeline.frame_ring, 2, kFrameRingCapacity)),
@@ -73,15 +73,13 @@ void Pipeline::idle_wait(std::int64_t until_ns) const noexcept {
 }
 
 void Pipeline::publish_plan(std::uint8_t target, bool enabled) noexcept {
-  const hal::Roi roi = trackers_[target]->next_roi();
-  const hal::ScanLimits& l = source_.limits();
-  const bool full_field = l.is_full_field(roi.x, roi.y, roi.w, roi.h);
+  const hal::ScanRequest next = step_.next_scan(target);
   ScanPlan plan{};
-  plan.x = roi.x;
-  plan.y = roi.y;
-  plan.w = roi.w;
-  plan.h = roi.h;
-  plan.dwell_ns = governor_.dwell_for_scan(target, roi.w, roi.h, full_field);
+  plan.x = next.roi.x;
+  plan.y = next.roi.y;
+  plan.w = next.roi.w;
+  plan.h = next.roi.h;
+  plan.dwell_ns = next.dwell_ns;
   plan.enabled = enabled ? 1 : 0;
   plans_[target].publish(plan);
 }

@@ -3,8 +3,6 @@
 #include <algorithm>
 
 #include "sempose/pipeline/pipeline.hpp"
-#include "sempose/pipeline/pose_input.hpp"
-#include "sempose/pipeline/pose_record.hpp"
 #include "sempose/pose/tracker.hpp"
 #include "sempose/rt/alloc_counter.hpp"
 #include "sempose/rt/clock.hpp"
@@ -63,28 +61,20 @@ bool Pipeline::apply_command(const Command& c) noexcept {
 void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   hal::FrameSlot& s = pool_[slot];
   hal::FrameMeta& m = s.meta;
-  const std::uint8_t target = m.target < trackers_.size() ? m.target : 0;
-  pose::Tracker& tracker = *trackers_[target];
-
-  const std::int64_t t_start = clock_.pose_start_ns(m.t_seen_ns, prev_pose_done_ns_);
-  const std::int64_t wall0 = rt::now_ns();
-  const pose::PoseEstimate est = tracker.update(to_pose_frame(m, s.pixels));
-  const std::int64_t wall1 = rt::now_ns();
-  const std::int64_t compute_ns = clock_.compute_ns(wall1 - wall0);
-  m.t_pose_done_ns = clock_.pose_done_ns(t_start, compute_ns, wall1);
+  const TrackingStep::Outcome o = step_.track(m, s.pixels);
+  const pose::PoseEstimate& est = o.est;
+  const std::uint8_t target = o.target;
 
   // The frame waited for the tracker: a deadline overrun (not counted after a start search,
   // which is long by design).
-  if (prev_pose_done_ns_ != 0 && m.t_scan_end_ns < prev_pose_done_ns_ && !prev_pose_was_search_) {
+  if (o.prev_pose_done_ns != 0 && m.t_scan_end_ns < o.prev_pose_done_ns && !prev_pose_was_search_) {
     counters_.overruns.add();
   }
-  prev_pose_done_ns_ = m.t_pose_done_ns;
   prev_pose_was_search_ = est.searched;
-  histograms_.queue.record_ns(t_start - m.t_seen_ns);
-  histograms_.compute.record_ns(compute_ns);
+  histograms_.queue.record_ns(o.t_start_ns - m.t_seen_ns);
+  histograms_.compute.record_ns(o.compute_ns);
 
   const bool tracking = est.state == pose::TrackState::kTracking;
-  governor_.observe(target, compute_ns, est.score, est.psr, tracking && !est.searched);
   publish_plan(target, running_);
   last_state_[target] = est.state;
   {
@@ -105,8 +95,9 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   if (tracking) tc.tracked.add();
   if (est.searched) tc.searches.add();
 
-  const double nm_per_px = nm_per_px_override_[target] > 0 ? nm_per_px_override_[target] : tracker.nm_per_px();
-  const PoseRecord p = make_pose_record(m, est, target, pose_seq_[target]++, nm_per_px);
+  const double nm_per_px =
+      nm_per_px_override_[target] > 0 ? nm_per_px_override_[target] : trackers_[target]->nm_per_px();
+  const PoseRecord p = step_.record(m, o, nm_per_px);
   if (poses_.size() >= pose_ring_depth_ || !poses_.try_push(p)) counters_.poses_ring_full.add();
 }
 

@@ -1,9 +1,9 @@
 // The offline runner: drives any ScanSource through the trackers into a PoseSink on the
 // calling thread — no threads, no RT, no rings. `sempose replay` and tests use it. It follows
 // the RT pipeline's rules for one frame in flight (what the pipeline does in lock step):
-// targets scanned in pipeline.schedule order, each scan at the target's next ROI with the
-// governor's dwell, the same PoseRecord (make_pose_record) and the same pose-done time, so a
-// replay of a recording writes the pipeline's CSV for it bit for bit.
+// targets scanned in pipeline.schedule order, and each frame through the same TrackingStep
+// as the pipeline's correlation stage (clock, governor, next scan, pose record), so a replay
+// of a recording writes the pipeline's CSV for it bit for bit.
 #pragma once
 
 #include <cstdint>
@@ -14,8 +14,8 @@
 #include "sempose/hal/frame.hpp"
 #include "sempose/hal/scan_source.hpp"
 #include "sempose/pipeline/pose_sink.hpp"
-#include "sempose/pipeline/scan_speed_governor.hpp"
 #include "sempose/pipeline/stage_clock.hpp"
+#include "sempose/pipeline/tracking_step.hpp"
 #include "sempose/rt/result.hpp"
 
 namespace sempose::pose {
@@ -56,7 +56,7 @@ class OfflineRunner {
   hal::ScanSource& source_;
   std::vector<pose::Tracker*> trackers_;
   PoseSink& sink_;
-  ScanSpeedGovernor governor_;
+  TrackingStep step_;
   std::vector<std::uint8_t> schedule_;
   hal::FramePool pool_;  // one slot: one frame in flight
 };

@@ -34,8 +34,8 @@
 #include "sempose/hal/scan_source.hpp"
 #include "sempose/pipeline/pipeline_stats.hpp"
 #include "sempose/pipeline/pose_sink.hpp"
-#include "sempose/pipeline/scan_speed_governor.hpp"
 #include "sempose/pipeline/stage_clock.hpp"
+#include "sempose/pipeline/tracking_step.hpp"
 #include "sempose/rt/mailbox.hpp"
 #include "sempose/rt/result.hpp"
 #include "sempose/rt/rt_thread.hpp"
@@ -145,7 +145,7 @@ class Pipeline {
   hal::ScanSource& source_;
   std::vector<pose::Tracker*> trackers_;
   PoseSink& sink_;
-  ScanSpeedGovernor governor_;
+  TrackingStep step_;  // correlation-owned (publish_plan also runs in the constructor)
   bool spin_;           // spin-poll (a live clock and polling: spin)
   bool sleep_polling_;  // sleep until a scan is due (a live clock and polling: sleep)
   std::uint32_t frame_ring_depth_;
@@ -162,8 +162,6 @@ class Pipeline {
 
   // Correlation-owned state.
   bool running_ = true;  // false after a stop command
-  std::array<std::uint32_t, hal::kMaxTargets> pose_seq_{};
-  std::int64_t prev_pose_done_ns_ = 0;
   bool prev_pose_was_search_ = true;
   std::array<pose::TrackState, hal::kMaxTargets> last_state_{};
   // nm/px commanded with SELECT_PATTERN_SET (0: the pattern set's configured scale).

@@ -1,0 +1,53 @@
+// One frame through its target's tracker, written once for the RT pipeline's correlation
+// stage and the offline runner: time stamps from the stage clock, the governor fed, the
+// target's next scan planned by the governor's rule, the pose record numbered per target.
+// RT-safe after construction: noexcept, no allocation.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "sempose/config/governor_config.hpp"
+#include "sempose/hal/frame.hpp"
+#include "sempose/hal/scan_source.hpp"
+#include "sempose/pipeline/pose_sink.hpp"
+#include "sempose/pipeline/scan_speed_governor.hpp"
+#include "sempose/pipeline/stage_clock.hpp"
+#include "sempose/pose/tracker.hpp"
+
+namespace sempose::pipeline {
+
+class TrackingStep {
+ public:
+  struct Outcome {
+    pose::PoseEstimate est;
+    std::uint8_t target = 0;
+    std::int64_t t_start_ns = 0;         // when tracking of the frame started (stage clock)
+    std::int64_t compute_ns = 0;         // as the clock accounts it (modelled or measured)
+    std::int64_t prev_pose_done_ns = 0;  // the pose before this one (0: none yet)
+  };
+
+  // trackers[i] tracks target i (not null; the caller checks); they and clock outlive the step.
+  TrackingStep(const config::GovernorConfig& governor, const hal::ScanLimits& limits,
+               std::vector<pose::Tracker*> trackers, const StageClock& clock);
+
+  // Tracks the frame's target on its pixels; sets m.t_pose_done_ns and feeds the governor.
+  Outcome track(hal::FrameMeta& m, const hal::Pixel* pixels) noexcept;
+  // The target's next scan: its tracker's next ROI, the full field's dwell for a start search
+  // or the governor's for a ROI. Call once per pose, right after it (the governor's ROI
+  // hysteresis advances per call).
+  hal::ScanRequest next_scan(std::uint8_t target) noexcept;
+  // The pose as it leaves for the sinks, numbered per target. nm_per_px: the active scale.
+  PoseRecord record(const hal::FrameMeta& m, const Outcome& o, double nm_per_px) noexcept;
+
+ private:
+  const StageClock& clock_;
+  hal::ScanLimits limits_;
+  std::vector<pose::Tracker*> trackers_;
+  ScanSpeedGovernor governor_;
+  std::int64_t prev_pose_done_ns_ = 0;
+  std::array<std::uint32_t, hal::kMaxTargets> pose_seq_{};
+};
+
+}  // namespace sempose::pipeline

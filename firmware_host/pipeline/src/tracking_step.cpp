@@ -1,0 +1,47 @@
+#include "sempose/pipeline/tracking_step.hpp"
+
+#include <algorithm>
+
+#include "sempose/pipeline/pose_input.hpp"
+#include "sempose/pipeline/pose_record.hpp"
+#include "sempose/rt/clock.hpp"
+
+namespace sempose::pipeline {
+
+TrackingStep::TrackingStep(const config::GovernorConfig& governor, const hal::ScanLimits& limits,
+                           std::vector<pose::Tracker*> trackers, const StageClock& clock)
+    : clock_(clock),
+      limits_(limits),
+      trackers_(std::move(trackers)),
+      governor_(governor, limits, std::max<int>(1, static_cast<int>(trackers_.size()))) {}
+
+TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* pixels) noexcept {
+  Outcome o;
+  o.target = m.target < trackers_.size() ? m.target : 0;
+  o.prev_pose_done_ns = prev_pose_done_ns_;
+  o.t_start_ns = clock_.pose_start_ns(m.t_seen_ns, prev_pose_done_ns_);
+  const std::int64_t wall0 = rt::now_ns();
+  o.est = trackers_[o.target]->update(to_pose_frame(m, pixels));
+  const std::int64_t wall1 = rt::now_ns();
+  o.compute_ns = clock_.compute_ns(wall1 - wall0);
+  m.t_pose_done_ns = clock_.pose_done_ns(o.t_start_ns, o.compute_ns, wall1);
+  prev_pose_done_ns_ = m.t_pose_done_ns;
+  const bool tracking = o.est.state == pose::TrackState::kTracking;
+  governor_.observe(o.target, o.compute_ns, o.est.score, o.est.psr, tracking && !o.est.searched);
+  return o;
+}
+
+hal::ScanRequest TrackingStep::next_scan(std::uint8_t target) noexcept {
+  hal::ScanRequest req;
+  req.roi = trackers_[target]->next_roi();
+  req.target = target;
+  req.dwell_ns = governor_.dwell_for_scan(target, req.roi.w, req.roi.h,
+                                          limits_.is_full_field(req.roi.x, req.roi.y, req.roi.w, req.roi.h));
+  return req;
+}
+
+PoseRecord TrackingStep::record(const hal::FrameMeta& m, const Outcome& o, double nm_per_px) noexcept {
+  return make_pose_record(m, o.est, o.target, pose_seq_[o.target]++, nm_per_px);
+}
+
+}  // namespace sempose::pipeline
