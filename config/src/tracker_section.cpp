@@ -41,6 +41,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("score_threshold", c.score_threshold, 0.0, 1.0);
   s.opt("psr_threshold", c.psr_threshold, 0.0, 1000.0);
   s.opt("relative_score_threshold", c.relative_score_threshold, 0.0, 1.0);
+  s.opt("explained_threshold", c.explained_threshold, 0.0, 1.0);
   s.opt("lost_after_frames", c.lost_after_frames, 1, 1000);
   s.opt("search_downsample", c.search_downsample, 1, 32);
   s.opt("search_angle_step_deg", c.search_angle_step_deg, 0.25, 90.0);

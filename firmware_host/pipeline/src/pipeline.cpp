@@ -425,6 +425,7 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   p.phi_deg = est.phi_deg;
   p.score = est.score;
   p.psr = est.psr;
+  p.target_scale = est.scale;
   p.dwell_ns = m.dwell_ns;
   p.nm_per_px = nm_per_px_override_[target] > 0 ? nm_per_px_override_[target] : tracker.nm_per_px();
   p.t_scan_end_ns = m.t_scan_end_ns;

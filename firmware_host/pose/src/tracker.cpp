@@ -23,6 +23,8 @@
 #include "sempose/pose/pose_filter.hpp"
 #include "sempose/pose/pose_refinement.hpp"
 #include "sempose/pose/roi_loader.hpp"
+#include "sempose/pose/roi_rescaler.hpp"
+#include "sempose/pose/scale_probe.hpp"
 #include "sempose/pose/start_search.hpp"
 #include "sempose/pose/subpixel_fit.hpp"
 #include "sempose/rt/angle.hpp"
@@ -35,6 +37,15 @@ namespace {
 // mask, or those pixels pull the peak off the true pose by a few tenths of a pixel in the
 // pattern's own frame (a bias that turns with the target).
 double mask_inset_px(const config::TrackerConfig& c) noexcept { return 2.0 + 2.0 * c.prefilter_passes; }
+
+// (1 − r²)/(1 − a²): the variance a fit with gain and offset leaves (share 1 − r² of the
+// window's) over what the noise model predicts it leaves (1 − a², a the attainable score).
+// The floor keeps a noise-free window finite.
+float normalised_chi2(double score, double attainable) noexcept {
+  const double left = 1.0 - std::clamp(score, 0.0, 1.0) * std::clamp(score, 0.0, 1.0);
+  const double noise = 1.0 - attainable * attainable;
+  return static_cast<float>(left / std::max(noise, 1e-4));
+}
 }  // namespace
 
 struct Tracker::Impl {
@@ -47,6 +58,8 @@ struct Tracker::Impl {
   FftCorrelator half, coarse;  // the 2×2-binned ROI level; the coarse full-field level
   ExactScorer scorer;
   RoiLoader loader;
+  RoiRescaler rescaler;
+  const ScaleProbe scale_probe;
   CorrelationMaps maps;
   const SubpixelFit fit;
   const OrientationWalk walk;
@@ -60,6 +73,17 @@ struct Tracker::Impl {
   std::vector<double> nm_per_px;
 
   bool tracking = false;
+  // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
+  // Learnt from the accepted frames' scale readings, kept across a loss (the magnification
+  // has not changed), back to 1 when the target is forgotten (new pattern set, REACQUIRE).
+  double scale = 1.0;
+  static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
+  static constexpr double kScaleMin = 0.7, kScaleMax = 1.45;  // beyond: the ROI cannot hold the target
+  // Closer to 1 than this: the raw ROI is loaded as scanned. Resampling costs ~40 µs, and at
+  // 1 % its interpolation blur cost more angle accuracy than the size error it removes; the
+  // reading itself runs 0.6–1.7 % high at 20–2.5 e⁻/px on unscaled targets (README: Known
+  // limitations), so below 2.5 % a reading is not acted on (pose_accuracy_bench).
+  static constexpr double kRescaleFrom = 0.025;
   config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
   std::atomic<bool> reacquire{false};
   std::atomic<std::uint8_t> active{0};
@@ -75,6 +99,8 @@ struct Tracker::Impl {
         coarse(good_fft_size(s.coarse_max_w), good_fft_size(s.coarse_max_h), coarse_mask),
         scorer(fine_mask, s.roi_fft_px),
         loader(c.prefilter_passes, s.roi_fft_px, scorer, half),
+        rescaler(s.roi_fft_px),
+        scale_probe(scorer),
         maps(static_cast<std::size_t>(s.half_fft_px) * s.half_fft_px),
         fit(c.subpixel == "gaussian", c.fit_noise_correction),
         walk(scorer, fit, angles),
@@ -218,6 +244,7 @@ void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
 void Tracker::Impl::forget_everything() noexcept {
   go_lost();
   loss.forget_target();
+  scale = 1.0;
   motion = MotionModel(cfg.predict_velocity);  // also the last angle a search's tie-break uses
 }
 
@@ -322,7 +349,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.searched = true;
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), rx, ry);
     if (m.valid) to_estimate(m, roi.x + rx, roi.y + ry, e);
+    e.scale = scale;  // the start search matches at the pattern's size (README: Known limitations)
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;
+    if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
     if (loss.found(m, attainable)) {
       accept(e, frame, true);
     } else {
@@ -338,7 +367,17 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
 
   // Tracking: one forward FFT for this ROI, then the walk.
   const int pattern_px = sizes.pattern_px;
-  if (scored.w < pattern_px || scored.h < pattern_px || !loader.load(px, scored.w, scored.h, roi.w, frame.bits)) {
+  const bool rescaled = std::fabs(scale - 1.0) > kRescaleFrom;
+  const double used_scale = rescaled ? scale : 1.0;  // the scale the ROI is loaded at
+  const std::uint16_t* load_px = px;
+  std::ptrdiff_t load_stride = roi.w;
+  int load_bits = frame.bits;
+  if (rescaled && scored.w >= pattern_px && scored.h >= pattern_px) {
+    load_px = rescaler.rescale(px, scored.w, scored.h, roi.w, frame.bits, used_scale);
+    load_stride = std::min(scored.w, sizes.roi_fft_px);
+    load_bits = RoiRescaler::out_bits(frame.bits);
+  }
+  if (scored.w < pattern_px || scored.h < pattern_px || !loader.load(load_px, scored.w, scored.h, load_stride, load_bits)) {
     e.state = TrackState::kLost;
     e.reason_bits = static_cast<std::uint8_t>((scored.w < pattern_px || scored.h < pattern_px) ? kReasonOutOfField
                                                                                                   : kReasonFlatFrame);
@@ -346,13 +385,25 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     go_lost();
     return e;
   }
-  const Measurement m = track(bank);
+  Measurement m = track(bank);
+  const ScaleReading reading = scale_probe.read(bank, m);
   to_estimate(m, scored.x, scored.y, e);
+  if (rescaled) {
+    // The pose in the resampled ROI, back to the scanned one.
+    e.x_px = scored.x + RoiRescaler::to_raw(e.x_px - scored.x, std::min(scored.w, sizes.roi_fft_px), used_scale);
+    e.y_px = scored.y + RoiRescaler::to_raw(e.y_px - scored.y, std::min(scored.h, sizes.roi_fft_px), used_scale);
+    e.meas_x_px = e.x_px;
+    e.meas_y_px = e.y_px;
+  }
+  e.scale = reading.valid ? used_scale * reading.factor : scale;
+  m.attainable = static_cast<float>(attainable_score(frame.pixels, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y));
+  e.chi2 = normalised_chi2(e.score, m.attainable);
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
   if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
   switch (loss.judge(m)) {
     case FrameVerdict::kAccept:
       accept(e, frame, false);
+      if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
       break;
     case FrameVerdict::kLost:
       e.reason_bits |= loss.weak_reasons(m);
@@ -478,7 +529,8 @@ void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::m
 std::size_t Tracker::memory_bytes() const noexcept {
   const Impl& t = *impl_;
   std::size_t b = t.half.buffer_bytes() + t.coarse.buffer_bytes();
-  b += t.scorer.memory_bytes() + t.loader.memory_bytes() + t.maps.memory_bytes() + t.search.memory_bytes();
+  b += t.scorer.memory_bytes() + t.loader.memory_bytes() + t.rescaler.memory_bytes() + t.maps.memory_bytes() +
+       t.search.memory_bytes();
   for (const auto& bank : t.banks) b += bank->memory_bytes();
   return b;
 }

@@ -38,6 +38,10 @@ struct TrackerConfig {
   // Score below this fraction of the running mean of recent accepted scores = weak frame
   // (0 = off): after a jump a look-alike in the old ROI can pass the absolute threshold.
   double relative_score_threshold = 0.7;
+  // A tracked pose is weak when its score is below this × the score the noise model says the
+  // target attains in that window (0 = off): the pattern explains too little of the window's
+  // signal — jaws moving under a rigid pattern, a look-alike, a torn frame (kReasonUnexplained).
+  double explained_threshold = 0.65;
   std::int32_t lost_after_frames = 1;  // K consecutive weak frames -> LOST, full-field search
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;

@@ -26,8 +26,17 @@ struct PoseEstimate {
   // This frame's own measurement; equal to x_px, y_px, phi_deg unless tracker.filter is on
   // (then those are the filtered pose).
   double meas_x_px = 0, meas_y_px = 0, meas_phi_deg = 0;
+  // The target's size on screen over the pattern's (magnification, working distance): the
+  // tracker resamples each ROI by 1/scale so the engine matches at the pattern's own size.
+  double scale = 1.0;
   float score = 0;      // ZNCC in [-1, 1]
   float psr = 0;        // peak-to-sidelobe ratio of the position peak
+  // Normalised χ² of the match: the share of the window's variance the pattern (with gain and
+  // offset) leaves unexplained, 1 − score², over the share the noise model predicts,
+  // 1 − attainable² (README: Conventions). ~1: the model explains the window up to noise;
+  // a wrong scale, a look-alike or a torn frame leaves structure unexplained (≫ 1). 0: not
+  // measured (no match).
+  float chi2 = 0;
   std::uint8_t pattern_set = 0;
   int angle_steps = 0;  // correlations spent on orientation this frame
   bool searched = false;  // this frame ran the full-field start search
