@@ -1,6 +1,6 @@
 // The scale estimate of one frame (issue 13 item 2): at the walk's pose, the ZNCC of the bank's
 // pattern stretched by 1 − δ, 1 and 1 + δ about its centre (bilinear) against the loaded ROI's
-// own pixels (every second row and column of the stretched support); a parabola
+// own pixels (every third row and column of the stretched support); a parabola
 // through the three gives the residual scale of the ROI as loaded (the tracker folds it into
 // its running scale, which resamples the next ROI). Reads the exact scorer's loaded ROI. RT,
 // no allocation.
@@ -19,7 +19,8 @@ struct ScaleReading {
 
 class ScaleProbe {
  public:
-  static constexpr double kStep = 0.03;  // δ: about the width of the score's peak in scale at ~100 px
+  static constexpr double kStep = 0.03;
+  static constexpr int kStride = 3;  // rows and columns of the ROI read  // δ: about the width of the score's peak in scale at ~100 px
 
   explicit ScaleProbe(const ExactScorer& scorer) noexcept : scorer_(scorer) {}
 

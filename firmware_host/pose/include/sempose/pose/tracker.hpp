@@ -35,7 +35,7 @@ struct PoseEstimate {
   // offset) leaves unexplained, 1 − score², over the share the noise model predicts,
   // 1 − attainable² (README: Conventions). ~1: the model explains the window up to noise;
   // a wrong scale, a look-alike or a torn frame leaves structure unexplained (≫ 1). 0: not
-  // measured (no match).
+  // measured (no match, or a score at or above tracker.explained_threshold, which passes).
   float chi2 = 0;
   std::uint8_t pattern_set = 0;
   int angle_steps = 0;  // correlations spent on orientation this frame
