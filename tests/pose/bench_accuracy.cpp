@@ -9,8 +9,8 @@
 // frame of both, measured in the same run. ViSP (visp_peer.hpp) tracks the same sequence:
 // same scene, trajectory and frame times, its own 256² crop, started at the truth.
 // Then the sub-pixel / angle bias tables. Printed figures; exits non-zero when something is
-// broken (NaN: 2) or a pose the tracker reported as TRACKING was false (3: issue 13's rule, any
-// at >= 2.5 e-/px, more than 1 % below), never on an accuracy or speed figure.
+// broken (NaN: 2) and, with --require-no-false, when a pose reported as TRACKING was false (3:
+// issue 13's rule, any at >= 2.5 e-/px, more than 1 % below); never on an accuracy or speed figure.
 #pragma GCC diagnostic ignored "-Wnull-dereference"  // GCC 12 false positive in std::vector<float>
 #include <algorithm>
 #include <cmath>
@@ -262,8 +262,10 @@ Bias sim_bias(const config::TrackerConfig& tc, const std::string& target, double
 int main(int argc, char** argv) {
   // --quick (CI): 60 frames per run, doses 20/6/2.5. --full: 150 frames, dose 1 too.
   // --only TARGET [CASE]: those rows only. --bias: the bias tables only. --no-visp: sempose only.
+  // --require-no-false: exit 3 when issue 13's false-TRACKING rule is broken (the CTest
+  // pose_false_tracking_rule; the figures run in ci/test only prints the count).
   // --visp-levels N: ViSP's pyramid levels (3 by default, as the issue specifies).
-  bool quick = true, bias_only = false, visp = true, only = false;
+  bool quick = true, bias_only = false, visp = true, only = false, require_no_false = false;
   int visp_levels = 3;
   std::string only_target, only_motion;
   for (int i = 1; i < argc; ++i) {
@@ -272,13 +274,14 @@ int main(int argc, char** argv) {
     else if (a == "--quick") quick = true;
     else if (a == "--bias") bias_only = true;
     else if (a == "--no-visp") visp = false;
+    else if (a == "--require-no-false") require_no_false = true;
     else if (a == "--visp-levels" && i + 1 < argc) visp_levels = std::atoi(argv[++i]);
     else if (a == "--only" && i + 1 < argc) {
       only = true;
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N] [--require-no-false]\n", argv[0]);
       return 2;
     }
   }
@@ -461,7 +464,7 @@ int main(int argc, char** argv) {
 
   if (only) {
     std::printf("(bounds computed in %.2f s of %.1f s)\n", g_bound_s, (rt::now_ns() - bench_t0) * 1e-9);
-    return bad ? 2 : false_rule_broken ? 3 : 0;
+    return bad ? 2 : (require_no_false && false_rule_broken) ? 3 : 0;
   }
   std::printf("\nbias (mean error in the target's own frame: along its x axis, across it, and in angle)\n");
   std::printf("(rms_deg: RMS angle error; crlb_px, crlb_deg, eff: the single-frame bound, Poisson, as in the table above)\n");
@@ -530,5 +533,5 @@ int main(int argc, char** argv) {
     std::printf("  | max %.3f px rms %.3f px\n", worst, std::sqrt(sum2 / n));
   }
   std::printf("\n(bounds computed in %.2f s of %.1f s)\n", g_bound_s, (rt::now_ns() - bench_t0) * 1e-9);
-  return bad ? 2 : false_rule_broken ? 3 : 0;
+  return bad ? 2 : (require_no_false && false_rule_broken) ? 3 : 0;
 }
