@@ -145,22 +145,19 @@ TEST(NoFalseTracking, TargetThatReturnsIsFoundAgain) {
   EXPECT_LE(r.false_tracking, 1);
 }
 
-// A pose the model does not explain is not TRACKING (issue 13 item 6): the target's scale
-// ramps ±25 % over the run (magnification / working distance) while the tracker follows with a
-// fixed-scale pattern, and the gripper's jaws open and close under a rigid pattern. Before the
-// attainable-score check on tracked frames, 34–51 of 60 poses of a scale ramp were reported
-// TRACKING while > 3 px or > 10° off (the score sank slowly, so the recent-score test followed
-// it down). Each case prints its tracked share and false count. (The procedural lamella's
+// Scale is tracked (issue 13 items 2 and 6): the target's scale ramps ±25 % over the run
+// (magnification / working distance). With a fixed-scale pattern 34–51 of 60 poses of such a
+// ramp were reported TRACKING while > 3 px or > 10° off (the score sank slowly, so the
+// recent-score test followed it down). Each case prints its tracked share and false count. (The procedural lamella's
 // +25 % ramp at 2.5 e⁻/px still gives one false pose, while the scale is inside the rescaling
 // dead band: README, Known limitations.)
-class ModelMismatch : public ::testing::TestWithParam<std::tuple<std::string, double, double>> {};
+class ScaleRamp : public ::testing::TestWithParam<std::tuple<std::string, double, double>> {};
 
-TEST_P(ModelMismatch, NoFalseTrackingAtOrAbovePaperDose) {
+TEST_P(ScaleRamp, TrackedWithoutFalsePoses) {
   pt::Scenario s;
   s.target = std::get<0>(GetParam());
   s.scale_to = std::get<1>(GetParam());
   s.dose_e = std::get<2>(GetParam());
-  s.jaws = s.target == "gripper";
   s.motion = "smooth";
   s.frames = 60;
   s.start_phi_deg = 30;
@@ -177,23 +174,16 @@ TEST_P(ModelMismatch, NoFalseTrackingAtOrAbovePaperDose) {
     const double dphi = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
     if (!(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && dphi <= 10.0)) ++false_n;
   }
-  std::printf("%-12s scale -> %.2f dose %4.1f%s: TRACKING %d/%d, false %d\n", s.target.c_str(), s.scale_to, s.dose_e,
-              s.jaws ? " jaws" : "", tracked, s.frames, false_n);
+  std::printf("%-12s scale -> %.2f dose %4.1f: TRACKING %d/%d, false %d\n", s.target.c_str(), s.scale_to, s.dose_e,
+              tracked, s.frames, false_n);
   EXPECT_EQ(false_n, 0) << "TRACKING while > 3 px or > 10 deg off";
-  if (s.jaws) {
-    // The jaws change the target's look from the first frame on: the rigid pattern explains
-    // too little of many frames and those are rejected (issue 13 item 4 is the fix); the
-    // frames it does explain are still tracked.
-    EXPECT_GE(tracked, s.frames / 6);
-  } else {
-    // Scale is tracked, not merely rejected: the whole ramp stays TRACKING.
-    EXPECT_GE(tracked, s.frames - 3);
-    EXPECT_GE(tracked_first_third, s.frames / 3 - 1);
-  }
+  // Scale is tracked, not merely rejected: the whole ramp stays TRACKING.
+  EXPECT_GE(tracked, s.frames - 3);
+  EXPECT_GE(tracked_first_third, s.frames / 3 - 1);
 }
 
-INSTANTIATE_TEST_SUITE_P(ScaleRampsAndJaws, ModelMismatch,
+INSTANTIATE_TEST_SUITE_P(TargetsDoses, ScaleRamp,
                          ::testing::Values(std::make_tuple("needle_tip", 1.25, 2.5), std::make_tuple("needle_tip", 0.75, 6.0),
                                            std::make_tuple("lamella_post", 1.25, 6.0),
                                            std::make_tuple("lamella_post", 0.75, 2.5),
-                                           std::make_tuple("lamella", 1.25, 6.0), std::make_tuple("gripper", 1.0, 6.0)));
+                                           std::make_tuple("lamella", 1.25, 6.0)));

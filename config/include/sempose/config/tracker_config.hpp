@@ -41,7 +41,9 @@ struct TrackerConfig {
   // A tracked pose is weak when its score is below this × the score the noise model says the
   // target attains in that window (0 = off): the pattern explains too little of the window's
   // signal — jaws moving under a rigid pattern, a look-alike, a torn frame (kReasonUnexplained).
-  double explained_threshold = 0.65;
+  // 0.65 removed every false jaws pose but cost the procedural lamella's recovery after a jump
+  // at 2.5 e-/px (pose_accuracy_bench); 0.6 keeps it and leaves 1-3 per jaws row.
+  double explained_threshold = 0.6;
   std::int32_t lost_after_frames = 1;  // K consecutive weak frames -> LOST, full-field search
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
