@@ -326,8 +326,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
     go_lost();
     // Commanded, or a new magnification: the target's look may have changed; the new
-    // pattern set has its own noise floors.
+    // pattern set has its own noise floors and is matched at its own size first.
     loss.forget_target();
+    scale = 1.0;
     use_noise_floors_of(set);
     if (!full_field) {
       e.state = TrackState::kAcquiring;
