@@ -1,9 +1,10 @@
 // The tracker: builds the stages at setup and runs them in sequence per frame.
 //   frame → (bad / re-acquire / full field?) → start search  ─┐
-//                                          → ROI load → FFT peak at the predicted angle
-//                                            → orientation walk + fit → recovery sweep
-//                                            → refinement seam ────────┤
-//   loss policy (accept / coast / lost) → motion model → temporal filter → PoseEstimate
+//                                          → ROI (resampled by 1/scale) load → FFT peak at the
+//                                            predicted angle → orientation walk + fit
+//                                            → recovery sweep → refinement seam → scale probe ─┤
+//   explained check → loss policy (accept / coast / lost) → motion model, scale
+//   → temporal filter → PoseEstimate
 #include "sempose/pose/tracker.hpp"
 
 #include <algorithm>
