@@ -34,6 +34,17 @@ SEMPOSE_CLONES void vertical(const std::int32_t* in, int w, int h, int shift, st
 }
 }  // namespace
 
+double prefilter_dc_gain(int passes, int bits) noexcept {
+  double gain = 1.0;
+  int cur_bits = bits;
+  for (int p = 0; p < passes; ++p) {
+    const int shift = std::max(0, cur_bits + 8 - 20);
+    cur_bits = std::min(20, cur_bits + 8);
+    gain *= 256.0 / static_cast<double>(1 << shift);
+  }
+  return gain;
+}
+
 void Prefilter::apply(const std::uint16_t* src, int w, int h, std::ptrdiff_t stride, int bits,
                       std::int32_t* out) noexcept {
   w = std::min(w, max_w_);
