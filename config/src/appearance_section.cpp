@@ -11,6 +11,7 @@ void read_appearance(Section& s, AppearanceConfig& c) {
   s.opt("outlier_ratio", c.outlier_ratio, 1.2, 1000.0);
   s.opt("block_px", c.block_px, 1, 32);
   s.opt("pose_jitter_px", c.pose_jitter_px, 0.0, 10.0);
+  s.opt("angle_jitter_deg", c.angle_jitter_deg, 0.0, 30.0);
   s.opt("min_consistency", c.min_consistency, 0.0, 1.0);
   s.opt("max_drift_px", c.max_drift_px, 0.05, 8.0);
   s.opt("min_support_fraction", c.min_support_fraction, 0.05, 1.0);

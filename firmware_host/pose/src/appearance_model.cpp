@@ -30,6 +30,7 @@ std::vector<std::uint8_t> AppearanceModel::support_of(const AppearanceStats& s, 
   if (set >= refs_.size() || s.frames <= 0) return out;
   const double noise = s.sum_noise_var / s.frames;
   const double jitter2 = cfg_.pose_jitter_px * cfg_.pose_jitter_px;
+  const double angle_jitter = cfg_.angle_jitter_deg * M_PI / 180.0, c = (n_ - 1) / 2.0;
   const std::vector<float>& g2 = grad2_[set];
   const std::vector<float>& prior = priors_[set];
   const int bs = std::max(1, cfg_.block_px);
@@ -41,7 +42,8 @@ std::vector<std::uint8_t> AppearanceModel::support_of(const AppearanceStats& s, 
           const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
           if (!circle_[i] || s.hits[i] == 0) continue;
           msr += s.sum_r2[i] / s.hits[i];
-          expected += noise + jitter2 * g2[i];
+          const double r2 = (x - c) * (x - c) + (y - c) * (y - c);
+          expected += noise + (jitter2 + angle_jitter * angle_jitter * r2) * g2[i];
         }
       const bool target = expected > 0 && msr <= cfg_.outlier_ratio * expected;
       if (!target) continue;

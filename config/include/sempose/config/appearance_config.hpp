@@ -25,9 +25,12 @@ struct AppearanceConfig {
   // statistics: 16 px for 4², so a 16-frame update separates a 2× excess from noise).
   double outlier_ratio = 2.0;
   std::int32_t block_px = 4;
-  // Pose jitter (1σ, px) the test allows for: a pixel on a steep edge has a residual of its
-  // gradient times the pose error without being background.
+  // Pose jitter (1σ) the test allows for: a pixel on a steep edge has a residual of its
+  // gradient times the pose error without being background; the angle's share grows with the
+  // distance from the centre (0.5° is 0.5 px at the rim of a 128² pattern), without it the
+  // target's outer edges, which carry the angle, would be dropped.
   double pose_jitter_px = 0.3;
+  double angle_jitter_deg = 0.5;
   // Drift check (Matthews–Ishikawa–Baker): the mean of the aligned observations, over the new
   // support, must match the recorded pattern with ZNCC >= min_consistency and lie within
   // max_drift_px of it; and the support must keep min_support_fraction of the pattern circle.

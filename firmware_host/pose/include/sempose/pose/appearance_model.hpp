@@ -2,7 +2,7 @@
 // pixels of the pattern the target explains. Per pattern set it keeps the running sums of
 // every accepted batch and decides per block_px² block of the pattern's frame: a block whose
 // mean squared residual against the recorded pattern exceeds outlier_ratio × what detector
-// noise and the pose's jitter explain (noise variance + jitter² · |∇t|²) is not the target
+// noise and the pose's jitter explain (noise variance + (jitter² + (angle jitter · r)²) · |∇t|²) is not the target
 // (background under the rim that changes as the target moves, a moving jaw) and leaves the
 // support. The support stays inside the user's shape mask (a prior) and the pattern circle.
 // Drift check (Matthews, Ishikawa & Baker 2004): a new support is kept only if the mean of

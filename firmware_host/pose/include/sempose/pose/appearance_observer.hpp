@@ -2,7 +2,10 @@
 // sampled in the pattern's own frame at the measured pose, gain and offset against the
 // recorded pattern are fitted, and per pattern pixel the squared residual and the observation
 // (in pattern units) are summed, with the frame's detector noise (Immerkær's estimator on the
-// raw window, through the prefilter's noise gain). frames_per_update frames make a batch,
+// raw window, through the prefilter's noise gain). Each frame samples one row in eight of the
+// pattern (the phase turning per frame): the RT cost is an eighth of a full pass, and over a
+// batch every row is seen alike.
+// frames_per_update frames make a batch,
 // handed to the non-RT side (AppearanceModel, via Tracker::maintain_appearance) through a
 // two-buffer exchange: the RT side fills one buffer while the other is with the worker; an
 // atomic index says which one is handed over (release/acquire), nothing waits: a batch
@@ -61,7 +64,10 @@ class AppearanceObserver {
   std::size_t memory_bytes() const noexcept;
 
  private:
-  double window_noise_var(const std::uint16_t* raw, std::ptrdiff_t stride, int x0, int y0, int size) const noexcept;
+  // Rows of the pattern's frame observed per frame: one in kRowPhases (RT cost / 8).
+  static constexpr int kRowPhases = 8;
+  double window_noise_var(const std::uint16_t* raw, std::ptrdiff_t stride, int x0, int y0, int size,
+                          int phase) const noexcept;
 
   int n_;
   std::vector<std::uint8_t> inside_;
@@ -72,6 +78,7 @@ class AppearanceObserver {
   std::vector<float> sampled_;     // this frame's samples (size_px²)
   AppearanceStats buf_[2];
   int filling_ = 0;
+  int phase_ = 0;                  // the row phase of the next observed frame
   std::atomic<int> handed_{-1};    // the buffer with the worker, -1: none
 };
 
