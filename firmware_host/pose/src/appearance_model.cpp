@@ -33,26 +33,56 @@ std::vector<std::uint8_t> AppearanceModel::support_of(const AppearanceStats& s, 
   const double angle_jitter = cfg_.angle_jitter_deg * M_PI / 180.0, c = (n_ - 1) / 2.0;
   const std::vector<float>& g2 = grad2_[set];
   const std::vector<float>& prior = priors_[set];
+  // Per pixel: the mean squared residual and what noise and jitter explain there.
+  std::vector<double> msr(circle_.size(), 0.0), expected(circle_.size(), 0.0);
+  for (int y = 0; y < n_; ++y)
+    for (int x = 0; x < n_; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
+      if (!circle_[i] || s.hits[i] == 0) continue;
+      const double r2 = (x - c) * (x - c) + (y - c) * (y - c);
+      msr[i] = s.sum_r2[i] / s.hits[i];
+      expected[i] = noise + (jitter2 + angle_jitter * angle_jitter * r2) * g2[i];
+    }
+  auto keep = [&](int x0, int y0, int x1, int y1) {  // the ratio test over a rectangle
+    double m = 0, e = 0;
+    for (int y = std::max(0, y0); y < std::min(n_, y1); ++y)
+      for (int x = std::max(0, x0); x < std::min(n_, x1); ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
+        m += msr[i];
+        e += expected[i];
+      }
+    return e > 0 && m <= cfg_.outlier_ratio * e;
+  };
+  auto allowed = [&](std::size_t i) { return circle_[i] && s.hits[i] > 0 && (prior.empty() || prior[i] != 0.0f); };
+  // Blocks first (enough samples to tell 2x the noise from noise in one batch), then the
+  // pixels next to kept blocks whose own 3x3 neighbourhood passes: a target's outline lies
+  // beside the background that changes, and a block holding both would drop the outline,
+  // which carries the position.
   const int bs = std::max(1, cfg_.block_px);
   for (int by = 0; by < n_; by += bs)
     for (int bx = 0; bx < n_; bx += bs) {
-      double msr = 0, expected = 0;
+      if (!keep(bx, by, bx + bs, by + bs)) continue;
       for (int y = by; y < std::min(n_, by + bs); ++y)
         for (int x = bx; x < std::min(n_, bx + bs); ++x) {
           const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
-          if (!circle_[i] || s.hits[i] == 0) continue;
-          msr += s.sum_r2[i] / s.hits[i];
-          const double r2 = (x - c) * (x - c) + (y - c) * (y - c);
-          expected += noise + (jitter2 + angle_jitter * angle_jitter * r2) * g2[i];
-        }
-      const bool target = expected > 0 && msr <= cfg_.outlier_ratio * expected;
-      if (!target) continue;
-      for (int y = by; y < std::min(n_, by + bs); ++y)
-        for (int x = bx; x < std::min(n_, bx + bs); ++x) {
-          const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
-          out[i] = circle_[i] && s.hits[i] > 0 && (prior.empty() || prior[i] != 0.0f);
+          out[i] = allowed(i);
         }
     }
+  if (bs > 1) {
+    const std::vector<std::uint8_t> core = out;
+    for (int y = 0; y < n_; ++y)
+      for (int x = 0; x < n_; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
+        if (out[i] || !allowed(i)) continue;
+        bool near = false;
+        for (int dy = -bs; dy <= bs && !near; ++dy)
+          for (int dx = -bs; dx <= bs && !near; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            near = xx >= 0 && yy >= 0 && xx < n_ && yy < n_ && core[static_cast<std::size_t>(yy) * n_ + xx];
+          }
+        if (near && keep(x - 1, y - 1, x + 2, y + 2)) out[i] = 1;
+      }
+  }
   return out;
 }
 

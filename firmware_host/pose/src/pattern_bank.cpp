@@ -151,19 +151,6 @@ std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& 
             in[static_cast<std::size_t>(y) * n + x] = 1;
         }
     }
-    // Every kRowGroup rows share one run set (the intersection of their runs): a turned
-    // support is ragged, and every run of every row would cost the exact scorer four
-    // summed-area look-ups per score; grouped, consecutive rows merge into one band (measured:
-    // ~4x fewer bands, a few % of the support's edge pixels lost).
-    constexpr int kRowGroup = 4;
-    for (int y0 = 0; y0 < n; y0 += kRowGroup) {
-      const int y1 = std::min(n, y0 + kRowGroup);
-      for (int x = 0; x < n; ++x) {
-        std::uint8_t all = 1;
-        for (int y = y0; y < y1; ++y) all &= in[static_cast<std::size_t>(y) * n + x];
-        for (int y = y0; y < y1; ++y) in[static_cast<std::size_t>(y) * n + x] = all;
-      }
-    }
     std::int64_t count = 0;
     for (std::uint8_t v : in) count += v;
     float* p = b.spatial_.data() + static_cast<std::size_t>(j) * n * n;
