@@ -292,3 +292,30 @@ TEST(Appearance, ClosedLoopLearnsSwapsBanksWithoutAllocating) {
   EXPECT_LT(a.support_fraction, 0.95);
   EXPECT_GT(r.tracked_share(), 0.95);
 }
+
+TEST(Appearance, ConcurrentWorkerSwapsBanksWhileTracking) {
+  // The product's arrangement: a worker thread (start_appearance_worker) folds batches in and
+  // publishes banks while this thread runs update() (the harness also calls
+  // maintain_appearance() between frames: a second caller must return, not race). 2° steps
+  // (half the bank) so that it also runs under ThreadSanitizer (label concurrency).
+  Scenario s;
+  s.target = "lamella_post";
+  s.motion = "smooth";
+  s.dose_e = 6.0;
+  s.frames = 100;
+  config::TrackerConfig tc;
+  tc.angle_step_deg = 2;
+  tc.appearance.enabled = true;
+  tc.appearance.frames_per_update = 8;
+  SimHarness h(s, tc);
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.tracker()->start_appearance_worker();
+  h.run();
+  const Tracker::AppearanceStatus a = h.tracker()->appearance_status();
+  const RunStats r = h.stats();
+  std::printf("worker thread: %u updates, %u rejected, %u deferred; tracked %.2f\n", a.accepted, a.rejected, a.deferred,
+              r.tracked_share());
+  EXPECT_GE(a.accepted + a.rejected, 2u) << "batches reached the model";
+  EXPECT_EQ(h.tracker_allocations(), 0u);
+  EXPECT_GT(r.tracked_share(), 0.9);
+}

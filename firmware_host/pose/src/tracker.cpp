@@ -87,6 +87,7 @@ struct Tracker::Impl {
   std::atomic<double> appearance_support{1.0};
   std::thread worker;
   std::atomic<bool> worker_stop{false};
+  std::atomic_flag maintaining = ATOMIC_FLAG_INIT;  // one maintain_appearance() at a time (non-RT callers)
   ~Impl() {
     worker_stop.store(true, std::memory_order_relaxed);
     if (worker.joinable()) worker.join();
@@ -202,6 +203,13 @@ const PatternBank& Tracker::Impl::frame_bank(std::uint8_t set) noexcept {
 
 bool Tracker::Impl::maintain_appearance() {
   if (!observer) return false;
+  // The model and the slots have one writer: a second caller (a worker thread and an offline
+  // loop at once) returns at once instead of waiting.
+  if (maintaining.test_and_set(std::memory_order_acquire)) return false;
+  struct Release {
+    std::atomic_flag& f;
+    ~Release() { f.clear(std::memory_order_release); }
+  } release{maintaining};
   const AppearanceStats* batch = observer->take();
   if (batch == nullptr) return false;
   const std::uint8_t set = batch->set;
