@@ -1,4 +1,5 @@
 #include "sempose/pose/prefilter.hpp"
+#include "sempose/pose/simd_clones.hpp"
 
 #include <algorithm>
 
@@ -16,7 +17,6 @@ namespace {
 // 32-bit lanes throughout: a pass multiplies by 256 (16 horizontally, 16 vertically), so
 // inputs kept under 2^20 before a pass stay under 2^28 — twice the lanes of 64-bit
 // arithmetic, and the reason each pass rescales its output.
-#define SEMPOSE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 template <typename T>
 SEMPOSE_CLONES void horizontal(const T* src, int w, std::int32_t* row, std::int32_t* out) noexcept {
   for (int x = 0; x < w; ++x) row[x + 2] = static_cast<std::int32_t>(src[x]);
