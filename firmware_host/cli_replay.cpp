@@ -234,6 +234,7 @@ int run_replay(int argc, char** argv) {
       const std::int64_t t0 = rt::now_ns();
       const pose::PoseEstimate e = tr.update(pipeline::to_pose_frame(meta, crop.data()));
       const double us = (rt::now_ns() - t0) * 1e-3;
+      tr.maintain_appearance();  // offline: the appearance rebuild runs between frames
       if (e.searched) {
         if (acquire_ms < 0) acquire_ms = us * 1e-3;
       } else {

@@ -35,6 +35,10 @@ void read_tracker(Section& s, TrackerConfig& c) {
     Section filter = s.child("filter");
     read_pose_filter(filter, c.filter);
   }
+  {
+    Section appearance = s.child("appearance");
+    read_appearance(appearance, c.appearance);
+  }
   s.opt("max_angle_steps_per_frame", c.max_angle_steps_per_frame, 1, 180);
   s.opt("recover_sweep_deg", c.recover_sweep_deg, 0.0, 180.0);
   s.opt("recover_step_deg", c.recover_step_deg, 0.25, 90.0);

@@ -265,6 +265,8 @@ int main(int argc, char** argv) {
   // --require-no-false: exit 3 when issue 13's false-TRACKING rule is broken (the CTest
   // pose_false_tracking_rule; the figures run in ci/test only prints the count).
   // --visp-levels N: ViSP's pyramid levels (3 by default, as the issue specifies).
+  // --appearance on|off: learned appearance (tracker.appearance.enabled) regardless of its default.
+  int appearance = -1;
   bool quick = true, bias_only = false, visp = true, only = false, require_no_false = false;
   int visp_levels = 3;
   std::string only_target, only_motion;
@@ -276,23 +278,25 @@ int main(int argc, char** argv) {
     else if (a == "--no-visp") visp = false;
     else if (a == "--require-no-false") require_no_false = true;
     else if (a == "--visp-levels" && i + 1 < argc) visp_levels = std::atoi(argv[++i]);
+    else if (a == "--appearance" && i + 1 < argc) appearance = std::string(argv[++i]) == "on" ? 1 : 0;
     else if (a == "--only" && i + 1 < argc) {
       only = true;
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N] [--require-no-false]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N] [--require-no-false] [--appearance on|off]\n", argv[0]);
       return 2;
     }
   }
   config::TrackerConfig tc;
+  if (appearance >= 0) tc.appearance.enabled = appearance == 1;
   if (const char* dump = std::getenv("POSE_DUMP")) g_dump = std::fopen(dump, "w");
   const int frames = quick ? 60 : 150;
   const double zone_r = tc.pattern_size_px / 2.0 - (2.0 + 2.0 * tc.prefilter_passes);  // sempose's mask radius
   const std::int64_t bench_t0 = rt::now_ns();
   std::printf(
       "accuracy against the single-frame Cramér–Rao bound and ViSP: 640x480 field, pattern %d², ROI %d², 250 ns dwell,\n"
-      "%d frames per run, bits 8 (warped: 16, Poisson only)\n"
+      "%d frames per run, bits 8 (warped: 16, Poisson only); learned appearance %s\n"
       "targets: needle_tip = needle_contact_eb.pgm crop 552,430 120x160 at 90x120 (threshold mask);\n"
       "         lamella_post = lamella_on_post_eb.pgm crop 420,460 180x180 at 100x100; lamella = procedural 100x64;\n"
       "         warped = lamella_on_post_eb.pgm moved rigidly (σ 1 px PSF, exact crop as pattern); gripper = procedural 110x84\n"
@@ -305,7 +309,7 @@ int main(int argc, char** argv) {
       "  <= 10 deg (RMS over those); false = valid but > 3 px or > 10 deg; recov = frames from a jump to a valid pose < 1 px\n"
       "ViSP 3.5: vpTemplateTrackerZNCCInverseCompositional + vpTemplateTrackerWarpSRT, %d pyramid levels, same pattern and\n"
       "  circle (r %.0f px), 256² crop on its last estimate, started at the truth on the first frame\n",
-      tc.pattern_size_px, tc.roi_size_px, frames, visp_levels, zone_r);
+      tc.pattern_size_px, tc.roi_size_px, frames, tc.appearance.enabled ? "on" : "off", visp_levels, zone_r);
   std::printf("%-12s %-12s %4s | %5s %5s %5s %6s %7s %5s %5s %7s | %5s %5s %5s %6s %7s %5s %5s %7s | %7s %7s\n", "target",
               "case", "dose", "trk%", "false", "recov", "rms_px", "rms_deg", "x_px", "x_deg", "us/pose", "ok%", "false",
               "recov", "rms_px", "rms_deg", "x_px", "x_deg", "ms/frm", "bnd_px", "bnd_deg");

@@ -11,7 +11,7 @@ namespace sempose::pose {
 double ScaleProbe::score(const PatternBank& bank, const Measurement& m, double factor) const noexcept {
   const int p = bank.size_px();
   const int w = scorer_.roi_w(), h = scorer_.roi_h();
-  const float* f = scorer_.roi_data();
+  const float* f = scorer_.roi();
   const float* t = bank.pattern(m.j);
   const double c = (p - 1) / 2.0;
   const double cx = m.ux + m.dx + c, cy = m.uy + m.dy + c;  // the pattern centre in the ROI

@@ -11,9 +11,12 @@
 #include <atomic>
 #include <cmath>
 #include <string>
+#include <thread>
 
 #include "sempose/pose/angle_grid.hpp"
 #include "sempose/pose/angle_sweep.hpp"
+#include "sempose/pose/appearance_model.hpp"
+#include "sempose/pose/appearance_observer.hpp"
 #include "sempose/pose/engine_sizes.hpp"
 #include "sempose/pose/exact_scorer.hpp"
 #include "sempose/pose/fft_correlator.hpp"
@@ -23,6 +26,7 @@
 #include "sempose/pose/pattern_bank.hpp"
 #include "sempose/pose/pose_filter.hpp"
 #include "sempose/pose/pose_refinement.hpp"
+#include "sempose/pose/prefilter.hpp"
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/pose/roi_rescaler.hpp"
 #include "sempose/pose/scale_probe.hpp"
@@ -89,6 +93,33 @@ struct Tracker::Impl {
   std::atomic<bool> reacquire{false};
   std::atomic<std::uint8_t> active{0};
 
+  // Learned appearance (only when tracker.appearance.enabled): the observer fills batches on
+  // the RT side; maintain_appearance() (worker or offline caller) folds them into the model and
+  // publishes a bank with the learned support into the free one of two slots per set.
+  struct LearnedBanks {
+    std::unique_ptr<const PatternBank> slot[2];
+    float floor_scale[2] = {1.0f, 1.0f};  // noise floors grow as the support shrinks
+    std::atomic<int> published{-1};       // -1: the recorded bank
+    std::atomic<int> in_use{-1};          // what update() last picked up
+  };
+  std::unique_ptr<LearnedBanks[]> learned;
+  std::unique_ptr<AppearanceObserver> observer;
+  std::unique_ptr<AppearanceModel> model;
+  bool learning = false;          // off while the noise floors are measured
+  int bank_seen = -1;             // the slot update() used last (noise floors follow it)
+  float floor_scale_now = 1.0f;
+  std::atomic<std::uint32_t> appearance_accepted{0}, appearance_rejected{0}, appearance_deferred{0};
+  std::atomic<double> appearance_support{1.0};
+  std::thread worker;
+  std::atomic<bool> worker_stop{false};
+  std::atomic_flag maintaining = ATOMIC_FLAG_INIT;  // one maintain_appearance() at a time (non-RT callers)
+  ~Impl() {
+    worker_stop.store(true, std::memory_order_relaxed);
+    if (worker.joinable()) worker.join();
+  }
+  const PatternBank& frame_bank(std::uint8_t set) noexcept;
+  bool maintain_appearance();
+
   Impl(const config::TrackerConfig& c, const EngineSizes& s, int field_width, int field_height)
       : cfg(c),
         sizes(s),
@@ -127,7 +158,9 @@ struct Tracker::Impl {
   double prefilter_noise_gain = 1.0;  // Σk² of the 2-D prefilter kernel (white-noise variance kept)
 
   void use_noise_floors_of(std::uint8_t set) noexcept {
-    if (set < noise_floors.size()) loss.set_noise_floors(noise_floors[set].roi, noise_floors[set].field);
+    if (set < noise_floors.size())
+      loss.set_noise_floors(std::min(1.0f, noise_floors[set].roi * floor_scale_now),
+                            std::min(1.0f, noise_floors[set].field * floor_scale_now));
   }
   double attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept;
   void calibrate_noise_floors(const config::ScanLimits& limits);
@@ -179,6 +212,62 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
   return left > 0 ? std::sqrt(signal / left) : 0.0;
 }
 
+// RT: the bank this frame uses: the learned one published last, else the recorded one. A new
+// one brings its noise floors (a smaller support lets noise reach higher scores).
+const PatternBank& Tracker::Impl::frame_bank(std::uint8_t set) noexcept {
+  if (!learned) return *banks[set];
+  LearnedBanks& l = learned[set];
+  const int k = l.published.load(std::memory_order_acquire);
+  l.in_use.store(k, std::memory_order_release);
+  const int seen = set * 4 + k;  // changes with the set or the slot
+  if (seen != bank_seen) {
+    bank_seen = seen;
+    floor_scale_now = k < 0 ? 1.0f : l.floor_scale[k];
+    use_noise_floors_of(set);
+  }
+  return k < 0 ? *banks[set] : *l.slot[k];
+}
+
+bool Tracker::Impl::maintain_appearance() {
+  if (!observer) return false;
+  // The model and the slots have one writer: a second caller (a worker thread and an offline
+  // loop at once) returns at once instead of waiting.
+  if (maintaining.test_and_set(std::memory_order_acquire)) return false;
+  struct Release {
+    std::atomic_flag& f;
+    ~Release() { f.clear(std::memory_order_release); }
+  } release{maintaining};
+  const AppearanceStats* batch = observer->take();
+  if (batch == nullptr) return false;
+  const std::uint8_t set = batch->set;
+  AppearanceDecision d = model->update(*batch);
+  observer->give_back();
+  if (!d.accepted) {
+    appearance_rejected.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  LearnedBanks& l = learned[set];
+  const int cur = l.published.load(std::memory_order_acquire);
+  // The other slot is free once update() has picked up the current one.
+  if (l.in_use.load(std::memory_order_acquire) != cur) {
+    appearance_deferred.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  const int next = cur == 0 ? 1 : 0;
+  std::string why;
+  std::unique_ptr<const PatternBank> bank = PatternBank::with_support(*banks[set], d.support, why);
+  if (!bank) {
+    appearance_rejected.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  l.floor_scale[next] = static_cast<float>(std::sqrt(banks[set]->mean_support_count() / bank->mean_support_count()));
+  l.slot[next] = std::move(bank);
+  l.published.store(next, std::memory_order_release);
+  appearance_accepted.fetch_add(1, std::memory_order_relaxed);
+  appearance_support.store(d.support_fraction, std::memory_order_relaxed);
+  return true;
+}
+
 // Setup only (allocates): the noise floors of every pattern set, measured by running the real
 // update() on frames of uniform 8-bit white noise — a tracking ROI at an angle spread over the
 // circle and a full field (capped at kNullFieldMax per side) — kNullTrials each; the floor is
@@ -205,6 +294,7 @@ void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
     return static_cast<float>(std::min(1.0, m + kNullSigmas * sd));
   };
   loss.set_calibrating(true);
+  learning = false;
   loss.set_noise_floors(-1.0f, -1.0f);
   noise_floors.assign(banks.size(), NoiseFloor{});
   const std::uint8_t keep = active.load(std::memory_order_relaxed);
@@ -237,6 +327,7 @@ void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
   active.store(keep, std::memory_order_relaxed);
   forget_everything();
   loss.set_calibrating(false);
+  learning = observer != nullptr;
   use_noise_floors_of(keep);
   field.field_w = limits.field_w;
   field.field_h = limits.field_h;
@@ -282,6 +373,7 @@ void Tracker::Impl::to_estimate(const Measurement& m, int origin_x, int origin_y
 }
 
 void Tracker::Impl::go_lost() noexcept {
+  if (observer) observer->discard();
   filter.reset();
   tracking = false;
   loss.reset();
@@ -322,7 +414,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.reason_bits = kReasonBadFrame;
     return e;
   }
-  const PatternBank& bank = *banks[set];
+  const PatternBank& bank = frame_bank(set);
   const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
     go_lost();
@@ -410,6 +502,13 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     case FrameVerdict::kAccept:
       accept(e, frame, false);
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
+      // A good frame teaches the appearance model (RT: sums into a preallocated batch). Not a
+      // rescaled one: the observer reads the raw pixels in the pattern's own frame at scale 1.
+      if (learning && !rescaled && e.reason_bits == 0 && m.score >= cfg.appearance.min_score) {
+        const double c = (pattern_px - 1) / 2.0;
+        observer->observe(set, scorer.roi(), scorer.roi_w(), scorer.roi_h(), px, roi.w, frame.bits, m.ux + m.dx + c,
+                          m.uy + m.dy + c, (m.j + m.dj) * angles.step_deg);
+      }
       break;
     case FrameVerdict::kLost:
       e.reason_bits |= loss.weak_reasons(m);
@@ -463,6 +562,13 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   const EngineSizes sizes = EngineSizes::of(cfg, pattern_px, limits.field_w, limits.field_h);
   auto impl = std::make_unique<Impl>(cfg, sizes, limits.field_w, limits.field_h);
   Impl& t = *impl;
+  // Kept for the appearance learner (the bank spec takes the originals).
+  std::vector<PatternImage> prior_patterns, prior_shapes;
+  if (cfg.appearance.enabled)
+    for (const PatternSet& ps : sets) {
+      prior_patterns.push_back(ps.image);
+      prior_shapes.push_back(ps.mask);
+    }
   for (std::size_t i = 0; i < sets.size(); ++i) {
     PatternBankSpec spec;
     spec.pattern = std::move(sets[i].image);
@@ -492,6 +598,31 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     double g = 0;
     for (double v : k) g += v * v;
     t.prefilter_noise_gain = g * g;
+  }
+  if (cfg.appearance.enabled) {
+    // The learner's references: each set's recorded pattern, prefiltered like the frames; its
+    // priors: the shape masks (the learned support never leaves them).
+    const int n = pattern_px;
+    t.observer = std::make_unique<AppearanceObserver>(n, t.fine_mask.bitmap(), cfg.appearance.frames_per_update,
+                                                      t.prefilter_noise_gain, cfg.prefilter_passes);
+    std::vector<std::vector<float>> refs;
+    std::vector<std::vector<float>> priors;
+    for (std::size_t i = 0; i < sets.size(); ++i) {
+      std::vector<float> ref(static_cast<std::size_t>(n) * n);
+      for (std::size_t k = 0; k < ref.size(); ++k) ref[k] = static_cast<float>(prior_patterns[i].pixels[k]);
+      prefilter_pattern(ref.data(), n, cfg.prefilter_passes);
+      t.observer->add_reference(ref);
+      refs.push_back(std::move(ref));
+      std::vector<float> prior;
+      if (!prior_shapes[i].empty()) {
+        prior.assign(static_cast<std::size_t>(n) * n, 0.0f);
+        for (std::size_t k = 0; k < prior.size(); ++k) prior[k] = prior_shapes[i].pixels[k] != 0 ? 1.0f : 0.0f;
+        dilate_disk(prior, n, cfg.shape_mask_margin_px);
+      }
+      priors.push_back(std::move(prior));
+    }
+    t.model = std::make_unique<AppearanceModel>(cfg.appearance, n, t.fine_mask.bitmap(), std::move(refs), std::move(priors));
+    t.learned = std::make_unique<Impl::LearnedBanks[]>(sets.size());
   }
   t.calibrate_noise_floors(limits);
   status = rt::Status::success();
@@ -532,12 +663,41 @@ std::uint8_t Tracker::pattern_set() const noexcept { return impl_->active.load(s
 double Tracker::nm_per_px() const noexcept { return impl_->nm_per_px[impl_->active.load(std::memory_order_relaxed)]; }
 void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::memory_order_relaxed); }
 
+bool Tracker::maintain_appearance() { return impl_->maintain_appearance(); }
+
+void Tracker::start_appearance_worker() {
+  Impl& t = *impl_;
+  if (!t.observer || t.worker.joinable()) return;
+  t.worker = std::thread([&t] {
+    const timespec period{0, 20'000'000};
+    while (!t.worker_stop.load(std::memory_order_relaxed)) {
+      t.maintain_appearance();
+      nanosleep(&period, nullptr);
+    }
+  });
+}
+
+Tracker::AppearanceStatus Tracker::appearance_status() const noexcept {
+  const Impl& t = *impl_;
+  AppearanceStatus s;
+  s.accepted = t.appearance_accepted.load(std::memory_order_relaxed);
+  s.rejected = t.appearance_rejected.load(std::memory_order_relaxed);
+  s.deferred = t.appearance_deferred.load(std::memory_order_relaxed);
+  s.support_fraction = t.appearance_support.load(std::memory_order_relaxed);
+  return s;
+}
+
 std::size_t Tracker::memory_bytes() const noexcept {
   const Impl& t = *impl_;
   std::size_t b = t.half.buffer_bytes() + t.coarse.buffer_bytes();
   b += t.scorer.memory_bytes() + t.loader.memory_bytes() + t.rescaler.memory_bytes() + t.maps.memory_bytes() +
        t.search.memory_bytes();
   for (const auto& bank : t.banks) b += bank->memory_bytes();
+  // A learned bank shares the spectra and holds its own full-resolution copies (two slots).
+  if (t.observer) {
+    b += t.observer->memory_bytes();
+    for (const auto& bank : t.banks) b += 2 * static_cast<std::size_t>(bank->angles()) * bank->size_px() * bank->size_px() * sizeof(float);
+  }
   return b;
 }
 

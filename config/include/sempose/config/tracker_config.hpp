@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "sempose/config/appearance_config.hpp"
 #include "sempose/config/pose_filter_config.hpp"
 
 namespace sempose::config {
@@ -62,6 +63,9 @@ struct TrackerConfig {
   // Optional temporal filter of the reported pose (tracker.filter:); the ROI placement keeps
   // using the raw measurements, so the filter cannot feed back into tracking.
   PoseFilterConfig filter;
+  // Learned appearance (tracker.appearance:): pixels the target does not explain leave the
+  // exact scorer's support.
+  AppearanceConfig appearance;
 };
 
 struct PatternSetConfig {

@@ -76,6 +76,23 @@ class Tracker {
   std::uint8_t pattern_set() const noexcept;
   double nm_per_px() const noexcept;
   void request_reacquire() noexcept;
+  // Learned appearance (tracker.appearance; README: Learned appearance). Not RT: folds a batch
+  // of good frames the RT side completed into the model, checks it against the recorded
+  // pattern and, when it passes, builds the bank with the learned support and swaps it in
+  // (double buffer + atomic index; update() picks it up at its next frame without a lock or an
+  // allocation). Offline callers run it between frames; `sempose run` runs it on a worker
+  // thread (start_appearance_worker). True when a new bank was published.
+  bool maintain_appearance();
+  // Starts a non-RT thread calling maintain_appearance() every 20 ms until the tracker is
+  // destroyed (it inherits the caller's CPU placement and scheduling). No-op when off.
+  void start_appearance_worker();
+  struct AppearanceStatus {
+    std::uint32_t accepted = 0;  // updates swapped in
+    std::uint32_t rejected = 0;  // batches the drift or support check refused
+    std::uint32_t deferred = 0;  // swaps skipped because update() had not picked up the last one
+    double support_fraction = 1.0;  // of the pattern circle, the last accepted update's
+  };
+  AppearanceStatus appearance_status() const noexcept;
   // Bank + spectra + FFT buffers, bytes (printed at start).
   std::size_t memory_bytes() const noexcept;
 
