@@ -502,11 +502,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     case FrameVerdict::kAccept:
       accept(e, frame, false);
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
-      // A good frame teaches the appearance model (RT: sums into a preallocated batch). Not a
-      // rescaled one: the observer reads the raw pixels in the pattern's own frame at scale 1.
-      if (learning && !rescaled && e.reason_bits == 0 && m.score >= cfg.appearance.min_score) {
+      // A good frame teaches the appearance model (RT: sums into a preallocated batch). It reads
+      // the pixels the walk was scored on (the ROI resampled to the pattern's size if rescaled).
+      if (learning && e.reason_bits == 0 && m.score >= cfg.appearance.min_score) {
         const double c = (pattern_px - 1) / 2.0;
-        observer->observe(set, scorer.roi(), scorer.roi_w(), scorer.roi_h(), px, roi.w, frame.bits, m.ux + m.dx + c,
+        observer->observe(set, scorer.roi(), scorer.roi_w(), scorer.roi_h(), load_px, load_stride, load_bits, m.ux + m.dx + c,
                           m.uy + m.dy + c, (m.j + m.dj) * angles.step_deg);
       }
       break;
