@@ -373,6 +373,12 @@ int sempose::cli::run(int argc, char** argv) {
                 run.trackers.names[static_cast<std::size_t>(t)].c_str(), static_cast<unsigned long long>(tc.poses.get()),
                 tc.poses.get() / run_s, tc.poses.get() ? double(tc.tracked.get()) / tc.poses.get() : 0.0,
                 static_cast<unsigned long long>(tc.searches.get()));
+    if (cfg.tracker.appearance.enabled) {
+      const pose::Tracker::AppearanceStatus a = run.trackers.trackers[static_cast<std::size_t>(t)]->appearance_status();
+      std::printf("appearance %d %s: updates=%u rejected=%u deferred=%u support_fraction=%.2f\n", t,
+                  run.trackers.names[static_cast<std::size_t>(t)].c_str(), a.accepted, a.rejected, a.deferred,
+                  a.support_fraction);
+    }
   }
   if (hist_dir.empty()) {
     std::printf("histograms: not written (no --hist-dir / output.hist_dir)\n");

@@ -35,12 +35,17 @@ void read_tracker(Section& s, TrackerConfig& c) {
     Section filter = s.child("filter");
     read_pose_filter(filter, c.filter);
   }
+  {
+    Section appearance = s.child("appearance");
+    read_appearance(appearance, c.appearance);
+  }
   s.opt("max_angle_steps_per_frame", c.max_angle_steps_per_frame, 1, 180);
   s.opt("recover_sweep_deg", c.recover_sweep_deg, 0.0, 180.0);
   s.opt("recover_step_deg", c.recover_step_deg, 0.25, 90.0);
   s.opt("score_threshold", c.score_threshold, 0.0, 1.0);
   s.opt("psr_threshold", c.psr_threshold, 0.0, 1000.0);
   s.opt("relative_score_threshold", c.relative_score_threshold, 0.0, 1.0);
+  s.opt("explained_threshold", c.explained_threshold, 0.0, 1.0);
   s.opt("lost_after_frames", c.lost_after_frames, 1, 1000);
   s.opt("search_downsample", c.search_downsample, 1, 32);
   s.opt("search_angle_step_deg", c.search_angle_step_deg, 0.25, 90.0);

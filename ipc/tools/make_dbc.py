@@ -23,8 +23,9 @@ POSE_ATTR = [
     ("phi", 0, 19, True, 0.001, 0, -180, 180, "deg", "Orientation, counter-clockwise positive, (-180, 180]"),
     ("score", 19, 11, True, 0.001, 0, -1, 1, "", "ZNCC peak score"),
     ("state", 30, 2, False, 1, 0, 0, 2, "", "0 TRACKING, 1 ACQUIRING, 2 LOST"),
-    ("reason", 32, 7, False, 1, 0, 0, 127,  "",
-     "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded, 64 angle unsettled"),
+    ("reason", 32, 8, False, 1, 0, 0, 255,  "",
+     "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded, 64 angle unsettled, "
+     "128 unexplained (the pattern does not explain the window up to noise)"),
     ("seq", 40, 8, False, 1, 0, 0, 255, "", "Pose sequence counter (low 8 bits), same in POSE_XY"),
     ("age", 48, 16, False, 1, 0, 0, 65535, "us", "Scan end to send (saturating)"),
 ]
@@ -34,7 +35,7 @@ POSE_FD = [
     ("phi", 64, 32, True, 0.001, 0, -180, 180, "deg", "Orientation"),
     ("score", 96, 16, True, 0.0001, 0, -1, 1, "", "ZNCC peak score"),
     ("state", 112, 8, False, 1, 0, 0, 2, "", "0 TRACKING, 1 ACQUIRING, 2 LOST"),
-    ("reason", 120, 8, False, 1, 0, 0, 127, "", "Lost reason bits (see POSE_ATTR)"),
+    ("reason", 120, 8, False, 1, 0, 0, 255, "", "Lost reason bits (see POSE_ATTR)"),
     ("seq", 128, 32, False, 1, 0, 0, 4294967295, "", "Pose sequence counter"),
     ("age", 160, 32, False, 1, 0, 0, 4294967295, "us", "Scan end to send"),
     ("psr", 192, 16, False, 0.01, 0, 0, 655.35, "", "Peak-to-sidelobe ratio"),
@@ -43,6 +44,7 @@ POSE_FD = [
     ("dwell", 224, 32, False, 1, 0, 0, 4294967295, "ns", "Pixel dwell of the frame"),
     ("frame_seq", 256, 32, False, 1, 0, 0, 4294967295, "", "Scan-source frame counter (low 32 bits)"),
     ("scale", 288, 32, False, 0.001, 0, 0, 4294967.295, "nm/px", "nm per pixel of the active pattern set"),
+    ("target_scale", 320, 16, False, 0.0001, 0, 0, 6.5535, "", "The target's size on screen over its pattern's (tracked scale)"),
 ]
 HEARTBEAT = [
     ("state", 0, 2, False, 1, 0, 0, 2, "", "0 TRACKING, 1 ACQUIRING, 2 LOST (worst over targets)"),

@@ -45,6 +45,29 @@ TEST(AppConfig, OutOfRangeNamesKeyValueAndRange) {
   EXPECT_NE(e.find("pipeline.acquisition.priority: 120 is outside the allowed range [0, 99]"), std::string::npos) << e;
 }
 
+TEST(AppConfig, AppearanceKeysAreReadAndChecked) {
+  const auto good = write_yaml("appearance.yaml",
+                               "tracker:\n  appearance:\n    enabled: true\n    frames_per_update: 24\n"
+                               "    outlier_ratio: 3.5\n    angle_jitter_deg: 0.8\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_TRUE(load_app_config(good, c, e)) << e;
+  EXPECT_TRUE(c.tracker.appearance.enabled);
+  EXPECT_EQ(c.tracker.appearance.frames_per_update, 24);
+  EXPECT_DOUBLE_EQ(c.tracker.appearance.outlier_ratio, 3.5);
+  EXPECT_DOUBLE_EQ(c.tracker.appearance.angle_jitter_deg, 0.8);
+  const auto bad = write_yaml("appearance_bad.yaml",
+                              "tracker:\n  appearance:\n    outlier_ratio: 1.0\n    frames_per_update: 2\n    blok_px: 4\n");
+  AppConfig d;
+  e.clear();
+  EXPECT_FALSE(load_app_config(bad, d, e));
+  EXPECT_NE(e.find(bad + ":3:20: tracker.appearance.outlier_ratio: 1.0 is outside the allowed range [1.2, 1000]"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("tracker.appearance.frames_per_update: 2 is outside the allowed range [4, 100000]"), std::string::npos)
+      << e;
+  EXPECT_NE(e.find("tracker.appearance.blok_px: unknown key"), std::string::npos) << e;
+}
+
 TEST(AppConfig, WrongTypeAndChoice) {
   const auto path = write_yaml("type.yaml", "governor:\n  margin: lots\npipeline:\n  polling: busy\n");
   AppConfig c;

@@ -39,6 +39,11 @@ TEST(PoseCsv, ReadsRunAndReplayFiles) {
   EXPECT_EQ(targets_of(rows), (std::vector<std::string>{"needle", "gripper"}));
   std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n5,0,1,2,3,0.5,ACQUIRING\n";
   EXPECT_EQ(read_pose_csv(p).front().target, "");
+  // Files with the scale column (sempose run), with and without targets.
+  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status,target,scale\n0,0,1,2,3,0.5,TRACKING,needle,1.0500\n";
+  EXPECT_EQ(read_pose_csv(p).front().target, "needle");
+  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status,scale\n0,0,1,2,3,0.5,TRACKING,0.9500\n";
+  EXPECT_EQ(read_pose_csv(p).front().target, "");
   fs::remove(p);
 }
 

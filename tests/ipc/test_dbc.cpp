@@ -152,7 +152,7 @@ TEST_F(DbcTest, ClassicPoseFramesDecodeToTheEncodedValues) {
     p.phi_deg = ang(rng);
     p.score = sc(rng);
     p.state = static_cast<ipc::WireState>(i % 3);
-    p.reason_bits = static_cast<std::uint8_t>(i % 128);
+    p.reason_bits = static_cast<std::uint8_t>(i % 256);
     p.seq = static_cast<std::uint32_t>(i * 7);
     p.age_ns = static_cast<std::int64_t>(i) * 131'071;
     const int t = i % ipc::kMaxTargets;
@@ -166,7 +166,7 @@ TEST_F(DbcTest, ClassicPoseFramesDecodeToTheEncodedValues) {
     EXPECT_NEAR(sig(id_at, "phi", at), p.phi_deg, 0.0005 + 1e-9);
     EXPECT_NEAR(sig(id_at, "score", at), p.score, 0.0005 + 1e-9);
     EXPECT_EQ(sig(id_at, "state", at), i % 3);
-    EXPECT_EQ(sig(id_at, "reason", at), i % 128);
+    EXPECT_EQ(sig(id_at, "reason", at), i % 256);
     EXPECT_EQ(sig(id_at, "seq", at), p.seq % 256);
     EXPECT_EQ(sig(id_at, "age", at), std::min<std::int64_t>(p.age_ns / 1000, 65535));
   }
@@ -216,6 +216,8 @@ TEST_F(DbcTest, FdPoseFrameDecodesToTheEncodedValues) {
   p.dwell_ns = 300;
   p.frame_seq = 123456789;
   p.nm_per_px = 40.125;
+  p.target_scale = 1.23456;
+  p.reason_bits = 0xA2;  // bit 7: unexplained
   std::uint8_t d[64];
   ipc::encode_pose_fd(p, d);
   const auto id = ids_.pose_fd(1);
@@ -225,7 +227,7 @@ TEST_F(DbcTest, FdPoseFrameDecodesToTheEncodedValues) {
   EXPECT_NEAR(sig(id, "score", d), -0.1235, 0.00005 + 1e-9);
   EXPECT_NEAR(sig(id, "psr", d), 17.25, 1e-9);
   EXPECT_EQ(sig(id, "state", d), 2);
-  EXPECT_EQ(sig(id, "reason", d), 0x22);
+  EXPECT_EQ(sig(id, "reason", d), 0xA2);
   EXPECT_EQ(sig(id, "seq", d), 0xDEADBEEF);
   EXPECT_EQ(sig(id, "age", d), 77000);
   EXPECT_EQ(sig(id, "pattern_set", d), 7);
@@ -233,6 +235,7 @@ TEST_F(DbcTest, FdPoseFrameDecodesToTheEncodedValues) {
   EXPECT_EQ(sig(id, "dwell", d), 300);
   EXPECT_EQ(sig(id, "frame_seq", d), 123456789);
   EXPECT_NEAR(sig(id, "scale", d), 40.125, 1e-9);
+  EXPECT_NEAR(sig(id, "target_scale", d), 1.2346, 1e-9);
 }
 
 TEST_F(DbcTest, HeartbeatAndCommandDecodeByTheDbc) {

@@ -71,7 +71,8 @@ TEST(PoseFrames, ClassicRoundTrip) {
 TEST(PoseFrames, FdRoundTrip) {
   auto p = sample_pose();
   p.state = ipc::WireState::kLost;
-  p.reason_bits = 0x41;
+  p.reason_bits = 0xC1;  // bit 7 (unexplained) too
+  p.target_scale = 0.87654;
   std::uint8_t d[64];
   ipc::encode_pose_fd(p, d);
   ipc::PoseFd f;
@@ -81,7 +82,7 @@ TEST(PoseFrames, FdRoundTrip) {
   EXPECT_EQ(f.phi_mdeg, -37123);
   EXPECT_EQ(f.score_e4, 8765);
   EXPECT_EQ(f.state, ipc::WireState::kLost);
-  EXPECT_EQ(f.reason_bits, 0x41);
+  EXPECT_EQ(f.reason_bits, 0xC1);
   EXPECT_EQ(f.seq, 0x1234u);
   EXPECT_EQ(f.age_us, 2345u);
   EXPECT_EQ(f.psr_centi, 1234);
@@ -90,7 +91,8 @@ TEST(PoseFrames, FdRoundTrip) {
   EXPECT_EQ(f.dwell_ns, 250u);
   EXPECT_EQ(f.frame_seq, 0x42u);
   EXPECT_EQ(f.scale_pm_per_px, 39500u);
-  for (int i = 40; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
+  EXPECT_EQ(f.target_scale_e4, 8765u);
+  for (int i = 42; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
 }
 
 TEST(PoseFrames, SaturatesOutOfRangeValues) {
@@ -300,4 +302,17 @@ TEST(Codec, EncodeAndDecodeDoNotAllocate) {
     EXPECT_EQ(sempose::rt::alloc::this_thread_allocations(), 0u);
   }
   EXPECT_NE(sum, 0u);
+}
+
+// All eight reason bits survive the classic ATTR frame (bit 7, unexplained, sits in bit 39,
+// unused before; the seq byte next to it is untouched).
+TEST(PoseFrames, ClassicAttrCarriesAllReasonBits) {
+  auto p = sample_pose();
+  p.reason_bits = 0x80;
+  std::uint8_t attr[8];
+  ipc::encode_pose_attr(p, attr);
+  ipc::PoseAttr da;
+  ASSERT_TRUE(ipc::decode_pose_attr(attr, 8, da));
+  EXPECT_EQ(da.reason_bits, 0x80);
+  EXPECT_EQ(da.seq, p.seq & 0xFFu);
 }

@@ -333,6 +333,9 @@ class SimHarness {
       compute_cpu_ns_[static_cast<std::size_t>(f) % compute_ns_.size()] = thread_cpu_ns() - c0;
       if (f < static_cast<int>(compute_ns_.size())) n_compute_ = f + 1;
       truth_[static_cast<std::size_t>(f)] = meta.truth[0];
+      // Learned appearance: the non-RT rebuild, synchronously between frames (the product
+      // runs the same call on a worker thread); outside the armed scope and the timing.
+      tracker_->maintain_appearance();
     }
   }
 

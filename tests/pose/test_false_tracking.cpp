@@ -3,6 +3,7 @@
 // case prints its measured shares so a regression shows by how much.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <string>
 
@@ -143,3 +144,46 @@ TEST(NoFalseTracking, TargetThatReturnsIsFoundAgain) {
   // A frame scanned while the target jumps may give one pose off (README, known limitations).
   EXPECT_LE(r.false_tracking, 1);
 }
+
+// Scale is tracked (issue 13 items 2 and 6): the target's scale ramps ±25 % over the run
+// (magnification / working distance). With a fixed-scale pattern 34–51 of 60 poses of such a
+// ramp were reported TRACKING while > 3 px or > 10° off (the score sank slowly, so the
+// recent-score test followed it down). Each case prints its tracked share and false count. (The procedural lamella's
+// +25 % ramp at 2.5 e⁻/px still gives one false pose, while the scale is inside the rescaling
+// dead band: README, Known limitations.)
+class ScaleRamp : public ::testing::TestWithParam<std::tuple<std::string, double, double>> {};
+
+TEST_P(ScaleRamp, TrackedWithoutFalsePoses) {
+  pt::Scenario s;
+  s.target = std::get<0>(GetParam());
+  s.scale_to = std::get<1>(GetParam());
+  s.dose_e = std::get<2>(GetParam());
+  s.motion = "smooth";
+  s.frames = 60;
+  s.start_phi_deg = 30;
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  int tracked = 0, false_n = 0, tracked_first_third = 0;
+  for (std::size_t f = 0; f < h.poses().size(); ++f) {
+    const auto& e = h.poses()[f];
+    const auto& t = h.records()[f].truth;
+    if (e.state != TrackState::kTracking) continue;
+    ++tracked;
+    if (3 * f < h.poses().size()) ++tracked_first_third;
+    const double dphi = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
+    if (!(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && dphi <= 10.0)) ++false_n;
+  }
+  std::printf("%-12s scale -> %.2f dose %4.1f: TRACKING %d/%d, false %d\n", s.target.c_str(), s.scale_to, s.dose_e,
+              tracked, s.frames, false_n);
+  EXPECT_EQ(false_n, 0) << "TRACKING while > 3 px or > 10 deg off";
+  // Scale is tracked, not merely rejected: the whole ramp stays TRACKING.
+  EXPECT_GE(tracked, s.frames - 3);
+  EXPECT_GE(tracked_first_third, s.frames / 3 - 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(TargetsDoses, ScaleRamp,
+                         ::testing::Values(std::make_tuple("needle_tip", 1.25, 2.5), std::make_tuple("needle_tip", 0.75, 6.0),
+                                           std::make_tuple("lamella_post", 1.25, 6.0),
+                                           std::make_tuple("lamella_post", 0.75, 2.5),
+                                           std::make_tuple("lamella", 1.25, 6.0)));

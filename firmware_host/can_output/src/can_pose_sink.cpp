@@ -46,6 +46,7 @@ ipc::PoseValues CanPoseSink::to_values(const pipeline::PoseRecord& p, std::int64
   v.dwell_ns = p.dwell_ns;
   v.frame_seq = p.frame_seq;
   v.nm_per_px = std::isfinite(p.nm_per_px) ? p.nm_per_px : 0;
+  v.target_scale = std::isfinite(p.target_scale) ? p.target_scale : 0;
   return v;
 }
 

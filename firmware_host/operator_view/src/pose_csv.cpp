@@ -24,14 +24,23 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
   std::vector<PoseRow> rows;
   std::string line;
   int n = 0;
+  bool with_target = false;
+  std::size_t columns = 7;
   while (std::getline(in, line)) {
     ++n;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty()) continue;
     if (n == 1) {
       if (line.rfind("frame,t_ns,x_px,y_px,phi_deg,score,status", 0) != 0) {
-        throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target]");
+        throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale]");
       }
+      // Columns after status: target (several targets) and scale (newer files), in that order.
+      const std::string rest = line.substr(std::string("frame,t_ns,x_px,y_px,phi_deg,score,status").size());
+      if (rest != "" && rest != ",target" && rest != ",scale" && rest != ",target,scale") {
+        throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale]");
+      }
+      with_target = rest.rfind(",target", 0) == 0;
+      columns = 7 + (with_target ? 1 : 0) + (rest.find(",scale") != std::string::npos ? 1 : 0);
       continue;
     }
     std::vector<std::string> cells;
@@ -39,8 +48,8 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
     std::string cell;
     while (std::getline(ss, cell, ',')) cells.push_back(cell);
     const std::string where = path + ":" + std::to_string(n);
-    if (cells.size() < 7 || cells.size() > 8) {
-      throw std::runtime_error(where + ": " + std::to_string(cells.size()) + " cells, expected 7 or 8");
+    if (cells.size() != columns) {
+      throw std::runtime_error(where + ": " + std::to_string(cells.size()) + " cells, the header has " + std::to_string(columns));
     }
     PoseRow r;
     r.frame = static_cast<std::uint64_t>(number(cells[0], where));
@@ -50,7 +59,7 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
     r.phi_deg = number(cells[4], where);
     r.score = number(cells[5], where);
     r.status = cells[6];
-    if (cells.size() == 8) r.target = cells[7];
+    if (with_target) r.target = cells[7];
     rows.push_back(std::move(r));
   }
   if (rows.empty()) throw std::runtime_error(path + ": no poses");

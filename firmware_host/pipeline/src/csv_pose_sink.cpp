@@ -33,7 +33,7 @@ rt::Status CsvPoseSink::open() {
   if (file_ == nullptr) {
     return rt::Status::failure("output.poses_csv: cannot create '" + path_ + "': " + std::strerror(errno));
   }
-  if (std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s\n", with_target_ ? ",target" : "") < 0 ||
+  if (std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s,scale\n", with_target_ ? ",target" : "") < 0 ||
       std::fflush(file_) != 0) {
     note_error(errno, 0);
   }
@@ -59,6 +59,7 @@ void CsvPoseSink::write_pending() {
                    static_cast<long long>(p.t_scan_end_ns), p.x_px, p.y_px, p.phi_deg, static_cast<double>(p.score),
                    pose::to_string(p.state));
       if (with_target_) std::fprintf(file_, ",%u", static_cast<unsigned>(p.target));
+      std::fprintf(file_, ",%.4f", p.target_scale);  // the target's size over its pattern's
       std::fputc('\n', file_);
       ++lines;
     }

@@ -88,6 +88,7 @@ rt::Status OfflineRunner::run(std::uint64_t max_frames, OfflineRunStats& stats) 
     const std::int64_t wall0 = rt::now_ns();
     const TrackingStep::Outcome o = step_.track(m, slot.pixels);
     (o.est.searched ? stats.search_compute_ns : stats.roi_compute_ns).push_back(rt::now_ns() - wall0);
+    trackers_[o.target]->maintain_appearance();  // offline: the appearance rebuild runs between frames (not timed)
     plans[o.target] = step_.next_scan(o.target);
 
     const PoseRecord p = step_.record(m, o, trackers_[o.target]->nm_per_px());

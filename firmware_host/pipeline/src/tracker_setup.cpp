@@ -93,6 +93,9 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
     auto tracker = pose::Tracker::create(cfg.tracker, std::move(per_target[i]), limits, st);
     if (!tracker) return rt::Status::failure("target " + out.names[i] + ": " + st.message);
     out.memory_bytes += tracker->memory_bytes();
+    // Learned appearance: its rebuilds run on a non-RT worker thread (created here, on the
+    // main thread, so it inherits main's placement off the RT cores).
+    tracker->start_appearance_worker();
     out.trackers.push_back(std::move(tracker));
   }
   return rt::Status::success();

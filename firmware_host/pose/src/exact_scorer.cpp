@@ -1,4 +1,5 @@
 #include "sempose/pose/exact_scorer.hpp"
+#include "sempose/pose/simd_clones.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,7 +16,7 @@ constexpr int kChunkPx = 16;
 // is zero outside its support, so the extra products add exactly nothing, and each chunk is
 // one vector multiply-add into 16 lane sums reduced once at the end (a per-row horizontal
 // reduction cost more than the products themselves).
-__attribute__((target_clones("avx512f", "avx2", "default"))) double masked_dot(const float* t, int size,
+SEMPOSE_CLONES double masked_dot(const float* t, int size,
                                                                            const float* f, std::ptrdiff_t stride,
                                                                            const MaskBand* bands,
                                                                            int n_bands) noexcept {

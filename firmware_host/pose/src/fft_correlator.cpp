@@ -1,4 +1,5 @@
 #include "sempose/pose/fft_correlator.hpp"
+#include "sempose/pose/simd_clones.hpp"
 
 #include <fftw3.h>
 
@@ -23,7 +24,6 @@ std::mutex& planner_mutex() {
 
 // Hot loops, compiled for AVX-512, AVX2 and the baseline and picked at load time (ifunc),
 // so one binary runs everywhere and uses the wide vectors where the CPU has them.
-#define SEMPOSE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 
 SEMPOSE_CLONES void add_band_sums(const std::int64_t* __restrict t1, const std::int64_t* __restrict u1,
                                   const std::int64_t* __restrict t2, const std::int64_t* __restrict u2, int span,

@@ -8,15 +8,21 @@ bool LossPolicy::below_recent(const Measurement& m) const noexcept {
   return cfg_.relative_score_threshold > 0 && have_score_mean_ && m.score < cfg_.relative_score_threshold * score_mean_;
 }
 
+bool LossPolicy::unexplained(const Measurement& m) const noexcept {
+  return !calibrating_ && cfg_.explained_threshold > 0 && m.attainable > 0 &&
+         m.score < cfg_.explained_threshold * m.attainable;
+}
+
 bool LossPolicy::weak(const Measurement& m) const noexcept {
   return !m.valid || m.score < cfg_.score_threshold || m.score <= roi_floor_ || below_recent(m) ||
-         (cfg_.psr_threshold > 0 && m.psr_valid && m.psr < cfg_.psr_threshold);
+         (cfg_.psr_threshold > 0 && m.psr_valid && m.psr < cfg_.psr_threshold) || unexplained(m);
 }
 
 std::uint8_t LossPolicy::weak_reasons(const Measurement& m) const noexcept {
   std::uint8_t b = 0;
   if (!m.valid || m.score < cfg_.score_threshold || m.score <= roi_floor_ || below_recent(m)) b |= kReasonLowScore;
   if (cfg_.psr_threshold > 0 && m.psr_valid && m.psr < cfg_.psr_threshold) b |= kReasonLowPsr;
+  if (unexplained(m)) b |= kReasonUnexplained;
   return b;
 }
 

@@ -56,8 +56,8 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
   // as after for this near-isotropic kernel and keeps one interpolation for all angles.
   prefilter_pattern(src.data(), n, spec.prefilter_passes);
   spatial_.assign(static_cast<std::size_t>(angles_) * n * n, 0.0f);
-  spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len_ * angles_)));
-  coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)));
+  spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len_ * angles_)), FftwFree{});
+  coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)), FftwFree{});
   if (!spectra_ || !coarse_spectra_) throw std::bad_alloc();
 
   has_shape_ = !shape_image.empty();
@@ -111,6 +111,66 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
     coarse.make_spectrum(small.data(), coarse_spectra_.get() + static_cast<std::size_t>(k) * coarse_len_);
   }
   return true;
+}
+
+std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& base,
+                                                            const std::vector<std::uint8_t>& support, std::string& why) {
+  const int n = base.size_;
+  if (support.size() != static_cast<std::size_t>(n) * n) {
+    why = "the support is not pattern-sized";
+    return nullptr;
+  }
+  std::unique_ptr<PatternBank> bank(new PatternBank());
+  PatternBank& b = *bank;
+  b.size_ = n;
+  b.angles_ = base.angles_;
+  b.coarse_angles_ = base.coarse_angles_;
+  b.coarse_step_deg_ = base.coarse_step_deg_;
+  b.spectrum_len_ = base.spectrum_len_;
+  b.coarse_len_ = base.coarse_len_;
+  b.spectra_ = base.spectra_;
+  b.coarse_spectra_ = base.coarse_spectra_;
+  b.has_shape_ = true;
+  b.spatial_ = base.spatial_;
+  b.support_begin_.assign(1, 0);
+  const double c = (n - 1) / 2.0;
+  const double step_deg = 360.0 / b.angles_;
+  std::vector<std::uint8_t> in(support.size());
+  for (int j = 0; j < b.angles_; ++j) {
+    // Angle j's copy shows source offset M·d at output offset d (bicubic_rotate's map).
+    const double rad = j * step_deg * M_PI / 180.0, cs = std::cos(rad), sn = std::sin(rad);
+    std::fill(in.begin(), in.end(), 0);
+    for (int k = base.support_begin_[j]; k < static_cast<int>(base.support_begin_[j + 1]); ++k) {
+      const MaskBand& band = base.support_[static_cast<std::size_t>(k)];
+      for (int y = band.y0; y <= band.y1; ++y)
+        for (int x = band.x0; x <= band.x1; ++x) {
+          const double dx = x - c, dy = y - c;
+          const int sx = static_cast<int>(std::lround(c + dx * cs - dy * sn));
+          const int sy = static_cast<int>(std::lround(c + dx * sn + dy * cs));
+          if (sx >= 0 && sy >= 0 && sx < n && sy < n && support[static_cast<std::size_t>(sy) * n + sx])
+            in[static_cast<std::size_t>(y) * n + x] = 1;
+        }
+    }
+    std::int64_t count = 0;
+    for (std::uint8_t v : in) count += v;
+    float* p = b.spatial_.data() + static_cast<std::size_t>(j) * n * n;
+    if (count < 64 || !normalize_pattern(p, n, in.data())) {
+      why = "the learned support leaves " + std::to_string(count) + " pixels (or a flat pattern) at angle " +
+            std::to_string(j * step_deg) + " deg";
+      return nullptr;
+    }
+    const std::vector<MaskBand> bands = bands_of(in.data(), n);
+    b.support_.insert(b.support_.end(), bands.begin(), bands.end());
+    b.support_begin_.push_back(b.support_.size());
+    b.support_count_.push_back(count);
+  }
+  return bank;
+}
+
+double PatternBank::mean_support_count() const noexcept {
+  double s = 0;
+  for (std::int64_t c : support_count_) s += static_cast<double>(c);
+  return support_count_.empty() ? 0.0 : s / static_cast<double>(support_count_.size());
 }
 
 std::size_t PatternBank::memory_bytes() const noexcept {

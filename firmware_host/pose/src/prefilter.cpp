@@ -1,4 +1,5 @@
 #include "sempose/pose/prefilter.hpp"
+#include "sempose/pose/simd_clones.hpp"
 
 #include <algorithm>
 
@@ -16,7 +17,6 @@ namespace {
 // 32-bit lanes throughout: a pass multiplies by 256 (16 horizontally, 16 vertically), so
 // inputs kept under 2^20 before a pass stay under 2^28 — twice the lanes of 64-bit
 // arithmetic, and the reason each pass rescales its output.
-#define SEMPOSE_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 template <typename T>
 SEMPOSE_CLONES void horizontal(const T* src, int w, std::int32_t* row, std::int32_t* out) noexcept {
   for (int x = 0; x < w; ++x) row[x + 2] = static_cast<std::int32_t>(src[x]);
@@ -33,6 +33,17 @@ SEMPOSE_CLONES void vertical(const std::int32_t* in, int w, int h, int shift, st
   }
 }
 }  // namespace
+
+double prefilter_dc_gain(int passes, int bits) noexcept {
+  double gain = 1.0;
+  int cur_bits = bits;
+  for (int p = 0; p < passes; ++p) {
+    const int shift = std::max(0, cur_bits + 8 - 20);
+    cur_bits = std::min(20, cur_bits + 8);
+    gain *= 256.0 / static_cast<double>(1 << shift);
+  }
+  return gain;
+}
 
 void Prefilter::apply(const std::uint16_t* src, int w, int h, std::ptrdiff_t stride, int bits,
                       std::int32_t* out) noexcept {

@@ -1,4 +1,5 @@
 #include "sempose/pose/summed_area_table.hpp"
+#include "sempose/pose/simd_clones.hpp"
 
 #include <algorithm>
 
@@ -7,7 +8,7 @@ namespace sempose::pose {
 namespace {
 // Each row is its own running sum plus the row above: the add over the row vectorises (the
 // running sum along the row cannot), compiled for AVX-512, AVX2 and the baseline.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void add_rows(
+SEMPOSE_CLONES void add_rows(
     std::int64_t* __restrict a1, const std::int64_t* __restrict b1, std::int64_t* __restrict a2,
     const std::int64_t* __restrict b2, int n) noexcept {
   for (int x = 0; x < n; ++x) {

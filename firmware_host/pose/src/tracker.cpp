@@ -1,18 +1,22 @@
 // The tracker: builds the stages at setup and runs them in sequence per frame.
 //   frame → (bad / re-acquire / full field?) → start search  ─┐
-//                                          → ROI load → FFT peak at the predicted angle
-//                                            → orientation walk + fit → recovery sweep
-//                                            → refinement seam ────────┤
-//   loss policy (accept / coast / lost) → motion model → temporal filter → PoseEstimate
+//                                          → ROI (resampled by 1/scale) load → FFT peak at the
+//                                            predicted angle → orientation walk + fit
+//                                            → recovery sweep → refinement seam → scale probe ─┤
+//   explained check → loss policy (accept / coast / lost) → motion model, scale
+//   → temporal filter → PoseEstimate
 #include "sempose/pose/tracker.hpp"
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <string>
+#include <thread>
 
 #include "sempose/pose/angle_grid.hpp"
 #include "sempose/pose/angle_sweep.hpp"
+#include "sempose/pose/appearance_model.hpp"
+#include "sempose/pose/appearance_observer.hpp"
 #include "sempose/pose/engine_sizes.hpp"
 #include "sempose/pose/exact_scorer.hpp"
 #include "sempose/pose/fft_correlator.hpp"
@@ -22,7 +26,10 @@
 #include "sempose/pose/pattern_bank.hpp"
 #include "sempose/pose/pose_filter.hpp"
 #include "sempose/pose/pose_refinement.hpp"
+#include "sempose/pose/prefilter.hpp"
 #include "sempose/pose/roi_loader.hpp"
+#include "sempose/pose/roi_rescaler.hpp"
+#include "sempose/pose/scale_probe.hpp"
 #include "sempose/pose/start_search.hpp"
 #include "sempose/pose/subpixel_fit.hpp"
 #include "sempose/rt/angle.hpp"
@@ -35,6 +42,15 @@ namespace {
 // mask, or those pixels pull the peak off the true pose by a few tenths of a pixel in the
 // pattern's own frame (a bias that turns with the target).
 double mask_inset_px(const config::TrackerConfig& c) noexcept { return 2.0 + 2.0 * c.prefilter_passes; }
+
+// (1 − r²)/(1 − a²): the variance a fit with gain and offset leaves (share 1 − r² of the
+// window's) over what the noise model predicts it leaves (1 − a², a the attainable score).
+// The floor keeps a noise-free window finite.
+float normalised_chi2(double score, double attainable) noexcept {
+  const double left = 1.0 - std::clamp(score, 0.0, 1.0) * std::clamp(score, 0.0, 1.0);
+  const double noise = 1.0 - attainable * attainable;
+  return static_cast<float>(left / std::max(noise, 1e-4));
+}
 }  // namespace
 
 struct Tracker::Impl {
@@ -47,6 +63,8 @@ struct Tracker::Impl {
   FftCorrelator half, coarse;  // the 2×2-binned ROI level; the coarse full-field level
   ExactScorer scorer;
   RoiLoader loader;
+  RoiRescaler rescaler;
+  const ScaleProbe scale_probe;
   CorrelationMaps maps;
   const SubpixelFit fit;
   const OrientationWalk walk;
@@ -60,9 +78,47 @@ struct Tracker::Impl {
   std::vector<double> nm_per_px;
 
   bool tracking = false;
+  // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
+  // Learnt from the accepted frames' scale readings, kept across a loss (the magnification
+  // has not changed), back to 1 when the target is forgotten (new pattern set, REACQUIRE).
+  double scale = 1.0;
+  static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
+  static constexpr double kScaleMin = 0.7, kScaleMax = 1.45;  // beyond: the ROI cannot hold the target
+  // Closer to 1 than this: the raw ROI is loaded as scanned. Resampling costs ~40 µs, and at
+  // 1 % its interpolation blur cost more angle accuracy than the size error it removes; the
+  // reading itself runs 0.6–1.7 % high at 20–2.5 e⁻/px on unscaled targets (README: Known
+  // limitations), so below 2.5 % a reading is not acted on (pose_accuracy_bench).
+  static constexpr double kRescaleFrom = 0.025;
   config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
   std::atomic<bool> reacquire{false};
   std::atomic<std::uint8_t> active{0};
+
+  // Learned appearance (only when tracker.appearance.enabled): the observer fills batches on
+  // the RT side; maintain_appearance() (worker or offline caller) folds them into the model and
+  // publishes a bank with the learned support into the free one of two slots per set.
+  struct LearnedBanks {
+    std::unique_ptr<const PatternBank> slot[2];
+    float floor_scale[2] = {1.0f, 1.0f};  // noise floors grow as the support shrinks
+    std::atomic<int> published{-1};       // -1: the recorded bank
+    std::atomic<int> in_use{-1};          // what update() last picked up
+  };
+  std::unique_ptr<LearnedBanks[]> learned;
+  std::unique_ptr<AppearanceObserver> observer;
+  std::unique_ptr<AppearanceModel> model;
+  bool learning = false;          // off while the noise floors are measured
+  int bank_seen = -1;             // the slot update() used last (noise floors follow it)
+  float floor_scale_now = 1.0f;
+  std::atomic<std::uint32_t> appearance_accepted{0}, appearance_rejected{0}, appearance_deferred{0};
+  std::atomic<double> appearance_support{1.0};
+  std::thread worker;
+  std::atomic<bool> worker_stop{false};
+  std::atomic_flag maintaining = ATOMIC_FLAG_INIT;  // one maintain_appearance() at a time (non-RT callers)
+  ~Impl() {
+    worker_stop.store(true, std::memory_order_relaxed);
+    if (worker.joinable()) worker.join();
+  }
+  const PatternBank& frame_bank(std::uint8_t set) noexcept;
+  bool maintain_appearance();
 
   Impl(const config::TrackerConfig& c, const EngineSizes& s, int field_width, int field_height)
       : cfg(c),
@@ -75,6 +131,8 @@ struct Tracker::Impl {
         coarse(good_fft_size(s.coarse_max_w), good_fft_size(s.coarse_max_h), coarse_mask),
         scorer(fine_mask, s.roi_fft_px),
         loader(c.prefilter_passes, s.roi_fft_px, scorer, half),
+        rescaler(s.roi_fft_px),
+        scale_probe(scorer),
         maps(static_cast<std::size_t>(s.half_fft_px) * s.half_fft_px),
         fit(c.subpixel == "gaussian", c.fit_noise_correction),
         walk(scorer, fit, angles),
@@ -100,7 +158,9 @@ struct Tracker::Impl {
   double prefilter_noise_gain = 1.0;  // Σk² of the 2-D prefilter kernel (white-noise variance kept)
 
   void use_noise_floors_of(std::uint8_t set) noexcept {
-    if (set < noise_floors.size()) loss.set_noise_floors(noise_floors[set].roi, noise_floors[set].field);
+    if (set < noise_floors.size())
+      loss.set_noise_floors(std::min(1.0f, noise_floors[set].roi * floor_scale_now),
+                            std::min(1.0f, noise_floors[set].field * floor_scale_now));
   }
   double attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept;
   void calibrate_noise_floors(const config::ScanLimits& limits);
@@ -152,6 +212,62 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
   return left > 0 ? std::sqrt(signal / left) : 0.0;
 }
 
+// RT: the bank this frame uses: the learned one published last, else the recorded one. A new
+// one brings its noise floors (a smaller support lets noise reach higher scores).
+const PatternBank& Tracker::Impl::frame_bank(std::uint8_t set) noexcept {
+  if (!learned) return *banks[set];
+  LearnedBanks& l = learned[set];
+  const int k = l.published.load(std::memory_order_acquire);
+  l.in_use.store(k, std::memory_order_release);
+  const int seen = set * 4 + k;  // changes with the set or the slot
+  if (seen != bank_seen) {
+    bank_seen = seen;
+    floor_scale_now = k < 0 ? 1.0f : l.floor_scale[k];
+    use_noise_floors_of(set);
+  }
+  return k < 0 ? *banks[set] : *l.slot[k];
+}
+
+bool Tracker::Impl::maintain_appearance() {
+  if (!observer) return false;
+  // The model and the slots have one writer: a second caller (a worker thread and an offline
+  // loop at once) returns at once instead of waiting.
+  if (maintaining.test_and_set(std::memory_order_acquire)) return false;
+  struct Release {
+    std::atomic_flag& f;
+    ~Release() { f.clear(std::memory_order_release); }
+  } release{maintaining};
+  const AppearanceStats* batch = observer->take();
+  if (batch == nullptr) return false;
+  const std::uint8_t set = batch->set;
+  AppearanceDecision d = model->update(*batch);
+  observer->give_back();
+  if (!d.accepted) {
+    appearance_rejected.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  LearnedBanks& l = learned[set];
+  const int cur = l.published.load(std::memory_order_acquire);
+  // The other slot is free once update() has picked up the current one.
+  if (l.in_use.load(std::memory_order_acquire) != cur) {
+    appearance_deferred.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  const int next = cur == 0 ? 1 : 0;
+  std::string why;
+  std::unique_ptr<const PatternBank> bank = PatternBank::with_support(*banks[set], d.support, why);
+  if (!bank) {
+    appearance_rejected.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  l.floor_scale[next] = static_cast<float>(std::sqrt(banks[set]->mean_support_count() / bank->mean_support_count()));
+  l.slot[next] = std::move(bank);
+  l.published.store(next, std::memory_order_release);
+  appearance_accepted.fetch_add(1, std::memory_order_relaxed);
+  appearance_support.store(d.support_fraction, std::memory_order_relaxed);
+  return true;
+}
+
 // Setup only (allocates): the noise floors of every pattern set, measured by running the real
 // update() on frames of uniform 8-bit white noise — a tracking ROI at an angle spread over the
 // circle and a full field (capped at kNullFieldMax per side) — kNullTrials each; the floor is
@@ -178,6 +294,7 @@ void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
     return static_cast<float>(std::min(1.0, m + kNullSigmas * sd));
   };
   loss.set_calibrating(true);
+  learning = false;
   loss.set_noise_floors(-1.0f, -1.0f);
   noise_floors.assign(banks.size(), NoiseFloor{});
   const std::uint8_t keep = active.load(std::memory_order_relaxed);
@@ -210,6 +327,7 @@ void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
   active.store(keep, std::memory_order_relaxed);
   forget_everything();
   loss.set_calibrating(false);
+  learning = observer != nullptr;
   use_noise_floors_of(keep);
   field.field_w = limits.field_w;
   field.field_h = limits.field_h;
@@ -218,6 +336,7 @@ void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
 void Tracker::Impl::forget_everything() noexcept {
   go_lost();
   loss.forget_target();
+  scale = 1.0;
   motion = MotionModel(cfg.predict_velocity);  // also the last angle a search's tie-break uses
 }
 
@@ -254,6 +373,7 @@ void Tracker::Impl::to_estimate(const Measurement& m, int origin_x, int origin_y
 }
 
 void Tracker::Impl::go_lost() noexcept {
+  if (observer) observer->discard();
   filter.reset();
   tracking = false;
   loss.reset();
@@ -294,13 +414,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.reason_bits = kReasonBadFrame;
     return e;
   }
-  const PatternBank& bank = *banks[set];
+  const PatternBank& bank = frame_bank(set);
   const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
     go_lost();
     // Commanded, or a new magnification: the target's look may have changed; the new
-    // pattern set has its own noise floors.
+    // pattern set has its own noise floors and is matched at its own size first.
     loss.forget_target();
+    scale = 1.0;
     use_noise_floors_of(set);
     if (!full_field) {
       e.state = TrackState::kAcquiring;
@@ -322,7 +443,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.searched = true;
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), rx, ry);
     if (m.valid) to_estimate(m, roi.x + rx, roi.y + ry, e);
+    e.scale = scale;  // the start search matches at the pattern's size (README: Known limitations)
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;
+    if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
     if (loss.found(m, attainable)) {
       accept(e, frame, true);
     } else {
@@ -338,7 +461,17 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
 
   // Tracking: one forward FFT for this ROI, then the walk.
   const int pattern_px = sizes.pattern_px;
-  if (scored.w < pattern_px || scored.h < pattern_px || !loader.load(px, scored.w, scored.h, roi.w, frame.bits)) {
+  const bool rescaled = std::fabs(scale - 1.0) > kRescaleFrom;
+  const double used_scale = rescaled ? scale : 1.0;  // the scale the ROI is loaded at
+  const std::uint16_t* load_px = px;
+  std::ptrdiff_t load_stride = roi.w;
+  int load_bits = frame.bits;
+  if (rescaled && scored.w >= pattern_px && scored.h >= pattern_px) {
+    load_px = rescaler.rescale(px, scored.w, scored.h, roi.w, frame.bits, used_scale);
+    load_stride = std::min(scored.w, sizes.roi_fft_px);
+    load_bits = RoiRescaler::out_bits(frame.bits);
+  }
+  if (scored.w < pattern_px || scored.h < pattern_px || !loader.load(load_px, scored.w, scored.h, load_stride, load_bits)) {
     e.state = TrackState::kLost;
     e.reason_bits = static_cast<std::uint8_t>((scored.w < pattern_px || scored.h < pattern_px) ? kReasonOutOfField
                                                                                                   : kReasonFlatFrame);
@@ -346,13 +479,36 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     go_lost();
     return e;
   }
-  const Measurement m = track(bank);
+  Measurement m = track(bank);
+  const ScaleReading reading = scale_probe.read(bank, m);
   to_estimate(m, scored.x, scored.y, e);
+  if (rescaled) {
+    // The pose in the resampled ROI, back to the scanned one.
+    e.x_px = scored.x + RoiRescaler::to_raw(e.x_px - scored.x, std::min(scored.w, sizes.roi_fft_px), used_scale);
+    e.y_px = scored.y + RoiRescaler::to_raw(e.y_px - scored.y, std::min(scored.h, sizes.roi_fft_px), used_scale);
+    e.meas_x_px = e.x_px;
+    e.meas_y_px = e.y_px;
+  }
+  e.scale = reading.valid ? used_scale * reading.factor : scale;
+  // The attainable score is ≤ 1, so a score at or above explained_threshold passes the
+  // check whatever it is: measured only when it can matter (~30 µs a frame saved).
+  if (e.score < cfg.explained_threshold) {
+    m.attainable = static_cast<float>(attainable_score(frame.pixels, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y));
+    e.chi2 = normalised_chi2(e.score, m.attainable);
+  }
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
   if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
   switch (loss.judge(m)) {
     case FrameVerdict::kAccept:
       accept(e, frame, false);
+      if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
+      // A good frame teaches the appearance model (RT: sums into a preallocated batch). It reads
+      // the pixels the walk was scored on (the ROI resampled to the pattern's size if rescaled).
+      if (learning && e.reason_bits == 0 && m.score >= cfg.appearance.min_score) {
+        const double c = (pattern_px - 1) / 2.0;
+        observer->observe(set, scorer.roi(), scorer.roi_w(), scorer.roi_h(), load_px, load_stride, load_bits, m.ux + m.dx + c,
+                          m.uy + m.dy + c, (m.j + m.dj) * angles.step_deg);
+      }
       break;
     case FrameVerdict::kLost:
       e.reason_bits |= loss.weak_reasons(m);
@@ -406,6 +562,13 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   const EngineSizes sizes = EngineSizes::of(cfg, pattern_px, limits.field_w, limits.field_h);
   auto impl = std::make_unique<Impl>(cfg, sizes, limits.field_w, limits.field_h);
   Impl& t = *impl;
+  // Kept for the appearance learner (the bank spec takes the originals).
+  std::vector<PatternImage> prior_patterns, prior_shapes;
+  if (cfg.appearance.enabled)
+    for (const PatternSet& ps : sets) {
+      prior_patterns.push_back(ps.image);
+      prior_shapes.push_back(ps.mask);
+    }
   for (std::size_t i = 0; i < sets.size(); ++i) {
     PatternBankSpec spec;
     spec.pattern = std::move(sets[i].image);
@@ -435,6 +598,31 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     double g = 0;
     for (double v : k) g += v * v;
     t.prefilter_noise_gain = g * g;
+  }
+  if (cfg.appearance.enabled) {
+    // The learner's references: each set's recorded pattern, prefiltered like the frames; its
+    // priors: the shape masks (the learned support never leaves them).
+    const int n = pattern_px;
+    t.observer = std::make_unique<AppearanceObserver>(n, t.fine_mask.bitmap(), cfg.appearance.frames_per_update,
+                                                      t.prefilter_noise_gain, cfg.prefilter_passes);
+    std::vector<std::vector<float>> refs;
+    std::vector<std::vector<float>> priors;
+    for (std::size_t i = 0; i < sets.size(); ++i) {
+      std::vector<float> ref(static_cast<std::size_t>(n) * n);
+      for (std::size_t k = 0; k < ref.size(); ++k) ref[k] = static_cast<float>(prior_patterns[i].pixels[k]);
+      prefilter_pattern(ref.data(), n, cfg.prefilter_passes);
+      t.observer->add_reference(ref);
+      refs.push_back(std::move(ref));
+      std::vector<float> prior;
+      if (!prior_shapes[i].empty()) {
+        prior.assign(static_cast<std::size_t>(n) * n, 0.0f);
+        for (std::size_t k = 0; k < prior.size(); ++k) prior[k] = prior_shapes[i].pixels[k] != 0 ? 1.0f : 0.0f;
+        dilate_disk(prior, n, cfg.shape_mask_margin_px);
+      }
+      priors.push_back(std::move(prior));
+    }
+    t.model = std::make_unique<AppearanceModel>(cfg.appearance, n, t.fine_mask.bitmap(), std::move(refs), std::move(priors));
+    t.learned = std::make_unique<Impl::LearnedBanks[]>(sets.size());
   }
   t.calibrate_noise_floors(limits);
   status = rt::Status::success();
@@ -475,11 +663,41 @@ std::uint8_t Tracker::pattern_set() const noexcept { return impl_->active.load(s
 double Tracker::nm_per_px() const noexcept { return impl_->nm_per_px[impl_->active.load(std::memory_order_relaxed)]; }
 void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::memory_order_relaxed); }
 
+bool Tracker::maintain_appearance() { return impl_->maintain_appearance(); }
+
+void Tracker::start_appearance_worker() {
+  Impl& t = *impl_;
+  if (!t.observer || t.worker.joinable()) return;
+  t.worker = std::thread([&t] {
+    const timespec period{0, 20'000'000};
+    while (!t.worker_stop.load(std::memory_order_relaxed)) {
+      t.maintain_appearance();
+      nanosleep(&period, nullptr);
+    }
+  });
+}
+
+Tracker::AppearanceStatus Tracker::appearance_status() const noexcept {
+  const Impl& t = *impl_;
+  AppearanceStatus s;
+  s.accepted = t.appearance_accepted.load(std::memory_order_relaxed);
+  s.rejected = t.appearance_rejected.load(std::memory_order_relaxed);
+  s.deferred = t.appearance_deferred.load(std::memory_order_relaxed);
+  s.support_fraction = t.appearance_support.load(std::memory_order_relaxed);
+  return s;
+}
+
 std::size_t Tracker::memory_bytes() const noexcept {
   const Impl& t = *impl_;
   std::size_t b = t.half.buffer_bytes() + t.coarse.buffer_bytes();
-  b += t.scorer.memory_bytes() + t.loader.memory_bytes() + t.maps.memory_bytes() + t.search.memory_bytes();
+  b += t.scorer.memory_bytes() + t.loader.memory_bytes() + t.rescaler.memory_bytes() + t.maps.memory_bytes() +
+       t.search.memory_bytes();
   for (const auto& bank : t.banks) b += bank->memory_bytes();
+  // A learned bank shares the spectra and holds its own full-resolution copies (two slots).
+  if (t.observer) {
+    b += t.observer->memory_bytes();
+    for (const auto& bank : t.banks) b += 2 * static_cast<std::size_t>(bank->angles()) * bank->size_px() * bank->size_px() * sizeof(float);
+  }
   return b;
 }
 

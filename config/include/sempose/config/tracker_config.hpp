@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "sempose/config/appearance_config.hpp"
 #include "sempose/config/pose_filter_config.hpp"
 
 namespace sempose::config {
@@ -38,6 +39,12 @@ struct TrackerConfig {
   // Score below this fraction of the running mean of recent accepted scores = weak frame
   // (0 = off): after a jump a look-alike in the old ROI can pass the absolute threshold.
   double relative_score_threshold = 0.7;
+  // A tracked pose is weak when its score is below this × the score the noise model says the
+  // target attains in that window (0 = off): the pattern explains too little of the window's
+  // signal — jaws moving under a rigid pattern, a look-alike, a torn frame (kReasonUnexplained).
+  // 0.65 removed every false jaws pose but cost the procedural lamella's recovery after a jump
+  // at 2.5 e-/px (pose_accuracy_bench); 0.6 keeps it and leaves 1-3 per jaws row.
+  double explained_threshold = 0.6;
   std::int32_t lost_after_frames = 1;  // K consecutive weak frames -> LOST, full-field search
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
@@ -56,6 +63,9 @@ struct TrackerConfig {
   // Optional temporal filter of the reported pose (tracker.filter:); the ROI placement keeps
   // using the raw measurements, so the filter cannot feed back into tracking.
   PoseFilterConfig filter;
+  // Learned appearance (tracker.appearance:): pixels the target does not explain leave the
+  // exact scorer's support.
+  AppearanceConfig appearance;
 };
 
 struct PatternSetConfig {

@@ -101,7 +101,7 @@ struct PoseValues {
   double score = 0;
   double psr = 0;
   WireState state = WireState::kAcquiring;
-  std::uint8_t reason_bits = 0;  // pose::LostReason bits (7 used)
+  std::uint8_t reason_bits = 0;  // pose::LostReason bits (all 8 used)
   std::uint32_t seq = 0;
   std::int64_t age_ns = 0;       // scan end -> send
   std::uint8_t pattern_set = 0;
@@ -109,6 +109,7 @@ struct PoseValues {
   std::uint32_t dwell_ns = 0;
   std::uint64_t frame_seq = 0;
   double nm_per_px = 0;
+  double target_scale = 0;     // the target's size over its pattern's (FD only)
 };
 
 // Wraps into (-180, 180] then rounds to millidegrees.
@@ -166,6 +167,7 @@ struct PoseFd {
   std::uint32_t dwell_ns = 0;
   std::uint32_t frame_seq = 0;    // low 32 bits
   std::uint32_t scale_pm_per_px = 0;
+  std::uint16_t target_scale_e4 = 0;  // the target's size over its pattern's × 10 000
   friend bool operator==(const PoseFd&, const PoseFd&) = default;
 };
 
@@ -230,7 +232,7 @@ inline void encode_pose_attr(const PoseValues& p, std::uint8_t* data) noexcept {
   put_bits(data, 0, kPhiBits, static_cast<std::uint64_t>(static_cast<std::int64_t>(phi_to_mdeg(p.phi_deg))));
   put_bits(data, 19, kScoreBits, static_cast<std::uint64_t>(static_cast<std::int64_t>(score_to_milli(p.score))));
   put_bits(data, 30, 2, static_cast<std::uint8_t>(p.state) & 0x3u);
-  put_bits(data, 32, 7, p.reason_bits & 0x7Fu);
+  put_bits(data, 32, 8, p.reason_bits);
   put_bits(data, 40, 8, p.seq & 0xFFu);
   put_bits(data, 48, kAgeBits, age_to_us(p.age_ns, kAgeBits));
 }
@@ -251,6 +253,7 @@ inline void encode_pose_fd(const PoseValues& p, std::uint8_t* data) noexcept {
   put_bits(data, 224, 32, p.dwell_ns);
   put_bits(data, 256, 32, p.frame_seq & 0xFFFFFFFFu);
   put_bits(data, 288, 32, static_cast<std::uint64_t>(saturate_round(p.nm_per_px * 1000.0, 0, 0xFFFFFFFFll)));
+  put_bits(data, 320, 16, static_cast<std::uint64_t>(saturate_round(p.target_scale * 10000.0, 0, 65535)));
 }
 
 inline void encode_heartbeat(const Heartbeat& h, std::uint8_t* data) noexcept {
@@ -294,7 +297,7 @@ inline bool decode_pose_attr(const std::uint8_t* data, std::uint8_t len, PoseAtt
   out.phi_mdeg = static_cast<std::int32_t>(get_signed_bits(data, 0, kPhiBits));
   out.score_milli = static_cast<std::int16_t>(get_signed_bits(data, 19, kScoreBits));
   out.state = static_cast<WireState>(get_bits(data, 30, 2));
-  out.reason_bits = static_cast<std::uint8_t>(get_bits(data, 32, 7));
+  out.reason_bits = static_cast<std::uint8_t>(get_bits(data, 32, 8));
   out.seq = static_cast<std::uint8_t>(get_bits(data, 40, 8));
   out.age_us = static_cast<std::uint16_t>(get_bits(data, 48, kAgeBits));
   return true;
@@ -316,6 +319,7 @@ inline bool decode_pose_fd(const std::uint8_t* data, std::uint8_t len, PoseFd& o
   out.dwell_ns = static_cast<std::uint32_t>(get_bits(data, 224, 32));
   out.frame_seq = static_cast<std::uint32_t>(get_bits(data, 256, 32));
   out.scale_pm_per_px = static_cast<std::uint32_t>(get_bits(data, 288, 32));
+  out.target_scale_e4 = static_cast<std::uint16_t>(get_bits(data, 320, 16));
   return true;
 }
 

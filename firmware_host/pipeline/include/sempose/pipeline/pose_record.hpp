@@ -26,6 +26,7 @@ inline PoseRecord make_pose_record(const hal::FrameMeta& m, const pose::PoseEsti
   p.phi_deg = est.phi_deg;
   p.score = est.score;
   p.psr = est.psr;
+  p.target_scale = est.scale;
   p.dwell_ns = m.dwell_ns;
   p.nm_per_px = nm_per_px;
   p.t_scan_end_ns = m.t_scan_end_ns;

@@ -25,6 +25,7 @@ struct PoseRecord {
   float psr = 0;                    // peak-to-sidelobe ratio
   std::uint32_t dwell_ns = 0;       // dwell of the frame this pose came from
   double nm_per_px = 1;             // scale of the active magnification step
+  double target_scale = 1;          // the target's size on screen over its pattern's (PoseEstimate::scale)
   std::int64_t t_scan_end_ns = 0;
   std::int64_t t_pose_done_ns = 0;
   // Simulated sources only: where the target really was (validation, never on the wire).

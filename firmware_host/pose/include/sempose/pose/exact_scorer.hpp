@@ -33,6 +33,9 @@ class ExactScorer {
   void load(const std::int32_t* filtered, int w, int h) noexcept;
   int roi_w() const noexcept { return roi_w_; }
   int roi_h() const noexcept { return roi_h_; }
+  // The loaded ROI, prefiltered, minus its mean (roi_w() × roi_h(), row stride roi_w()): what
+  // the scale probe and the appearance observer sample.
+  const float* roi() const noexcept { return roi_.data(); }
 
   // RT: the parts at angle j of the bank, pattern top-left at (ux, uy) of the ROI.
   ScoreParts parts(const PatternBank& bank, int j, int ux, int uy) const noexcept;

@@ -13,7 +13,9 @@
 //    not (dose 20: ~0.4 where ~0.97 is attainable);
 //  * the target's own level: the running mean of its accepted scores, kept across a loss, so
 //    background merely above the absolute threshold after the target left is not "found";
-//    forgotten on a commanded re-acquisition or a pattern-set switch.
+//    forgotten on a commanded re-acquisition or a pattern-set switch;
+//  * while tracking too, the attainable score at the measured pose: a pose the pattern does
+//    not explain up to noise is weak (kReasonUnexplained), however slowly it got there.
 // All scaled by relative_score_threshold (the same "this much of what the target reaches").
 // RT, no allocation.
 #pragma once
@@ -64,6 +66,11 @@ class LossPolicy {
   // A score far below the target's recent scores is a look-alike, not the target (after a
   // jump the old ROI still holds texture that can beat the absolute threshold).
   bool below_recent(const Measurement& m) const noexcept;
+  // The model does not explain the window: the score falls short of what the noise model says
+  // the target reaches there (m.attainable), so part of the window's signal is structure the
+  // pattern lacks — a wrong scale, a look-alike, a torn frame. A gradual drift (scale creeping
+  // away) passes below_recent, whose reference drifts along; this reference does not.
+  bool unexplained(const Measurement& m) const noexcept;
 
   const config::TrackerConfig& cfg_;
   int weak_frames_ = 0;

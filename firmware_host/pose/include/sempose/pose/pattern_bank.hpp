@@ -58,6 +58,16 @@ class PatternBank {
   // shape does not fit the pattern.
   static std::unique_ptr<const PatternBank> build(const PatternBankSpec& spec, const BankLevels& levels,
                                                   std::string& why);
+  // Setup or worker thread (allocates, no FFT): a bank like `base` whose full-resolution
+  // supports are cut to `support` (size_px², in the pattern's own frame, 1 = keep), turned with
+  // each angle (nearest neighbour) and intersected with base's support; the pattern copies are
+  // renormalised over the new support (ZNCC normalisation is affine, so renormalising base's
+  // copies equals normalising the raw rotations). The binned and coarse spectra are base's,
+  // shared. nullptr (and why) when an angle keeps under 64 pixels or is flat.
+  static std::unique_ptr<const PatternBank> with_support(const PatternBank& base, const std::vector<std::uint8_t>& support,
+                                                         std::string& why);
+  // Mean pixel count of the angles' supports.
+  double mean_support_count() const noexcept;
 
   int angles() const noexcept { return angles_; }
   int coarse_angles() const noexcept { return coarse_angles_; }
@@ -89,8 +99,9 @@ class PatternBank {
   std::vector<MaskBand> support_;            // every angle's support bands, one after another
   std::vector<std::size_t> support_begin_;   // angles_ + 1 offsets into support_
   std::vector<std::int64_t> support_count_;  // pixels per angle's support
-  std::unique_ptr<Complex[], FftwFree> spectra_;
-  std::unique_ptr<Complex[], FftwFree> coarse_spectra_;
+  // Shared with banks made by with_support() (the spectra do not depend on the fine support).
+  std::shared_ptr<Complex> spectra_;
+  std::shared_ptr<Complex> coarse_spectra_;
 };
 
 }  // namespace sempose::pose

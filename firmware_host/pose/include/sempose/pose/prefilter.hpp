@@ -25,6 +25,10 @@ class Prefilter {
   std::vector<std::int32_t> a_, b_, row_;
 };
 
+// The factor apply() scales a constant image by (256 per pass, less the shifts that keep
+// the output within 20 bits): filtered units per raw unit for input of `bits` bits.
+double prefilter_dc_gain(int passes, int bits) noexcept;
+
 // Setup: the same filter on a float pattern (n×n, edges replicated), passes times.
 void prefilter_pattern(float* pattern, int n, int passes);
 

@@ -21,7 +21,9 @@ enum LostReason : std::uint8_t {
   kReasonOutOfField = 1u << 3,    // predicted pose left the scan field
   kReasonBadFrame = 1u << 4,      // the scan source flagged the frame
   kReasonCommanded = 1u << 5,     // re-acquire requested by the controller
-  kReasonAngleUnsettled = 1u << 6 // orientation walk hit its per-frame step bound
+  kReasonAngleUnsettled = 1u << 6, // orientation walk hit its per-frame step bound
+  kReasonUnexplained = 1u << 7     // the pattern leaves more of the window unexplained than noise
+                                   // does (wrong scale, look-alike, torn frame): not the target
 };
 
 constexpr const char* to_string(TrackState s) noexcept {

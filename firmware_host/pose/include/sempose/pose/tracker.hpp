@@ -26,8 +26,17 @@ struct PoseEstimate {
   // This frame's own measurement; equal to x_px, y_px, phi_deg unless tracker.filter is on
   // (then those are the filtered pose).
   double meas_x_px = 0, meas_y_px = 0, meas_phi_deg = 0;
+  // The target's size on screen over the pattern's (magnification, working distance): the
+  // tracker resamples each ROI by 1/scale so the engine matches at the pattern's own size.
+  double scale = 1.0;
   float score = 0;      // ZNCC in [-1, 1]
   float psr = 0;        // peak-to-sidelobe ratio of the position peak
+  // Normalised χ² of the match: the share of the window's variance the pattern (with gain and
+  // offset) leaves unexplained, 1 − score², over the share the noise model predicts,
+  // 1 − attainable² (README: Conventions). ~1: the model explains the window up to noise;
+  // a wrong scale, a look-alike or a torn frame leaves structure unexplained (≫ 1). 0: not
+  // measured (no match, or a score at or above tracker.explained_threshold, which passes).
+  float chi2 = 0;
   std::uint8_t pattern_set = 0;
   int angle_steps = 0;  // correlations spent on orientation this frame
   bool searched = false;  // this frame ran the full-field start search
@@ -67,6 +76,23 @@ class Tracker {
   std::uint8_t pattern_set() const noexcept;
   double nm_per_px() const noexcept;
   void request_reacquire() noexcept;
+  // Learned appearance (tracker.appearance; README: Learned appearance). Not RT: folds a batch
+  // of good frames the RT side completed into the model, checks it against the recorded
+  // pattern and, when it passes, builds the bank with the learned support and swaps it in
+  // (double buffer + atomic index; update() picks it up at its next frame without a lock or an
+  // allocation). Offline callers run it between frames; `sempose run` runs it on a worker
+  // thread (start_appearance_worker). True when a new bank was published.
+  bool maintain_appearance();
+  // Starts a non-RT thread calling maintain_appearance() every 20 ms until the tracker is
+  // destroyed (it inherits the caller's CPU placement and scheduling). No-op when off.
+  void start_appearance_worker();
+  struct AppearanceStatus {
+    std::uint32_t accepted = 0;  // updates swapped in
+    std::uint32_t rejected = 0;  // batches the drift or support check refused
+    std::uint32_t deferred = 0;  // swaps skipped because update() had not picked up the last one
+    double support_fraction = 1.0;  // of the pattern circle, the last accepted update's
+  };
+  AppearanceStatus appearance_status() const noexcept;
   // Bank + spectra + FFT buffers, bytes (printed at start).
   std::size_t memory_bytes() const noexcept;
 
