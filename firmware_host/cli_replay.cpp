@@ -4,7 +4,7 @@
 // the recording is a ReplaySource on the virtual clock (every scan is the requested ROI cut
 // from the next full-field frame), the trackers come from the same setup as `sempose run`'s
 // and the poses go through the same CsvPoseSink, so the CSV is the pipeline's:
-// frame,t_ns,x_px,y_px,phi_deg,score,status[,target] (t_ns = scan end, target = index).
+// frame,t_ns,x_px,y_px,phi_deg,score,status[,target],scale (t_ns = scan end, target = index).
 // Each target starts with a full-field search (no start pose needed). Ends with one line
 //   summary: frames=N tracked_share=F compute_us_p50=A compute_us_p99=B compute_us_max=C acquire_ms=D
 // compute = the tracker's update() per ROI pose (wall time, file I/O excluded); acquire = the

@@ -1,4 +1,5 @@
-// The tracker: builds the stages at setup and runs them in sequence per frame.
+// The tracker's per-frame sequence of stages (setup is tracker_create.cpp, learned-bank swaps
+// tracker_appearance.cpp, the shared state tracker_impl.hpp).
 //   frame → (bad / re-acquire / full field?) → start search  ─┐
 //                                          → ROI (resampled by 1/scale) load → FFT peak at the
 //                                            predicted angle → orientation walk + fit
@@ -8,41 +9,13 @@
 #include "sempose/pose/tracker.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <string>
-#include <thread>
 
-#include "sempose/pose/angle_grid.hpp"
-#include "sempose/pose/angle_sweep.hpp"
-#include "sempose/pose/appearance_model.hpp"
-#include "sempose/pose/appearance_observer.hpp"
-#include "sempose/pose/engine_sizes.hpp"
-#include "sempose/pose/exact_scorer.hpp"
-#include "sempose/pose/fft_correlator.hpp"
-#include "sempose/pose/loss_policy.hpp"
-#include "sempose/pose/motion_model.hpp"
-#include "sempose/pose/orientation_walk.hpp"
-#include "sempose/pose/pattern_bank.hpp"
-#include "sempose/pose/pose_filter.hpp"
-#include "sempose/pose/pose_refinement.hpp"
-#include "sempose/pose/prefilter.hpp"
-#include "sempose/pose/roi_loader.hpp"
-#include "sempose/pose/roi_rescaler.hpp"
-#include "sempose/pose/scale_probe.hpp"
-#include "sempose/pose/start_search.hpp"
-#include "sempose/pose/subpixel_fit.hpp"
-#include "sempose/rt/angle.hpp"
+#include "tracker_impl.hpp"
 
 namespace sempose::pose {
 
 namespace {
-// The outer ring of the pattern is made up at setup (prefilter edges replicated: 2 px per
-// pass; bicubic rotation clamps its 2 px support at the square's edge): keep it out of the
-// mask, or those pixels pull the peak off the true pose by a few tenths of a pixel in the
-// pattern's own frame (a bias that turns with the target).
-double mask_inset_px(const config::TrackerConfig& c) noexcept { return 2.0 + 2.0 * c.prefilter_passes; }
-
 // (1 − r²)/(1 − a²): the variance a fit with gain and offset leaves (share 1 − r² of the
 // window's) over what the noise model predicts it leaves (1 − a², a the attainable score).
 // The floor keeps a noise-free window finite.
@@ -52,126 +25,6 @@ float normalised_chi2(double score, double attainable) noexcept {
   return static_cast<float>(left / std::max(noise, 1e-4));
 }
 }  // namespace
-
-struct Tracker::Impl {
-  // Setup: the stages, in the order a tracked frame meets them. Members are built in
-  // declaration order; later stages keep references to earlier ones.
-  const config::TrackerConfig cfg;
-  const EngineSizes sizes;
-  const AngleGrid angles;
-  const PatternMask fine_mask, half_mask, coarse_mask;
-  FftCorrelator half, coarse;  // the 2×2-binned ROI level; the coarse full-field level
-  ExactScorer scorer;
-  RoiLoader loader;
-  RoiRescaler rescaler;
-  const ScaleProbe scale_probe;
-  CorrelationMaps maps;
-  const SubpixelFit fit;
-  const OrientationWalk walk;
-  AngleSweep sweep;
-  StartSearch search;
-  const PoseRefinement refinement;
-  LossPolicy loss;
-  MotionModel motion;
-  PoseFilter filter;
-  std::vector<std::unique_ptr<const PatternBank>> banks;
-  std::vector<double> nm_per_px;
-
-  bool tracking = false;
-  // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
-  // Learnt from the accepted frames' scale readings, kept across a loss (the magnification
-  // has not changed), back to 1 when the target is forgotten (new pattern set, REACQUIRE).
-  double scale = 1.0;
-  static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
-  static constexpr double kScaleMin = 0.7, kScaleMax = 1.45;  // beyond: the ROI cannot hold the target
-  // Closer to 1 than this: the raw ROI is loaded as scanned. Resampling costs ~40 µs, and at
-  // 1 % its interpolation blur cost more angle accuracy than the size error it removes; the
-  // reading itself runs 0.6–1.7 % high at 20–2.5 e⁻/px on unscaled targets (README: Known
-  // limitations), so below 2.5 % a reading is not acted on (pose_accuracy_bench).
-  static constexpr double kRescaleFrom = 0.025;
-  config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
-  std::atomic<bool> reacquire{false};
-  std::atomic<std::uint8_t> active{0};
-
-  // Learned appearance (only when tracker.appearance.enabled): the observer fills batches on
-  // the RT side; maintain_appearance() (worker or offline caller) folds them into the model and
-  // publishes a bank with the learned support into the free one of two slots per set.
-  struct LearnedBanks {
-    std::unique_ptr<const PatternBank> slot[2];
-    float floor_scale[2] = {1.0f, 1.0f};  // noise floors grow as the support shrinks
-    std::atomic<int> published{-1};       // -1: the recorded bank
-    std::atomic<int> in_use{-1};          // what update() last picked up
-  };
-  std::unique_ptr<LearnedBanks[]> learned;
-  std::unique_ptr<AppearanceObserver> observer;
-  std::unique_ptr<AppearanceModel> model;
-  bool learning = false;          // off while the noise floors are measured
-  int bank_seen = -1;             // the slot update() used last (noise floors follow it)
-  float floor_scale_now = 1.0f;
-  std::atomic<std::uint32_t> appearance_accepted{0}, appearance_rejected{0}, appearance_deferred{0};
-  std::atomic<double> appearance_support{1.0};
-  std::thread worker;
-  std::atomic<bool> worker_stop{false};
-  std::atomic_flag maintaining = ATOMIC_FLAG_INIT;  // one maintain_appearance() at a time (non-RT callers)
-  ~Impl() {
-    worker_stop.store(true, std::memory_order_relaxed);
-    if (worker.joinable()) worker.join();
-  }
-  const PatternBank& frame_bank(std::uint8_t set) noexcept;
-  bool maintain_appearance();
-
-  Impl(const config::TrackerConfig& c, const EngineSizes& s, int field_width, int field_height)
-      : cfg(c),
-        sizes(s),
-        angles{static_cast<int>(std::lround(360.0 / c.angle_step_deg)), c.angle_step_deg},
-        fine_mask(s.pattern_px, c.circular_mask, 8, mask_inset_px(c)),
-        half_mask(s.pattern_px / 2, c.circular_mask, 8, mask_inset_px(c) / 2),
-        coarse_mask(s.coarse_pattern_px, c.circular_mask),
-        half(s.half_fft_px, s.half_fft_px, half_mask),
-        coarse(good_fft_size(s.coarse_max_w), good_fft_size(s.coarse_max_h), coarse_mask),
-        scorer(fine_mask, s.roi_fft_px),
-        loader(c.prefilter_passes, s.roi_fft_px, scorer, half),
-        rescaler(s.roi_fft_px),
-        scale_probe(scorer),
-        maps(static_cast<std::size_t>(s.half_fft_px) * s.half_fft_px),
-        fit(c.subpixel == "gaussian", c.fit_noise_correction),
-        walk(scorer, fit, angles),
-        sweep(half, walk, angles, maps),
-        search(cfg, sizes, angles, coarse, half, loader, walk, sweep, maps),
-        refinement(scorer),
-        loss(cfg),
-        motion(c.predict_velocity),
-        filter(c.filter) {
-    field.field_w = field_width;
-    field.field_h = field_height;
-  }
-
-  // Noise floors per pattern set (LossPolicy): measured at setup by calibrate_noise_floors().
-  struct NoiseFloor {
-    float roi = -1.0f;    // tracking ROI path (walk + recovery sweep)
-    float field = -1.0f;  // full-field start search
-  };
-  static constexpr int kNullTrials = 8;
-  static constexpr double kNullSigmas = 5.0;  // Gumbel tail: ~1e-3 per frame above mean + 5 sd
-  static constexpr int kNullFieldMax = 2048;  // the floor grows only as sqrt(ln area)
-  std::vector<NoiseFloor> noise_floors;
-  double prefilter_noise_gain = 1.0;  // Σk² of the 2-D prefilter kernel (white-noise variance kept)
-
-  void use_noise_floors_of(std::uint8_t set) noexcept {
-    if (set < noise_floors.size())
-      loss.set_noise_floors(std::min(1.0f, noise_floors[set].roi * floor_scale_now),
-                            std::min(1.0f, noise_floors[set].field * floor_scale_now));
-  }
-  double attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept;
-  void calibrate_noise_floors(const config::ScanLimits& limits);
-  void forget_everything() noexcept;
-
-  PoseEstimate update(const PoseFrame& frame) noexcept;
-  Measurement track(const PatternBank& bank) noexcept;
-  void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
-  void go_lost() noexcept;
-  void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;
-};
 
 // The ZNCC the target itself would reach in the window at (cx, cy) of a frame: √(S/(S+N)),
 // S the window's signal variance, N the noise variance the prefilter leaves. A true match
@@ -210,127 +63,6 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
   const double signal = var - noise;
   const double left = signal + prefilter_noise_gain * noise;
   return left > 0 ? std::sqrt(signal / left) : 0.0;
-}
-
-// RT: the bank this frame uses: the learned one published last, else the recorded one. A new
-// one brings its noise floors (a smaller support lets noise reach higher scores).
-const PatternBank& Tracker::Impl::frame_bank(std::uint8_t set) noexcept {
-  if (!learned) return *banks[set];
-  LearnedBanks& l = learned[set];
-  const int k = l.published.load(std::memory_order_acquire);
-  l.in_use.store(k, std::memory_order_release);
-  const int seen = set * 4 + k;  // changes with the set or the slot
-  if (seen != bank_seen) {
-    bank_seen = seen;
-    floor_scale_now = k < 0 ? 1.0f : l.floor_scale[k];
-    use_noise_floors_of(set);
-  }
-  return k < 0 ? *banks[set] : *l.slot[k];
-}
-
-bool Tracker::Impl::maintain_appearance() {
-  if (!observer) return false;
-  // The model and the slots have one writer: a second caller (a worker thread and an offline
-  // loop at once) returns at once instead of waiting.
-  if (maintaining.test_and_set(std::memory_order_acquire)) return false;
-  struct Release {
-    std::atomic_flag& f;
-    ~Release() { f.clear(std::memory_order_release); }
-  } release{maintaining};
-  const AppearanceStats* batch = observer->take();
-  if (batch == nullptr) return false;
-  const std::uint8_t set = batch->set;
-  AppearanceDecision d = model->update(*batch);
-  observer->give_back();
-  if (!d.accepted) {
-    appearance_rejected.fetch_add(1, std::memory_order_relaxed);
-    return false;
-  }
-  LearnedBanks& l = learned[set];
-  const int cur = l.published.load(std::memory_order_acquire);
-  // The other slot is free once update() has picked up the current one.
-  if (l.in_use.load(std::memory_order_acquire) != cur) {
-    appearance_deferred.fetch_add(1, std::memory_order_relaxed);
-    return false;
-  }
-  const int next = cur == 0 ? 1 : 0;
-  std::string why;
-  std::unique_ptr<const PatternBank> bank = PatternBank::with_support(*banks[set], d.support, why);
-  if (!bank) {
-    appearance_rejected.fetch_add(1, std::memory_order_relaxed);
-    return false;
-  }
-  l.floor_scale[next] = static_cast<float>(std::sqrt(banks[set]->mean_support_count() / bank->mean_support_count()));
-  l.slot[next] = std::move(bank);
-  l.published.store(next, std::memory_order_release);
-  appearance_accepted.fetch_add(1, std::memory_order_relaxed);
-  appearance_support.store(d.support_fraction, std::memory_order_relaxed);
-  return true;
-}
-
-// Setup only (allocates): the noise floors of every pattern set, measured by running the real
-// update() on frames of uniform 8-bit white noise — a tracking ROI at an angle spread over the
-// circle and a full field (capped at kNullFieldMax per side) — kNullTrials each; the floor is
-// mean + kNullSigmas·sd of the best scores. Deterministic (fixed seed): every start gives the
-// same floors.
-void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
-  const int fw = std::min(limits.field_w, kNullFieldMax), fh = std::min(limits.field_h, kNullFieldMax);
-  std::vector<std::uint16_t> noise(static_cast<std::size_t>(fw) * fh);
-  std::uint64_t rng = 0x9E3779B97F4A7C15ull;
-  auto fill = [&](std::size_t n) {
-    for (std::size_t i = 0; i < n; ++i) {
-      rng ^= rng << 13;
-      rng ^= rng >> 7;
-      rng ^= rng << 17;
-      noise[i] = static_cast<std::uint16_t>(rng >> 56);
-    }
-  };
-  auto floor_of = [](const std::vector<double>& v) {
-    double m = 0, q = 0;
-    for (double x : v) m += x;
-    m /= static_cast<double>(v.size());
-    for (double x : v) q += (x - m) * (x - m);
-    const double sd = std::sqrt(q / static_cast<double>(v.size() - 1));
-    return static_cast<float>(std::min(1.0, m + kNullSigmas * sd));
-  };
-  loss.set_calibrating(true);
-  learning = false;
-  loss.set_noise_floors(-1.0f, -1.0f);
-  noise_floors.assign(banks.size(), NoiseFloor{});
-  const std::uint8_t keep = active.load(std::memory_order_relaxed);
-  for (std::size_t set = 0; set < banks.size(); ++set) {
-    active.store(static_cast<std::uint8_t>(set), std::memory_order_relaxed);
-    std::vector<double> roi_scores, field_scores;
-    for (int k = 0; k < kNullTrials; ++k) {
-      PoseFrame frame;
-      frame.field_w = fw;
-      frame.field_h = fh;
-      frame.bits = 8;
-      frame.pixels = noise.data();
-      // Full field: the start search.
-      forget_everything();
-      fill(noise.size());
-      frame.roi = {0, 0, fw, fh};
-      field_scores.push_back(update(frame).score);
-      // Tracking ROI at the field's centre, predicted at an angle spread over the circle.
-      const int rw = std::min(sizes.roi_px, fw), rh = std::min(sizes.roi_px, fh);
-      forget_everything();
-      motion.accept(fw / 2.0, fh / 2.0, rt::wrap_deg(k * (360.0 / kNullTrials) + 7.0), true);
-      tracking = true;
-      fill(static_cast<std::size_t>(rw) * rh);
-      frame.roi = {(fw - rw) / 2, (fh - rh) / 2, rw, rh};
-      roi_scores.push_back(update(frame).score);
-    }
-    noise_floors[set].roi = floor_of(roi_scores);
-    noise_floors[set].field = floor_of(field_scores);
-  }
-  active.store(keep, std::memory_order_relaxed);
-  forget_everything();
-  loss.set_calibrating(false);
-  learning = observer != nullptr;
-  use_noise_floors_of(keep);
-  field.field_w = limits.field_w;
-  field.field_h = limits.field_h;
 }
 
 void Tracker::Impl::forget_everything() noexcept {
@@ -530,109 +262,6 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
 Tracker::Tracker(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Tracker::~Tracker() = default;
 
-std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::vector<PatternSet> sets,
-                                         const config::ScanLimits& limits, rt::Status& status) {
-  auto fail = [&](std::string why) {
-    status = rt::Status::failure("tracker: " + std::move(why));
-    return std::unique_ptr<Tracker>();
-  };
-  if (sets.empty()) return fail("no pattern given (need at least one pattern set)");
-  const int pattern_px = sets[0].image.width;
-  for (std::size_t i = 0; i < sets.size(); ++i) {
-    const PatternImage& im = sets[i].image;
-    const std::string which = "pattern set " + std::to_string(i) + ": ";
-    if (im.empty()) return fail(which + "the pattern image is empty");
-    if (im.width != im.height)
-      return fail(which + "the pattern is " + std::to_string(im.width) + "x" + std::to_string(im.height) +
-                  "; patterns must be square");
-    if (im.pixels.size() != static_cast<std::size_t>(im.width) * im.height)
-      return fail(which + "pixel count does not match width x height");
-    if (im.width != pattern_px)
-      return fail(which + "is " + std::to_string(im.width) + " px, pattern set 0 is " + std::to_string(pattern_px) +
-                  " px; all pattern sets of a target must have the same size");
-    if (!(sets[i].nm_per_px > 0)) return fail(which + "nm_per_px must be > 0");
-  }
-  if (sets.size() > 255) return fail("at most 255 pattern sets");
-  // The settings' own rules (shared with the config reader), checked against the pattern
-  // actually given rather than tracker.pattern_size_px.
-  const config::SettingProblem problem = config::check_tracker_sizes(cfg, pattern_px);
-  if (problem) return fail("tracker." + problem.key + ": " + problem.message);
-  if (limits.field_w < pattern_px || limits.field_h < pattern_px) return fail("the scan field is smaller than the pattern");
-
-  const EngineSizes sizes = EngineSizes::of(cfg, pattern_px, limits.field_w, limits.field_h);
-  auto impl = std::make_unique<Impl>(cfg, sizes, limits.field_w, limits.field_h);
-  Impl& t = *impl;
-  // Kept for the appearance learner (the bank spec takes the originals).
-  std::vector<PatternImage> prior_patterns, prior_shapes;
-  if (cfg.appearance.enabled)
-    for (const PatternSet& ps : sets) {
-      prior_patterns.push_back(ps.image);
-      prior_shapes.push_back(ps.mask);
-    }
-  for (std::size_t i = 0; i < sets.size(); ++i) {
-    PatternBankSpec spec;
-    spec.pattern = std::move(sets[i].image);
-    spec.shape = std::move(sets[i].mask);
-    spec.shape_margin_px = cfg.shape_mask_margin_px;
-    spec.prefilter_passes = cfg.prefilter_passes;
-    spec.angle_step_deg = cfg.angle_step_deg;
-    spec.coarse_step_deg = cfg.search_angle_step_deg;
-    spec.coarse_factor = sizes.search_factor;
-    std::string why;
-    auto bank = PatternBank::build(spec, {t.fine_mask, t.half_mask, t.half, t.coarse_mask, t.coarse}, why);
-    if (!bank) return fail("pattern set " + std::to_string(i) + ": " + why);
-    t.banks.push_back(std::move(bank));
-    t.nm_per_px.push_back(sets[i].nm_per_px);
-  }
-  {
-    // White-noise variance the prefilter keeps: Σk² of its 2-D kernel, the 5-tap binomial
-    // [1 4 6 4 1]/16 convolved with itself once per pass, separable.
-    std::vector<double> k{1.0};
-    for (int pass = 0; pass < cfg.prefilter_passes; ++pass) {
-      std::vector<double> next(k.size() + 4, 0.0);
-      const double b[5] = {1 / 16.0, 4 / 16.0, 6 / 16.0, 4 / 16.0, 1 / 16.0};
-      for (std::size_t i = 0; i < k.size(); ++i)
-        for (int j = 0; j < 5; ++j) next[i + static_cast<std::size_t>(j)] += k[i] * b[j];
-      k.swap(next);
-    }
-    double g = 0;
-    for (double v : k) g += v * v;
-    t.prefilter_noise_gain = g * g;
-  }
-  if (cfg.appearance.enabled) {
-    // The learner's references: each set's recorded pattern, prefiltered like the frames; its
-    // priors: the shape masks (the learned support never leaves them).
-    const int n = pattern_px;
-    t.observer = std::make_unique<AppearanceObserver>(n, t.fine_mask.bitmap(), cfg.appearance.frames_per_update,
-                                                      t.prefilter_noise_gain, cfg.prefilter_passes);
-    std::vector<std::vector<float>> refs;
-    std::vector<std::vector<float>> priors;
-    for (std::size_t i = 0; i < sets.size(); ++i) {
-      std::vector<float> ref(static_cast<std::size_t>(n) * n);
-      for (std::size_t k = 0; k < ref.size(); ++k) ref[k] = static_cast<float>(prior_patterns[i].pixels[k]);
-      prefilter_pattern(ref.data(), n, cfg.prefilter_passes);
-      t.observer->add_reference(ref);
-      refs.push_back(std::move(ref));
-      std::vector<float> prior;
-      if (!prior_shapes[i].empty()) {
-        prior.assign(static_cast<std::size_t>(n) * n, 0.0f);
-        for (std::size_t k = 0; k < prior.size(); ++k) prior[k] = prior_shapes[i].pixels[k] != 0 ? 1.0f : 0.0f;
-        dilate_disk(prior, n, cfg.shape_mask_margin_px);
-      }
-      priors.push_back(std::move(prior));
-    }
-    t.model = std::make_unique<AppearanceModel>(cfg.appearance, n, t.fine_mask.bitmap(), std::move(refs), std::move(priors));
-    t.learned = std::make_unique<Impl::LearnedBanks[]>(sets.size());
-  }
-  t.calibrate_noise_floors(limits);
-  status = rt::Status::success();
-  if (t.half.execute_allocates() || t.coarse.execute_allocates()) {
-    status.message = "tracker: warning: no allocation-free FFTW plan found for " + std::to_string(sizes.roi_fft_px) +
-                     "x" + std::to_string(sizes.roi_fft_px) + " or the coarse size; the loop may call malloc";
-  }
-  return std::unique_ptr<Tracker>(new Tracker(std::move(impl)));
-}
-
 Roi Tracker::next_roi() const noexcept {
   const Impl& t = *impl_;
   const int field_w = t.field.field_w, field_h = t.field.field_h;
@@ -662,30 +291,6 @@ float Tracker::noise_floor_field(std::size_t set) const noexcept {
 std::uint8_t Tracker::pattern_set() const noexcept { return impl_->active.load(std::memory_order_relaxed); }
 double Tracker::nm_per_px() const noexcept { return impl_->nm_per_px[impl_->active.load(std::memory_order_relaxed)]; }
 void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::memory_order_relaxed); }
-
-bool Tracker::maintain_appearance() { return impl_->maintain_appearance(); }
-
-void Tracker::start_appearance_worker() {
-  Impl& t = *impl_;
-  if (!t.observer || t.worker.joinable()) return;
-  t.worker = std::thread([&t] {
-    const timespec period{0, 20'000'000};
-    while (!t.worker_stop.load(std::memory_order_relaxed)) {
-      t.maintain_appearance();
-      nanosleep(&period, nullptr);
-    }
-  });
-}
-
-Tracker::AppearanceStatus Tracker::appearance_status() const noexcept {
-  const Impl& t = *impl_;
-  AppearanceStatus s;
-  s.accepted = t.appearance_accepted.load(std::memory_order_relaxed);
-  s.rejected = t.appearance_rejected.load(std::memory_order_relaxed);
-  s.deferred = t.appearance_deferred.load(std::memory_order_relaxed);
-  s.support_fraction = t.appearance_support.load(std::memory_order_relaxed);
-  return s;
-}
 
 std::size_t Tracker::memory_bytes() const noexcept {
   const Impl& t = *impl_;

@@ -1,0 +1,180 @@
+// Tracker setup: checks the pattern sets and settings, builds the stages, measures the noise
+// floors. Allocates; never called on an RT thread.
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "tracker_impl.hpp"
+
+namespace sempose::pose {
+
+// Setup only (allocates): the noise floors of every pattern set, measured by running the real
+// update() on frames of uniform 8-bit white noise — a tracking ROI at an angle spread over the
+// circle and a full field (capped at kNullFieldMax per side) — kNullTrials each; the floor is
+// mean + kNullSigmas·sd of the best scores. Deterministic (fixed seed): every start gives the
+// same floors.
+void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
+  const int fw = std::min(limits.field_w, kNullFieldMax), fh = std::min(limits.field_h, kNullFieldMax);
+  std::vector<std::uint16_t> noise(static_cast<std::size_t>(fw) * fh);
+  std::uint64_t rng = 0x9E3779B97F4A7C15ull;
+  auto fill = [&](std::size_t n) {
+    for (std::size_t i = 0; i < n; ++i) {
+      rng ^= rng << 13;
+      rng ^= rng >> 7;
+      rng ^= rng << 17;
+      noise[i] = static_cast<std::uint16_t>(rng >> 56);
+    }
+  };
+  auto floor_of = [](const std::vector<double>& v) {
+    double m = 0, q = 0;
+    for (double x : v) m += x;
+    m /= static_cast<double>(v.size());
+    for (double x : v) q += (x - m) * (x - m);
+    const double sd = std::sqrt(q / static_cast<double>(v.size() - 1));
+    return static_cast<float>(std::min(1.0, m + kNullSigmas * sd));
+  };
+  loss.set_calibrating(true);
+  learning = false;
+  loss.set_noise_floors(-1.0f, -1.0f);
+  noise_floors.assign(banks.size(), NoiseFloor{});
+  const std::uint8_t keep = active.load(std::memory_order_relaxed);
+  for (std::size_t set = 0; set < banks.size(); ++set) {
+    active.store(static_cast<std::uint8_t>(set), std::memory_order_relaxed);
+    std::vector<double> roi_scores, field_scores;
+    for (int k = 0; k < kNullTrials; ++k) {
+      PoseFrame frame;
+      frame.field_w = fw;
+      frame.field_h = fh;
+      frame.bits = 8;
+      frame.pixels = noise.data();
+      // Full field: the start search.
+      forget_everything();
+      fill(noise.size());
+      frame.roi = {0, 0, fw, fh};
+      field_scores.push_back(update(frame).score);
+      // Tracking ROI at the field's centre, predicted at an angle spread over the circle.
+      const int rw = std::min(sizes.roi_px, fw), rh = std::min(sizes.roi_px, fh);
+      forget_everything();
+      motion.accept(fw / 2.0, fh / 2.0, rt::wrap_deg(k * (360.0 / kNullTrials) + 7.0), true);
+      tracking = true;
+      fill(static_cast<std::size_t>(rw) * rh);
+      frame.roi = {(fw - rw) / 2, (fh - rh) / 2, rw, rh};
+      roi_scores.push_back(update(frame).score);
+    }
+    noise_floors[set].roi = floor_of(roi_scores);
+    noise_floors[set].field = floor_of(field_scores);
+  }
+  active.store(keep, std::memory_order_relaxed);
+  forget_everything();
+  loss.set_calibrating(false);
+  learning = observer != nullptr;
+  use_noise_floors_of(keep);
+  field.field_w = limits.field_w;
+  field.field_h = limits.field_h;
+}
+
+std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::vector<PatternSet> sets,
+                                         const config::ScanLimits& limits, rt::Status& status) {
+  auto fail = [&](std::string why) {
+    status = rt::Status::failure("tracker: " + std::move(why));
+    return std::unique_ptr<Tracker>();
+  };
+  if (sets.empty()) return fail("no pattern given (need at least one pattern set)");
+  const int pattern_px = sets[0].image.width;
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    const PatternImage& im = sets[i].image;
+    const std::string which = "pattern set " + std::to_string(i) + ": ";
+    if (im.empty()) return fail(which + "the pattern image is empty");
+    if (im.width != im.height)
+      return fail(which + "the pattern is " + std::to_string(im.width) + "x" + std::to_string(im.height) +
+                  "; patterns must be square");
+    if (im.pixels.size() != static_cast<std::size_t>(im.width) * im.height)
+      return fail(which + "pixel count does not match width x height");
+    if (im.width != pattern_px)
+      return fail(which + "is " + std::to_string(im.width) + " px, pattern set 0 is " + std::to_string(pattern_px) +
+                  " px; all pattern sets of a target must have the same size");
+    if (!(sets[i].nm_per_px > 0)) return fail(which + "nm_per_px must be > 0");
+  }
+  if (sets.size() > 255) return fail("at most 255 pattern sets");
+  // The settings' own rules (shared with the config reader), checked against the pattern
+  // actually given rather than tracker.pattern_size_px.
+  const config::SettingProblem problem = config::check_tracker_sizes(cfg, pattern_px);
+  if (problem) return fail("tracker." + problem.key + ": " + problem.message);
+  if (limits.field_w < pattern_px || limits.field_h < pattern_px) return fail("the scan field is smaller than the pattern");
+
+  const EngineSizes sizes = EngineSizes::of(cfg, pattern_px, limits.field_w, limits.field_h);
+  auto impl = std::make_unique<Impl>(cfg, sizes, limits.field_w, limits.field_h);
+  Impl& t = *impl;
+  // Kept for the appearance learner (the bank spec takes the originals).
+  std::vector<PatternImage> prior_patterns, prior_shapes;
+  if (cfg.appearance.enabled)
+    for (const PatternSet& ps : sets) {
+      prior_patterns.push_back(ps.image);
+      prior_shapes.push_back(ps.mask);
+    }
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    PatternBankSpec spec;
+    spec.pattern = std::move(sets[i].image);
+    spec.shape = std::move(sets[i].mask);
+    spec.shape_margin_px = cfg.shape_mask_margin_px;
+    spec.prefilter_passes = cfg.prefilter_passes;
+    spec.angle_step_deg = cfg.angle_step_deg;
+    spec.coarse_step_deg = cfg.search_angle_step_deg;
+    spec.coarse_factor = sizes.search_factor;
+    std::string why;
+    auto bank = PatternBank::build(spec, {t.fine_mask, t.half_mask, t.half, t.coarse_mask, t.coarse}, why);
+    if (!bank) return fail("pattern set " + std::to_string(i) + ": " + why);
+    t.banks.push_back(std::move(bank));
+    t.nm_per_px.push_back(sets[i].nm_per_px);
+  }
+  {
+    // White-noise variance the prefilter keeps: Σk² of its 2-D kernel, the 5-tap binomial
+    // [1 4 6 4 1]/16 convolved with itself once per pass, separable.
+    std::vector<double> k{1.0};
+    for (int pass = 0; pass < cfg.prefilter_passes; ++pass) {
+      std::vector<double> next(k.size() + 4, 0.0);
+      const double b[5] = {1 / 16.0, 4 / 16.0, 6 / 16.0, 4 / 16.0, 1 / 16.0};
+      for (std::size_t i = 0; i < k.size(); ++i)
+        for (int j = 0; j < 5; ++j) next[i + static_cast<std::size_t>(j)] += k[i] * b[j];
+      k.swap(next);
+    }
+    double g = 0;
+    for (double v : k) g += v * v;
+    t.prefilter_noise_gain = g * g;
+  }
+  if (cfg.appearance.enabled) {
+    // The learner's references: each set's recorded pattern, prefiltered like the frames; its
+    // priors: the shape masks (the learned support never leaves them).
+    const int n = pattern_px;
+    t.observer = std::make_unique<AppearanceObserver>(n, t.fine_mask.bitmap(), cfg.appearance.frames_per_update,
+                                                      t.prefilter_noise_gain, cfg.prefilter_passes);
+    std::vector<std::vector<float>> refs;
+    std::vector<std::vector<float>> priors;
+    for (std::size_t i = 0; i < sets.size(); ++i) {
+      std::vector<float> ref(static_cast<std::size_t>(n) * n);
+      for (std::size_t k = 0; k < ref.size(); ++k) ref[k] = static_cast<float>(prior_patterns[i].pixels[k]);
+      prefilter_pattern(ref.data(), n, cfg.prefilter_passes);
+      t.observer->add_reference(ref);
+      refs.push_back(std::move(ref));
+      std::vector<float> prior;
+      if (!prior_shapes[i].empty()) {
+        prior.assign(static_cast<std::size_t>(n) * n, 0.0f);
+        for (std::size_t k = 0; k < prior.size(); ++k) prior[k] = prior_shapes[i].pixels[k] != 0 ? 1.0f : 0.0f;
+        dilate_disk(prior, n, cfg.shape_mask_margin_px);
+      }
+      priors.push_back(std::move(prior));
+    }
+    t.model = std::make_unique<AppearanceModel>(cfg.appearance, n, t.fine_mask.bitmap(), std::move(refs), std::move(priors));
+    t.learned = std::make_unique<Impl::LearnedBanks[]>(sets.size());
+  }
+  t.calibrate_noise_floors(limits);
+  status = rt::Status::success();
+  if (t.half.execute_allocates() || t.coarse.execute_allocates()) {
+    status.message = "tracker: warning: no allocation-free FFTW plan found for " + std::to_string(sizes.roi_fft_px) +
+                     "x" + std::to_string(sizes.roi_fft_px) + " or the coarse size; the loop may call malloc";
+  }
+  return std::unique_ptr<Tracker>(new Tracker(std::move(impl)));
+}
+
+}  // namespace sempose::pose

@@ -1,0 +1,163 @@
+// Private to the pose engine: the tracker's state, shared by the files that implement it —
+// tracker.cpp (the per-frame sequence of stages), tracker_create.cpp (setup: validation,
+// stage construction, noise-floor calibration) and tracker_appearance.cpp (learned-bank swaps).
+#pragma once
+
+#include "sempose/pose/tracker.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <string>
+#include <thread>
+
+#include "sempose/pose/angle_grid.hpp"
+#include "sempose/pose/angle_sweep.hpp"
+#include "sempose/pose/appearance_model.hpp"
+#include "sempose/pose/appearance_observer.hpp"
+#include "sempose/pose/engine_sizes.hpp"
+#include "sempose/pose/exact_scorer.hpp"
+#include "sempose/pose/fft_correlator.hpp"
+#include "sempose/pose/loss_policy.hpp"
+#include "sempose/pose/motion_model.hpp"
+#include "sempose/pose/orientation_walk.hpp"
+#include "sempose/pose/pattern_bank.hpp"
+#include "sempose/pose/pose_filter.hpp"
+#include "sempose/pose/pose_refinement.hpp"
+#include "sempose/pose/prefilter.hpp"
+#include "sempose/pose/roi_loader.hpp"
+#include "sempose/pose/roi_rescaler.hpp"
+#include "sempose/pose/scale_probe.hpp"
+#include "sempose/pose/start_search.hpp"
+#include "sempose/pose/subpixel_fit.hpp"
+#include "sempose/rt/angle.hpp"
+
+namespace sempose::pose {
+
+// The outer ring of the pattern is made up at setup (prefilter edges replicated: 2 px per
+// pass; bicubic rotation clamps its 2 px support at the square's edge): keep it out of the
+// mask, or those pixels pull the peak off the true pose by a few tenths of a pixel in the
+// pattern's own frame (a bias that turns with the target).
+inline double mask_inset_px(const config::TrackerConfig& c) noexcept { return 2.0 + 2.0 * c.prefilter_passes; }
+
+struct Tracker::Impl {
+  // Setup: the stages, in the order a tracked frame meets them. Members are built in
+  // declaration order; later stages keep references to earlier ones.
+  const config::TrackerConfig cfg;
+  const EngineSizes sizes;
+  const AngleGrid angles;
+  const PatternMask fine_mask, half_mask, coarse_mask;
+  FftCorrelator half, coarse;  // the 2×2-binned ROI level; the coarse full-field level
+  ExactScorer scorer;
+  RoiLoader loader;
+  RoiRescaler rescaler;
+  const ScaleProbe scale_probe;
+  CorrelationMaps maps;
+  const SubpixelFit fit;
+  const OrientationWalk walk;
+  AngleSweep sweep;
+  StartSearch search;
+  const PoseRefinement refinement;
+  LossPolicy loss;
+  MotionModel motion;
+  PoseFilter filter;
+  std::vector<std::unique_ptr<const PatternBank>> banks;
+  std::vector<double> nm_per_px;
+
+  bool tracking = false;
+  // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
+  // Learnt from the accepted frames' scale readings, kept across a loss (the magnification
+  // has not changed), back to 1 when the target is forgotten (new pattern set, REACQUIRE).
+  double scale = 1.0;
+  static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
+  static constexpr double kScaleMin = 0.7, kScaleMax = 1.45;  // beyond: the ROI cannot hold the target
+  // Closer to 1 than this: the raw ROI is loaded as scanned. Resampling costs ~40 µs, and at
+  // 1 % its interpolation blur cost more angle accuracy than the size error it removes; the
+  // reading itself runs 0.6–1.7 % high at 20–2.5 e⁻/px on unscaled targets (README: Known
+  // limitations), so below 2.5 % a reading is not acted on (pose_accuracy_bench).
+  static constexpr double kRescaleFrom = 0.025;
+  config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
+  std::atomic<bool> reacquire{false};
+  std::atomic<std::uint8_t> active{0};
+
+  // Learned appearance (only when tracker.appearance.enabled): the observer fills batches on
+  // the RT side; maintain_appearance() (worker or offline caller) folds them into the model and
+  // publishes a bank with the learned support into the free one of two slots per set.
+  struct LearnedBanks {
+    std::unique_ptr<const PatternBank> slot[2];
+    float floor_scale[2] = {1.0f, 1.0f};  // noise floors grow as the support shrinks
+    std::atomic<int> published{-1};       // -1: the recorded bank
+    std::atomic<int> in_use{-1};          // what update() last picked up
+  };
+  std::unique_ptr<LearnedBanks[]> learned;
+  std::unique_ptr<AppearanceObserver> observer;
+  std::unique_ptr<AppearanceModel> model;
+  bool learning = false;          // off while the noise floors are measured
+  int bank_seen = -1;             // the slot update() used last (noise floors follow it)
+  float floor_scale_now = 1.0f;
+  std::atomic<std::uint32_t> appearance_accepted{0}, appearance_rejected{0}, appearance_deferred{0};
+  std::atomic<double> appearance_support{1.0};
+  std::thread worker;
+  std::atomic<bool> worker_stop{false};
+  std::atomic_flag maintaining = ATOMIC_FLAG_INIT;  // one maintain_appearance() at a time (non-RT callers)
+  ~Impl() {
+    worker_stop.store(true, std::memory_order_relaxed);
+    if (worker.joinable()) worker.join();
+  }
+  const PatternBank& frame_bank(std::uint8_t set) noexcept;
+  bool maintain_appearance();
+
+  Impl(const config::TrackerConfig& c, const EngineSizes& s, int field_width, int field_height)
+      : cfg(c),
+        sizes(s),
+        angles{static_cast<int>(std::lround(360.0 / c.angle_step_deg)), c.angle_step_deg},
+        fine_mask(s.pattern_px, c.circular_mask, 8, mask_inset_px(c)),
+        half_mask(s.pattern_px / 2, c.circular_mask, 8, mask_inset_px(c) / 2),
+        coarse_mask(s.coarse_pattern_px, c.circular_mask),
+        half(s.half_fft_px, s.half_fft_px, half_mask),
+        coarse(good_fft_size(s.coarse_max_w), good_fft_size(s.coarse_max_h), coarse_mask),
+        scorer(fine_mask, s.roi_fft_px),
+        loader(c.prefilter_passes, s.roi_fft_px, scorer, half),
+        rescaler(s.roi_fft_px),
+        scale_probe(scorer),
+        maps(static_cast<std::size_t>(s.half_fft_px) * s.half_fft_px),
+        fit(c.subpixel == "gaussian", c.fit_noise_correction),
+        walk(scorer, fit, angles),
+        sweep(half, walk, angles, maps),
+        search(cfg, sizes, angles, coarse, half, loader, walk, sweep, maps),
+        refinement(scorer),
+        loss(cfg),
+        motion(c.predict_velocity),
+        filter(c.filter) {
+    field.field_w = field_width;
+    field.field_h = field_height;
+  }
+
+  // Noise floors per pattern set (LossPolicy): measured at setup by calibrate_noise_floors().
+  struct NoiseFloor {
+    float roi = -1.0f;    // tracking ROI path (walk + recovery sweep)
+    float field = -1.0f;  // full-field start search
+  };
+  static constexpr int kNullTrials = 8;
+  static constexpr double kNullSigmas = 5.0;  // Gumbel tail: ~1e-3 per frame above mean + 5 sd
+  static constexpr int kNullFieldMax = 2048;  // the floor grows only as sqrt(ln area)
+  std::vector<NoiseFloor> noise_floors;
+  double prefilter_noise_gain = 1.0;  // Σk² of the 2-D prefilter kernel (white-noise variance kept)
+
+  void use_noise_floors_of(std::uint8_t set) noexcept {
+    if (set < noise_floors.size())
+      loss.set_noise_floors(std::min(1.0f, noise_floors[set].roi * floor_scale_now),
+                            std::min(1.0f, noise_floors[set].field * floor_scale_now));
+  }
+  double attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept;
+  void calibrate_noise_floors(const config::ScanLimits& limits);
+  void forget_everything() noexcept;
+
+  PoseEstimate update(const PoseFrame& frame) noexcept;
+  Measurement track(const PatternBank& bank) noexcept;
+  void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
+  void go_lost() noexcept;
+  void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;
+};
+
+}  // namespace sempose::pose
