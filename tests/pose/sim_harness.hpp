@@ -44,7 +44,8 @@ struct Scenario {
   bool background = true;  // false: a flat background (no static clutter under the pattern)
   bool shape_mask = false;  // give the tracker the target's shape mask with its pattern (opt-in, see README)
   // Effects (issue 13's hard cases), all off by default:
-  double scale_to = 1.0;          // the target's scale ramps from 1 to this over the run
+  double scale_from = 1.0;        // the target's scale ramps from this ...
+  double scale_to = 1.0;          // ... to this over the run (equal: a constant scale)
   bool charging_defocus = false;  // gain 1 → 0.65 (±10 % wobble), offset 0 → +0.08, defocus 0 → 1.5 px, detector τ 120 ns
   bool jaws = false;              // target "gripper": each jaw opens and closes 8 px (period 0.4 s)
   // Approximate frame period (192² ROI at 250 ns + flyback + modelled compute), for ramps over the run.
@@ -135,8 +136,8 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     tr.period_s = 0.5;
     tr.amplitude_phi_deg = 90;
   }
-  if (s.scale_to != 1.0) {
-    t.scale.from = 1.0;
+  if (s.scale_to != 1.0 || s.scale_from != 1.0) {
+    t.scale.from = s.scale_from;
     t.scale.to = s.scale_to;
     t.scale.ramp_s = s.run_s();
   }
@@ -220,6 +221,7 @@ class SimHarness {
       config::SimConfig pat_cfg = sim_cfg_;
       pat_cfg.targets[0].x_px = s.field_w / 2.0;
       pat_cfg.targets[0].y_px = s.field_h / 2.0;
+      pat_cfg.targets[0].scale = config::TimeProfile::constant(1.0);  // recorded at the pattern's own size
       pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, 10, s.dwell_ns, 777);
       if (s.shape_mask)
         sets[0].mask = pipeline::to_pattern_image(hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px));

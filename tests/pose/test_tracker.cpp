@@ -193,6 +193,45 @@ TEST(Tracker, ReacquireAndPatternSetSelection) {
   EXPECT_GT(t.memory_bytes(), 0u);
 }
 
+TEST(Tracker, SelectsExpectedScaleFromMicroscopeNmPerPx) {
+  // The target is 1.2× its pattern's size from the first frame (the microscope zoomed in from
+  // the pattern's 40 nm/px to 33.3 nm/px). Told so by SELECT's nm/px, the tracker's first
+  // tracked poses are already at scale 1.2; without it, scale starts at 1 and is learnt.
+  auto first_tracked = [](bool told) {
+    Scenario s;
+    s.target = "needle_tip";
+    s.motion = "static";
+    s.scale_from = s.scale_to = 1.2;
+    s.dose_e = 20;
+    s.frames = 6;
+    SimHarness h(s, small_config());
+    EXPECT_TRUE(h.status().ok) << h.status().message;
+    if (told) {
+      EXPECT_TRUE(h.tracker()->select_pattern_set(0, 40.0 / 1.2));
+    }
+    h.run();
+    for (const auto& e : h.poses()) {
+      if (e.state == TrackState::kTracking && !e.searched) return e;
+    }
+    return PoseEstimate{};
+  };
+  const PoseEstimate told = first_tracked(true), untold = first_tracked(false);
+  EXPECT_EQ(told.state, TrackState::kTracking);
+  EXPECT_NEAR(told.scale, 1.2, 0.04) << "SELECT's nm/px sets the scale tracking starts at";
+  EXPECT_LT(untold.scale, 1.1) << "without it scale starts at 1 (the test would not tell them apart)";
+  // The same set at the same scale again is not a new look: no new search.
+  Scenario s;
+  s.motion = "static";
+  s.frames = 2;
+  SimHarness h(s, small_config());
+  h.run();
+  Tracker& t = *h.tracker();
+  EXPECT_TRUE(t.select_pattern_set(0, 40.0));
+  EXPECT_NE(t.next_roi().w, 640) << "same set, same scale: keeps tracking";
+  EXPECT_TRUE(t.select_pattern_set(0, 20.0));
+  EXPECT_EQ(t.next_roi().w, 640) << "same set at twice the magnification: searched again";
+}
+
 TEST(Tracker, NoHeapAllocationOverThousandFrames) {
   Scenario s;
   s.motion = "jump";  // searches, losses and tracking all happen

@@ -36,8 +36,9 @@ bool Pipeline::apply_command(const Command& c) noexcept {
     case CommandKind::kSelectPatternSet:
       // A non-zero scale from the controller overrides the configured nm/px of the set
       // (e.g. a magnification step calibrated on the microscope); 0 keeps the configured one.
+      // The tracker takes it as the target's expected size (set's nm/px over this one).
       for_targets([&](std::uint8_t t) {
-        if (trackers_[t]->select_pattern_set(c.arg)) nm_per_px_override_[t] = c.nm_per_px > 0 ? c.nm_per_px : 0;
+        if (trackers_[t]->select_pattern_set(c.arg, c.nm_per_px)) nm_per_px_override_[t] = c.nm_per_px > 0 ? c.nm_per_px : 0;
       });
       break;
     case CommandKind::kStart:

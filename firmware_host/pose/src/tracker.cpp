@@ -68,7 +68,7 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
 void Tracker::Impl::forget_everything() noexcept {
   go_lost();
   loss.forget_target();
-  scale = 1.0;
+  scale = expected_scale.load(std::memory_order_relaxed);
   motion = MotionModel(cfg.predict_velocity);  // also the last angle a search's tie-break uses
 }
 
@@ -153,7 +153,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // Commanded, or a new magnification: the target's look may have changed; the new
     // pattern set has its own noise floors and is matched at its own size first.
     loss.forget_target();
-    scale = 1.0;
+    scale = expected_scale.load(std::memory_order_relaxed);
     use_noise_floors_of(set);
     if (!full_field) {
       e.state = TrackState::kAcquiring;
@@ -272,11 +272,16 @@ Roi Tracker::next_roi() const noexcept {
 
 PoseEstimate Tracker::update(const PoseFrame& frame) noexcept { return impl_->update(frame); }
 
-bool Tracker::select_pattern_set(std::uint8_t set) noexcept {
-  if (set >= impl_->banks.size()) return false;
-  if (impl_->active.exchange(set, std::memory_order_relaxed) != set) {
+bool Tracker::select_pattern_set(std::uint8_t set, double nm_per_px) noexcept {
+  Impl& t = *impl_;
+  if (set >= t.banks.size()) return false;
+  const double expected = nm_per_px > 0 && std::isfinite(nm_per_px) && t.nm_per_px[set] > 0
+                              ? std::clamp(t.nm_per_px[set] / nm_per_px, Impl::kScaleMin, Impl::kScaleMax)
+                              : 1.0;
+  const bool new_size = std::fabs(t.expected_scale.exchange(expected, std::memory_order_relaxed) - expected) > 1e-3;
+  if (t.active.exchange(set, std::memory_order_relaxed) != set || new_size) {
     // A new magnification changes the target's size on screen: find it again.
-    impl_->reacquire.store(true, std::memory_order_relaxed);
+    t.reacquire.store(true, std::memory_order_relaxed);
   }
   return true;
 }

@@ -67,8 +67,12 @@ struct Tracker::Impl {
   bool tracking = false;
   // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
   // Learnt from the accepted frames' scale readings, kept across a loss (the magnification
-  // has not changed), back to 1 when the target is forgotten (new pattern set, REACQUIRE).
+  // has not changed), back to the expected scale when the target is forgotten (new pattern
+  // set, REACQUIRE).
   double scale = 1.0;
+  // What scale starts at after a search: 1, or the set's nm/px over a SELECT's (written by
+  // select_pattern_set, possibly from another thread than update()).
+  std::atomic<double> expected_scale{1.0};
   static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
   static constexpr double kScaleMin = 0.7, kScaleMax = 1.45;  // beyond: the ROI cannot hold the target
   // Closer to 1 than this: the raw ROI is loaded as scanned. Resampling costs ~40 µs, and at

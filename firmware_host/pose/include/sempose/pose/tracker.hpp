@@ -65,8 +65,12 @@ class Tracker {
   Roi next_roi() const noexcept;
   // One finished frame for this target (frame.roi says where it was scanned).
   PoseEstimate update(const PoseFrame& frame) noexcept;
-  // Switches the magnification step; out of range: ignored, returns false.
-  bool select_pattern_set(std::uint8_t set) noexcept;
+  // Switches the magnification step; out of range: ignored, returns false. nm_per_px > 0 is
+  // the microscope's scale now (a SELECT command's): the target is expected at the set's
+  // recorded nm/px over it times the pattern's size, and tracking after the new search starts
+  // at that scale (clamped to the tracked range) instead of 1. A new set or a new expected
+  // scale means the target looks different: it is searched again.
+  bool select_pattern_set(std::uint8_t set, double nm_per_px = 0) noexcept;
   std::size_t pattern_set_count() const noexcept;
   // The noise floors measured at setup (the best score pure noise reaches, mean + 5 sd over
   // 8 noise frames) for the tracking ROI and the full-field search: never TRACKING at or
