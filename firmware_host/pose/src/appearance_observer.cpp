@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "sempose/pose/prefilter.hpp"
+#include "sempose/pose/window_noise.hpp"
 
 namespace sempose::pose {
 
@@ -49,29 +50,10 @@ AppearanceObserver::AppearanceObserver(int n, const std::uint8_t* inside, int fr
 
 void AppearanceObserver::add_reference(std::vector<float> prefiltered) { refs_.push_back(std::move(prefiltered)); }
 
-// Immerkær's estimator (as the tracker's attainable score uses it): the Laplacian difference
-// kernel cancels linear structure, σ = √(π/2)·Σ|I∗L| / (6(W−2)(H−2)).
+// One row in kRowPhases of the window, the phase advancing per frame (window_noise.hpp).
 double AppearanceObserver::window_noise_var(const std::uint16_t* raw, std::ptrdiff_t stride, int x0, int y0, int p,
                                             int phase) const noexcept {
-  // Integer Laplacian per row (8/16-bit input: |L| ≤ 16·65535 fits int32), summed in int64.
-  std::int64_t abs_lap = 0;
-  int rows = 0;
-  for (int y = 1 + phase; y + 1 < p; y += kRowPhases) {
-    ++rows;
-    const std::uint16_t* r0 = raw + static_cast<std::ptrdiff_t>(y0 + y - 1) * stride + x0;
-    const std::uint16_t* r1 = r0 + stride;
-    const std::uint16_t* r2 = r1 + stride;
-    std::int32_t row_sum = 0;
-    for (int x = 1; x + 1 < p; ++x) {
-      const std::int32_t l = (r0[x - 1] - 2 * r0[x] + r0[x + 1]) - 2 * (r1[x - 1] - 2 * r1[x] + r1[x + 1]) +
-                             (r2[x - 1] - 2 * r2[x] + r2[x + 1]);
-      row_sum += l < 0 ? -l : l;
-    }
-    abs_lap += row_sum;
-  }
-  if (rows == 0) return 0.0;
-  const double sigma = std::sqrt(M_PI / 2.0) * static_cast<double>(abs_lap) / (6.0 * rows * (p - 2));
-  return sigma * sigma;
+  return pose::window_noise_var(raw, stride, x0, y0, p, 1 + phase, kRowPhases);
 }
 
 bool AppearanceObserver::observe(std::uint8_t set, const float* roi, int w, int h, const std::uint16_t* raw,

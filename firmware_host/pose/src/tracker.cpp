@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "sempose/pose/window_noise.hpp"
 #include "tracker_impl.hpp"
 
 namespace sempose::pose {
@@ -29,15 +30,14 @@ float normalised_chi2(double score, double attainable) noexcept {
 // The ZNCC the target itself would reach in the window at (cx, cy) of a frame: √(S/(S+N)),
 // S the window's signal variance, N the noise variance the prefilter leaves. A true match
 // explains S; textured background that merely resembles the pattern explains a small part of
-// it. N comes from the raw window by Immerkær's estimator (Laplacian-difference kernel, blind
-// to linear structure: σ = √(π/2)·Σ|I∗L| / (6(W−2)(H−2))), scaled by the prefilter's noise
-// gain; S = window variance − noise. RT, no allocation (one pass over the P×P window).
+// it. N comes from the raw window by Immerkær's estimator (window_noise.hpp), scaled by the
+// prefilter's noise gain; S = window variance − noise. RT, no allocation (one pass over the P×P window).
 double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept {
   const int p = sizes.pattern_px;
   if (w < p || h < p || p < 3) return 0.0;
   const int x0 = std::clamp(static_cast<int>(std::lround(cx - (p - 1) / 2.0)), 0, w - p);
   const int y0 = std::clamp(static_cast<int>(std::lround(cy - (p - 1) / 2.0)), 0, h - p);
-  double sum = 0, sum2 = 0, abs_lap = 0;
+  double sum = 0, sum2 = 0;
   for (int y = 0; y < p; ++y) {
     const std::uint16_t* row = px + static_cast<std::size_t>(y0 + y) * w + x0;
     for (int x = 0; x < p; ++x) {
@@ -46,20 +46,9 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
       sum2 += v * v;
     }
   }
-  for (int y = 1; y + 1 < p; ++y) {
-    const std::uint16_t* r0 = px + static_cast<std::size_t>(y0 + y - 1) * w + x0;
-    const std::uint16_t* r1 = r0 + w;
-    const std::uint16_t* r2 = r1 + w;
-    for (int x = 1; x + 1 < p; ++x) {
-      const double l = (double(r0[x - 1]) - 2.0 * r0[x] + r0[x + 1]) - 2.0 * (double(r1[x - 1]) - 2.0 * r1[x] + r1[x + 1]) +
-                       (double(r2[x - 1]) - 2.0 * r2[x] + r2[x + 1]);
-      abs_lap += std::fabs(l);
-    }
-  }
   const double n = static_cast<double>(p) * p;
   const double var = std::max(0.0, sum2 / n - (sum / n) * (sum / n));
-  const double sigma = std::sqrt(M_PI / 2.0) * abs_lap / (6.0 * (p - 2) * (p - 2));
-  const double noise = std::min(var, sigma * sigma);
+  const double noise = std::min(var, window_noise_var(px, w, x0, y0, p));
   const double signal = var - noise;
   const double left = signal + prefilter_noise_gain * noise;
   return left > 0 ? std::sqrt(signal / left) : 0.0;
