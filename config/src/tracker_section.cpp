@@ -55,6 +55,11 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("predict_velocity", c.predict_velocity);
   s.opt_choice("subpixel", c.subpixel, {"gaussian", "quadratic"});
   s.opt("fit_noise_correction", c.fit_noise_correction);
+  s.opt("sigma_tile_px", c.sigma_tile_px, 1, 64);
+  s.opt("sigma_calibration", c.sigma_calibration, 0.0, 100.0);
+  s.opt("sigma_noise_factor", c.sigma_noise_factor, 0.0, 100.0);
+  s.opt("sigma_floor_px", c.sigma_floor_px, 0.0, 10.0);
+  s.opt("sigma_floor_deg", c.sigma_floor_deg, 0.0, 10.0);
   if (const SettingProblem problem = check_tracker_sizes(c, c.pattern_size_px)) s.error(problem.key.c_str(), problem.message);
 }
 

@@ -45,6 +45,18 @@ POSE_FD = [
     ("frame_seq", 256, 32, False, 1, 0, 0, 4294967295, "", "Scan-source frame counter (low 32 bits)"),
     ("scale", 288, 32, False, 0.001, 0, 0, 4294967.295, "nm/px", "nm per pixel of the active pattern set"),
     ("target_scale", 320, 16, False, 0.0001, 0, 0, 6.5535, "", "The target's size on screen over its pattern's (tracked scale)"),
+    ("sigma_x", 336, 32, False, 0.001, 0, 0, 4294967.295, "nm", "1 sigma of x, calibrated (0 = not measured)"),
+    ("sigma_y", 368, 32, False, 0.001, 0, 0, 4294967.295, "nm", "1 sigma of y, calibrated (0 = not measured)"),
+    ("sigma_phi", 400, 32, False, 0.000001, 0, 0, 4294.967295, "deg", "1 sigma of phi, calibrated (0 = not measured)"),
+    ("sigma_scale", 432, 32, False, 0.000001, 0, 0, 4294.967295, "", "1 sigma of target_scale (0 = not measured)"),
+]
+POSE_UNC = [
+    ("sigma_x", 0, 12, False, 0.1, 0, 0, 409.5, "nm", "1 sigma of x, calibrated (0 = not measured, saturating)"),
+    ("sigma_y", 12, 12, False, 0.1, 0, 0, 409.5, "nm", "1 sigma of y, calibrated (0 = not measured, saturating)"),
+    ("sigma_phi", 24, 11, False, 0.001, 0, 0, 2.047, "deg", "1 sigma of phi, calibrated (0 = not measured, saturating)"),
+    ("target_scale", 35, 14, False, 0.0001, 0.5, 0.5, 2.1383, "", "The target's size on screen over its pattern's (saturating)"),
+    ("sigma_scale", 49, 7, False, 0.0005, 0, 0, 0.0635, "", "1 sigma of target_scale (0 = not measured, saturating)"),
+    ("seq", 56, 8, False, 1, 0, 0, 255, "", "Pose sequence counter (low 8 bits), same in POSE_XY"),
 ]
 HEARTBEAT = [
     ("state", 0, 2, False, 1, 0, 0, 2, "", "0 TRACKING, 1 ACQUIRING, 2 LOST (worst over targets)"),
@@ -91,7 +103,8 @@ def main():
         b = a.base + BLOCK * t
         msgs.append((b + 0, "POSE_XY_T%d" % t, 8, "SEMPOSE", POSE_XY, "Pose of target %d: position" % t, False, 0))
         msgs.append((b + 1, "POSE_ATTR_T%d" % t, 8, "SEMPOSE", POSE_ATTR, "Pose of target %d: orientation, score, state, age" % t, False, 0))
-        msgs.append((b + 2, "POSE_FD_T%d" % t, 64, "SEMPOSE", POSE_FD, "Pose of target %d as one CAN FD frame (instead of XY+ATTR)" % t, True, 0))
+        msgs.append((b + 2, "POSE_FD_T%d" % t, 64, "SEMPOSE", POSE_FD, "Pose of target %d as one CAN FD frame (instead of XY+ATTR+UNC)" % t, True, 0))
+        msgs.append((b + 3, "POSE_UNC_T%d" % t, 8, "SEMPOSE", POSE_UNC, "Pose of target %d: 1 sigma of x, y, phi, scale; the target's scale" % t, False, 0))
     msgs.append((a.base + 0x40, "HEARTBEAT", 8, "SEMPOSE", HEARTBEAT, "Status at can.heartbeat_hz", False, 100))
     msgs.append((cmd_id, "COMMAND", 8, "CONTROLLER", COMMAND, "Command from the controller; invalid ones are counted and ignored", False, 0))
     out = []

@@ -2,7 +2,8 @@
 """Issue 6's end-to-end check without a bus: run `sempose run --can-log FILE` on the
 simulated SEM (virtual time), read the candump log with python-can's CanutilsLogReader,
 decode every frame with ipc/sempose.dbc, and compare with the pipeline's own poses.csv:
-every pose on the "bus", values equal, sequence counters without gaps, heartbeats present.
+every pose on the "bus", values equal (σ and scale in POSE_UNC too), sequence counters without
+gaps, heartbeats present, σ measured on the tracked poses.
 
 usage: check_can_log.py SEMPOSE CONFIG_TEMPLATE OUT_DIR
 """
@@ -51,10 +52,26 @@ def main(sempose, template, out):
     for target in (0, 1):
         mine = [r for r in rows if int(r["target"]) == target]
         xy, attr = frames.get(f"POSE_XY_T{target}", []), frames.get(f"POSE_ATTR_T{target}", [])
-        if not mine or len(mine) != len(xy) or len(xy) != len(attr):
-            problems.append(f"target {target}: {len(mine)} CSV rows, {len(xy)} XY, {len(attr)} ATTR frames")
+        unc = frames.get(f"POSE_UNC_T{target}", [])
+        if not mine or len(mine) != len(xy) or len(xy) != len(attr) or len(xy) != len(unc):
+            problems.append(f"target {target}: {len(mine)} CSV rows, {len(xy)} XY, {len(attr)} ATTR, {len(unc)} UNC frames")
             continue
-        for k, (row, sxy, sat) in enumerate(zip(mine, xy, attr)):
+        with_sigma = 0
+        for k, (row, sxy, sat, su) in enumerate(zip(mine, xy, attr, unc)):
+            # σ in nm at the pattern set's scale (0.1 nm steps), σφ in mdeg, the target's scale
+            for axis in ("x", "y"):
+                want = min(409.5, float(row[f"sigma_{axis}_px"]) * SIM_NM_PER_PX)
+                if abs(su[f"sigma_{axis}"] - want) > 0.051:
+                    problems.append(f"T{target} pose {k}: sigma_{axis} {su[f'sigma_{axis}']:g} nm vs {row[f'sigma_{axis}_px']} px")
+            if abs(su["sigma_phi"] - min(2.047, float(row["sigma_phi_deg"]))) > 0.0006:
+                problems.append(f"T{target} pose {k}: sigma_phi {su['sigma_phi']:g} vs {row['sigma_phi_deg']}")
+            if abs(su["sigma_scale"] - min(0.0635, float(row["sigma_scale"]))) > 0.00026:
+                problems.append(f"T{target} pose {k}: sigma_scale {su['sigma_scale']:g} vs {row['sigma_scale']}")
+            if abs(su["target_scale"] - float(row["scale"])) > 0.00011:
+                problems.append(f"T{target} pose {k}: scale {su['target_scale']:g} vs {row['scale']}")
+            if su["seq"] != k % 256:
+                problems.append(f"T{target} pose {k}: UNC seq {su['seq']:g}, want {k % 256}")
+            with_sigma += row["status"] == "TRACKING" and float(row["sigma_x_px"]) > 0 and float(row["sigma_phi_deg"]) > 0
             # x, y: nm at the pattern set's scale
             x_nm, y_nm = float(row["x_px"]) * SIM_NM_PER_PX, float(row["y_px"]) * SIM_NM_PER_PX
             if abs(sxy["x"] - round(x_nm)) > 1 or abs(sxy["y"] - round(y_nm)) > 1:
@@ -65,8 +82,13 @@ def main(sempose, template, out):
                 problems.append(f"T{target} pose {k}: state {sat['state']:g} vs {row['status']}")
             if sxy["seq"] != sat["seq"] or sxy["seq"] != k % 256:
                 problems.append(f"T{target} pose {k}: seq XY {sxy['seq']:g} ATTR {sat['seq']:g}, want {k % 256}")
-        tracked = sum(r["status"] == "TRACKING" for r in mine) / len(mine)
-        print(f"target {target}: {len(mine)} poses on the bus = CSV, seq without gaps, tracked {tracked:.1%}")
+        n_tracked = sum(r["status"] == "TRACKING" for r in mine)
+        tracked = n_tracked / len(mine)
+        print(f"target {target}: {len(mine)} poses on the bus = CSV, seq without gaps, tracked {tracked:.1%}, "
+              f"sigma on {with_sigma} of {n_tracked} tracked poses")
+        # Every tracked pose but a start search's has its σ (the first pose, and one after a loss).
+        if with_sigma < 0.9 * n_tracked:
+            problems.append(f"target {target}: sigma on only {with_sigma} of {n_tracked} tracked poses")
         if tracked < 0.9:
             problems.append(f"target {target}: tracked only {tracked:.1%}")
     return problems

@@ -28,6 +28,11 @@ pl::PoseRecord pose(std::uint8_t target, std::uint32_t seq) {
   p.nm_per_px = 40.0;
   p.t_scan_end_ns = 1'000'000;
   p.dwell_ns = 250;
+  p.target_scale = 1.0625;
+  p.sigma_x_px = 0.125;
+  p.sigma_y_px = 0.25;
+  p.sigma_phi_deg = 0.2;
+  p.sigma_scale = 0.004;
   return p;
 }
 
@@ -40,11 +45,22 @@ hal::CanFrame command(std::uint32_t id, std::initializer_list<std::uint8_t> byte
 
 }  // namespace
 
-TEST(CanPoseSink, ClassicPoseIsTwoFramesWithTheSameSequence) {
+TEST(CanPoseSink, ClassicPoseIsThreeFramesWithTheSameSequence) {
   hal::MemoryCanChannel ch;
   co::CanPoseSink sink(ch, {});
   ASSERT_EQ(sink.publish(pose(1, 300), 3'500'000), pl::PublishResult::kSent);
-  ASSERT_EQ(ch.sent_count(), 2u);
+  ASSERT_EQ(ch.sent_count(), 3u);
+  // The uncertainty frame: σ in 0.1 nm at the set's nm/px, σφ in mdeg, the target's scale.
+  const auto& un = ch.sent(2);
+  EXPECT_EQ(un.id, 0x113u);
+  ipc::PoseUnc du;
+  ASSERT_TRUE(ipc::decode_pose_unc(un.data, un.len, du));
+  EXPECT_EQ(du.sigma_x_dnm, 50);   // 0.125 px * 40 nm/px = 5.0 nm
+  EXPECT_EQ(du.sigma_y_dnm, 100);
+  EXPECT_EQ(du.sigma_phi_mdeg, 200);
+  EXPECT_EQ(du.target_scale_e4, 5625);  // (1.0625 - 0.5) * 10 000
+  EXPECT_EQ(du.sigma_scale, 8);         // 0.004 / 0.0005
+  EXPECT_EQ(du.seq, 300 % 256);
   const auto& xy = ch.sent(0);
   const auto& at = ch.sent(1);
   EXPECT_EQ(xy.id, 0x110u);

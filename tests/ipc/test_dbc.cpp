@@ -116,10 +116,12 @@ class DbcTest : public ::testing::Test {
 }  // namespace
 
 TEST_F(DbcTest, DescribesEveryFrameWithItsIdAndLength) {
-  ASSERT_EQ(dbc_.size(), 4u * 3u + 2u);
+  ASSERT_EQ(dbc_.size(), 4u * 4u + 2u);
   for (int t = 0; t < ipc::kMaxTargets; ++t) {
     EXPECT_EQ(msg(ids_.pose_xy(t)).dlc, 8);
     EXPECT_EQ(msg(ids_.pose_attr(t)).dlc, 8);
+    EXPECT_EQ(msg(ids_.pose_unc(t)).dlc, 8);
+    EXPECT_EQ(msg(ids_.pose_unc(t)).name, "POSE_UNC_T" + std::to_string(t));
     EXPECT_EQ(msg(ids_.pose_fd(t)).dlc, 64);
     EXPECT_EQ(msg(ids_.pose_xy(t)).name, "POSE_XY_T" + std::to_string(t));
   }
@@ -172,6 +174,48 @@ TEST_F(DbcTest, ClassicPoseFramesDecodeToTheEncodedValues) {
   }
 }
 
+// The uncertainty frame as the DBC reads it, at the wire's resolution, saturating inside its ranges.
+TEST_F(DbcTest, UncertaintyFrameDecodesToTheEncodedValues) {
+  std::mt19937 rng(99);
+  std::uniform_real_distribution<double> sxy(0, 400), sphi(0, 2.0), scale(0.6, 2.1), sscale(0, 0.06);
+  for (int i = 0; i < 300; ++i) {
+    ipc::PoseValues p;
+    p.sigma_x_nm = sxy(rng);
+    p.sigma_y_nm = sxy(rng);
+    p.sigma_phi_deg = sphi(rng);
+    p.target_scale = scale(rng);
+    p.sigma_scale = sscale(rng);
+    p.seq = static_cast<std::uint32_t>(i * 5);
+    std::uint8_t d[8];
+    ipc::encode_pose_unc(p, d);
+    const auto id = ids_.pose_unc(i % ipc::kMaxTargets);
+    EXPECT_NEAR(sig(id, "sigma_x", d), p.sigma_x_nm, 0.05 + 1e-9);
+    EXPECT_NEAR(sig(id, "sigma_y", d), p.sigma_y_nm, 0.05 + 1e-9);
+    EXPECT_NEAR(sig(id, "sigma_phi", d), p.sigma_phi_deg, 0.0005 + 1e-9);
+    EXPECT_NEAR(sig(id, "target_scale", d), p.target_scale, 0.00005 + 1e-9);
+    EXPECT_NEAR(sig(id, "sigma_scale", d), p.sigma_scale, 0.00025 + 1e-9);
+    EXPECT_EQ(sig(id, "seq", d), p.seq % 256);
+  }
+  ipc::PoseValues big;
+  big.sigma_x_nm = 1e6;
+  big.sigma_y_nm = -5;
+  big.sigma_phi_deg = 45;
+  big.target_scale = 9;
+  big.sigma_scale = 1;
+  std::uint8_t d[8];
+  ipc::encode_pose_unc(big, d);
+  const auto& m = msg(ids_.pose_unc(0));
+  for (const auto& name : m.order) {
+    const auto& sg = m.signals.at(name);
+    const double v = dbc_decode(sg, d);
+    EXPECT_GE(v, sg.min - 1e-9) << name;
+    EXPECT_LE(v, sg.max + 1e-9) << name;
+  }
+  EXPECT_NEAR(sig(ids_.pose_unc(0), "sigma_x", d), 409.5, 1e-9);
+  EXPECT_EQ(sig(ids_.pose_unc(0), "sigma_y", d), 0);
+  EXPECT_NEAR(sig(ids_.pose_unc(0), "target_scale", d), 2.1383, 1e-9);
+}
+
 TEST_F(DbcTest, SaturatedValuesStayInsideTheDbcRanges) {
   ipc::PoseValues p;
   p.x_nm = 1e15;
@@ -217,6 +261,10 @@ TEST_F(DbcTest, FdPoseFrameDecodesToTheEncodedValues) {
   p.frame_seq = 123456789;
   p.nm_per_px = 40.125;
   p.target_scale = 1.23456;
+  p.sigma_x_nm = 3.217;
+  p.sigma_y_nm = 4.5;
+  p.sigma_phi_deg = 0.123456;
+  p.sigma_scale = 0.001234;
   p.reason_bits = 0xA2;  // bit 7: unexplained
   std::uint8_t d[64];
   ipc::encode_pose_fd(p, d);
@@ -236,6 +284,10 @@ TEST_F(DbcTest, FdPoseFrameDecodesToTheEncodedValues) {
   EXPECT_EQ(sig(id, "frame_seq", d), 123456789);
   EXPECT_NEAR(sig(id, "scale", d), 40.125, 1e-9);
   EXPECT_NEAR(sig(id, "target_scale", d), 1.2346, 1e-9);
+  EXPECT_NEAR(sig(id, "sigma_x", d), 3.217, 1e-9);
+  EXPECT_NEAR(sig(id, "sigma_y", d), 4.5, 1e-9);
+  EXPECT_NEAR(sig(id, "sigma_phi", d), 0.123456, 1e-9);
+  EXPECT_NEAR(sig(id, "sigma_scale", d), 0.001234, 1e-9);
 }
 
 TEST_F(DbcTest, HeartbeatAndCommandDecodeByTheDbc) {

@@ -73,6 +73,10 @@ TEST(PoseFrames, FdRoundTrip) {
   p.state = ipc::WireState::kLost;
   p.reason_bits = 0xC1;  // bit 7 (unexplained) too
   p.target_scale = 0.87654;
+  p.sigma_x_nm = 3.217;
+  p.sigma_y_nm = 12.5;
+  p.sigma_phi_deg = 0.123456;
+  p.sigma_scale = 0.001234;
   std::uint8_t d[64];
   ipc::encode_pose_fd(p, d);
   ipc::PoseFd f;
@@ -92,7 +96,44 @@ TEST(PoseFrames, FdRoundTrip) {
   EXPECT_EQ(f.frame_seq, 0x42u);
   EXPECT_EQ(f.scale_pm_per_px, 39500u);
   EXPECT_EQ(f.target_scale_e4, 8765u);
-  for (int i = 42; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
+  EXPECT_EQ(f.sigma_x_pm, 3217u);
+  EXPECT_EQ(f.sigma_y_pm, 12500u);
+  EXPECT_EQ(f.sigma_phi_udeg, 123456u);
+  EXPECT_EQ(f.sigma_scale_e6, 1234u);
+  for (int i = 58; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
+}
+
+TEST(PoseFrames, UncertaintyRoundTripAndSaturation) {
+  auto p = sample_pose();
+  p.target_scale = 1.2345;
+  p.sigma_x_nm = 4.26;
+  p.sigma_y_nm = 0.04;  // below the 0.1 nm step: 0 on the wire ("not measured" or tiny)
+  p.sigma_phi_deg = 0.3456;
+  p.sigma_scale = 0.0123;
+  std::uint8_t d[8];
+  ipc::encode_pose_unc(p, d);
+  ipc::PoseUnc u;
+  ASSERT_TRUE(ipc::decode_pose_unc(d, 8, u));
+  EXPECT_EQ(u.sigma_x_dnm, 43);
+  EXPECT_EQ(u.sigma_y_dnm, 0);
+  EXPECT_EQ(u.sigma_phi_mdeg, 346);
+  EXPECT_EQ(u.target_scale_e4, 7345);
+  EXPECT_EQ(u.sigma_scale, 25);  // 0.0123 / 0.0005 = 24.6
+  EXPECT_EQ(u.seq, 0x34);        // the same counter as POSE_XY and POSE_ATTR
+  EXPECT_FALSE(ipc::decode_pose_unc(d, 7, u)) << "wrong DLC must be refused";
+  // Saturation at the field's ends; NaN and negative σ are 0.
+  p.sigma_x_nm = 1e9;
+  p.sigma_y_nm = -3;
+  p.sigma_phi_deg = std::nan("");
+  p.target_scale = 0.1;
+  p.sigma_scale = 5;
+  ipc::encode_pose_unc(p, d);
+  ASSERT_TRUE(ipc::decode_pose_unc(d, 8, u));
+  EXPECT_EQ(u.sigma_x_dnm, 4095);
+  EXPECT_EQ(u.sigma_y_dnm, 0);
+  EXPECT_EQ(u.sigma_phi_mdeg, 0);
+  EXPECT_EQ(u.target_scale_e4, 0);
+  EXPECT_EQ(u.sigma_scale, 127);
 }
 
 TEST(PoseFrames, SaturatesOutOfRangeValues) {
@@ -267,7 +308,9 @@ TEST(IdMap, BlocksAndCollisions) {
   EXPECT_EQ(ids.classify(0x121).kind, ipc::MessageKind::kPoseAttr);
   EXPECT_EQ(ids.classify(0x121).target, 2);
   EXPECT_EQ(ids.classify(0x150).kind, ipc::MessageKind::kCommand);
-  EXPECT_EQ(ids.classify(0x103).kind, ipc::MessageKind::kUnknown);
+  EXPECT_EQ(ids.classify(0x103).kind, ipc::MessageKind::kPoseUnc);
+  EXPECT_EQ(ids.pose_unc(2), 0x123u);
+  EXPECT_EQ(ids.classify(0x104).kind, ipc::MessageKind::kUnknown);
   EXPECT_FALSE((ipc::IdMap{0x100, 0x111}.valid())) << "command id on a pose id";
   EXPECT_FALSE((ipc::IdMap{0x100, 0x140}.valid())) << "command id on the heartbeat";
   EXPECT_FALSE(ipc::IdMap::with_base(0x7F0).valid()) << "heartbeat above 0x7FF";

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "crlb.hpp"
+#include "sigma_calibration.hpp"
 #include "sim_harness.hpp"
 #include "visp_peer.hpp"
 #include "warp_scene.hpp"
@@ -266,7 +267,12 @@ int main(int argc, char** argv) {
   // pose_false_tracking_rule; the figures run in ci/test only prints the count).
   // --visp-levels N: ViSP's pyramid levels (3 by default, as the issue specifies).
   // --appearance on|off: learned appearance (tracker.appearance.enabled) regardless of its default.
+  // --sigma-tile N, --sigma-calibration K, --sigma-floor PX DEG, --sigma-noise-factor F: the σ
+  // stage's tile side, sandwich factor, model-error floor and white-noise factor (to try them; the defaults are tracker.sigma_*).
+  config::TrackerConfig tc;
   int appearance = -1;
+  int sigma_tile = 0;         // --sigma-tile N: tracker.sigma_tile_px (0: the default)
+  double sigma_cal = -1;      // --sigma-calibration K: tracker.sigma_calibration (< 0: the default)
   bool quick = true, bias_only = false, visp = true, only = false, require_no_false = false;
   int visp_levels = 3;
   std::string only_target, only_motion;
@@ -279,17 +285,25 @@ int main(int argc, char** argv) {
     else if (a == "--require-no-false") require_no_false = true;
     else if (a == "--visp-levels" && i + 1 < argc) visp_levels = std::atoi(argv[++i]);
     else if (a == "--appearance" && i + 1 < argc) appearance = std::string(argv[++i]) == "on" ? 1 : 0;
+    else if (a == "--sigma-tile" && i + 1 < argc) sigma_tile = std::atoi(argv[++i]);
+    else if (a == "--sigma-calibration" && i + 1 < argc) sigma_cal = std::atof(argv[++i]);
+    else if (a == "--sigma-noise-factor" && i + 1 < argc) tc.sigma_noise_factor = std::atof(argv[++i]);
+    else if (a == "--sigma-floor" && i + 2 < argc) {
+      tc.sigma_floor_px = std::atof(argv[++i]);
+      tc.sigma_floor_deg = std::atof(argv[++i]);
+    }
     else if (a == "--only" && i + 1 < argc) {
       only = true;
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N] [--require-no-false] [--appearance on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N] [--require-no-false] [--appearance on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F]\n", argv[0]);
       return 2;
     }
   }
-  config::TrackerConfig tc;
   if (appearance >= 0) tc.appearance.enabled = appearance == 1;
+  if (sigma_tile > 0) tc.sigma_tile_px = sigma_tile;
+  if (sigma_cal >= 0) tc.sigma_calibration = sigma_cal;
   if (const char* dump = std::getenv("POSE_DUMP")) g_dump = std::fopen(dump, "w");
   const int frames = quick ? 60 : 150;
   const double zone_r = tc.pattern_size_px / 2.0 - (2.0 + 2.0 * tc.prefilter_passes);  // sempose's mask radius
@@ -320,6 +334,7 @@ int main(int argc, char** argv) {
   // poses at lower doses. Counted over every row; a violation fails the run (exit 3).
   int false_rows = 0, false_poses = 0, low_dose_frames = 0, low_dose_false = 0, frames_total = 0, tracked_total = 0;
   std::string false_names;
+  SigmaCalibrationTable sigma_table;
 
   struct Row {
     std::string target, motion, label;
@@ -360,8 +375,18 @@ int main(int argc, char** argv) {
     }
     h.run();
     std::vector<Sample> sem;
+    ZSums z;
     for (std::size_t f = 0; f < h.poses().size(); ++f) {
       const PoseEstimate& e = h.poses()[f];
+      {
+        // σ's check: the measured pose's error over its σ, on the poses the RMS errors are over.
+        const hal::TargetTruth& tr = h.records()[f].truth;
+        const bool jump_frame = row.motion == "jump" && f > 0 &&
+                                std::hypot(tr.x_px - h.records()[f - 1].truth.x_px, tr.y_px - h.records()[f - 1].truth.y_px) > 20;
+        const double ex = e.meas_x_px - tr.x_px, ey = e.meas_y_px - tr.y_px, ephi = angle_error(e.meas_phi_deg, tr.phi_deg);
+        if (e.state == TrackState::kTracking && !e.searched && !jump_frame && std::hypot(ex, ey) <= 3.0 && std::fabs(ephi) <= 10.0)
+          z.add(ex, ey, ephi, e.scale - tr.scale, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg, e.sigma_scale);
+      }
       char tag[128];
       std::snprintf(tag, sizeof tag, "run %s %s %g f%zu", row.target.c_str(), row.label.c_str(), row.dose, f);
       dump_pose(tag, e);
@@ -369,9 +394,10 @@ int main(int argc, char** argv) {
       // and estimated scale, reason bits) to see what separates false poses from true ones.
       if (std::getenv("BENCH_TRACE")) {
         const hal::TargetTruth& tr = h.records()[f].truth;
-        std::fprintf(stderr, "T %s %s %g %zu st%d score %.4f chi2 %.3f dpos %.3f dphi %.3f scale %.3f est %.3f rb %02x\n", row.target.c_str(),
+        std::fprintf(stderr, "T %s %s %g %zu st%d score %.4f chi2 %.3f dpos %.3f dphi %.3f scale %.3f est %.3f rb %02x ex %.3f ey %.3f sx %.3f sy %.3f sphi %.3f\n", row.target.c_str(),
                      row.label.c_str(), row.dose, f, static_cast<int>(e.state), e.score, e.chi2,
-                     std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), angle_error(e.phi_deg, tr.phi_deg), tr.scale, e.scale, e.reason_bits);
+                     std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), angle_error(e.phi_deg, tr.phi_deg), tr.scale, e.scale, e.reason_bits,
+                     e.meas_x_px - tr.x_px, e.meas_y_px - tr.y_px, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg);
       }
       if (!std::isfinite(e.x_px) || !std::isfinite(e.phi_deg) || !std::isfinite(e.score)) ++bad;
       sem.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, h.records()[f].truth});
@@ -413,6 +439,11 @@ int main(int argc, char** argv) {
                 visp ? std::to_string(b.false_n).c_str() : "-", visp ? recov(b).c_str() : "-", fmt(b.rms_px()).c_str(),
                 fmt(b.rms_deg()).c_str(), fmt(bx, "%.2f").c_str(), fmt(bd, "%.2f").c_str(), fmt(visp_ms, "%.2f").c_str(),
                 fmt(bound.pos_rms_px()).c_str(), fmt(bound.phi_deg()).c_str());
+    std::printf("  z %-23s | z_x %s z_y %s z_phi %s z_scale %s over %d poses; mean sigma %s px %s deg\n", "(RMS error/sigma)",
+                fmt(z.zx(), "%.2f").c_str(), fmt(z.zy(), "%.2f").c_str(), fmt(z.zphi(), "%.2f").c_str(),
+                fmt(z.zscale(), "%.2f").c_str(), z.n, fmt(z.n ? z.sigma_px / z.n : NAN, "%.4f").c_str(),
+                fmt(z.n ? z.sigma_deg / z.n : NAN, "%.4f").c_str());
+    sigma_table.add(row.target, row.label, row.dose, z);
     std::fflush(stdout);
     ++rows;
     frames_total += a.frames;
@@ -463,6 +494,7 @@ int main(int argc, char** argv) {
     }
     std::printf("\n");
   }
+  sigma_table.print();
   const bool false_rule_broken = false_poses > 0 || (low_dose_frames && low_dose_false * 100 > low_dose_frames);
   if (false_rule_broken) std::printf("FAIL: the false-TRACKING rule is broken (rows above)\n");
 

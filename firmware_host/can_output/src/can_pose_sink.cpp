@@ -47,6 +47,12 @@ ipc::PoseValues CanPoseSink::to_values(const pipeline::PoseRecord& p, std::int64
   v.frame_seq = p.frame_seq;
   v.nm_per_px = std::isfinite(p.nm_per_px) ? p.nm_per_px : 0;
   v.target_scale = std::isfinite(p.target_scale) ? p.target_scale : 0;
+  // σ in nm at the active step's nm/px (a σ that is not a finite number is "not measured": 0).
+  auto finite_or_0 = [](double d) { return std::isfinite(d) && d > 0 ? d : 0.0; };
+  v.sigma_x_nm = finite_or_0(p.sigma_x_px * v.nm_per_px);
+  v.sigma_y_nm = finite_or_0(p.sigma_y_px * v.nm_per_px);
+  v.sigma_phi_deg = finite_or_0(p.sigma_phi_deg);
+  v.sigma_scale = finite_or_0(p.sigma_scale);
   return v;
 }
 
@@ -73,6 +79,11 @@ pipeline::PublishResult CanPoseSink::publish(const pipeline::PoseRecord& pose, s
     if (r == hal::CanSendResult::kSent) {
       f.id = options_.ids.pose_attr(pose.target);
       ipc::encode_pose_attr(v, f.data);
+      r = channel_.send(f, t_now_ns);
+    }
+    if (r == hal::CanSendResult::kSent) {
+      f.id = options_.ids.pose_unc(pose.target);
+      ipc::encode_pose_unc(v, f.data);
       r = channel_.send(f, t_now_ns);
     }
   }

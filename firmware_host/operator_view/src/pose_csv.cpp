@@ -34,13 +34,19 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
       if (line.rfind("frame,t_ns,x_px,y_px,phi_deg,score,status", 0) != 0) {
         throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale]");
       }
-      // Columns after status: target (several targets) and scale (newer files), in that order.
-      const std::string rest = line.substr(std::string("frame,t_ns,x_px,y_px,phi_deg,score,status").size());
-      if (rest != "" && rest != ",target" && rest != ",scale" && rest != ",target,scale") {
-        throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale]");
+      // Columns after status: target (several targets), scale and the four σ (newer files), in
+      // that order; the view reads none of the later ones, it only counts them.
+      std::string rest = line.substr(std::string("frame,t_ns,x_px,y_px,phi_deg,score,status").size());
+      const std::string sigmas = ",sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale";
+      const bool with_sigma = rest.size() >= sigmas.size() && rest.compare(rest.size() - sigmas.size(), sigmas.size(), sigmas) == 0;
+      if (with_sigma) rest.resize(rest.size() - sigmas.size());
+      if ((rest != "" && rest != ",target" && rest != ",scale" && rest != ",target,scale") ||
+          (with_sigma && rest.find(",scale") == std::string::npos)) {
+        throw std::runtime_error(path + ":1: header '" + line +
+                                 "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale[" + sigmas + "]]");
       }
       with_target = rest.rfind(",target", 0) == 0;
-      columns = 7 + (with_target ? 1 : 0) + (rest.find(",scale") != std::string::npos ? 1 : 0);
+      columns = 7 + (with_target ? 1 : 0) + (rest.find(",scale") != std::string::npos ? 1 : 0) + (with_sigma ? 4 : 0);
       continue;
     }
     std::vector<std::string> cells;

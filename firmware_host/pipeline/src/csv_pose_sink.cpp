@@ -33,7 +33,7 @@ rt::Status CsvPoseSink::open() {
   if (file_ == nullptr) {
     return rt::Status::failure("output.poses_csv: cannot create '" + path_ + "': " + std::strerror(errno));
   }
-  if (std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s,scale\n", with_target_ ? ",target" : "") < 0 ||
+  if (std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale\n", with_target_ ? ",target" : "") < 0 ||
       std::fflush(file_) != 0) {
     note_error(errno, 0);
   }
@@ -60,6 +60,8 @@ void CsvPoseSink::write_pending() {
                    pose::to_string(p.state));
       if (with_target_) std::fprintf(file_, ",%u", static_cast<unsigned>(p.target));
       std::fprintf(file_, ",%.4f", p.target_scale);  // the target's size over its pattern's
+      // 1σ of the measured pose (0: not measured, e.g. a start-search frame).
+      std::fprintf(file_, ",%.5f,%.5f,%.5f,%.6f", p.sigma_x_px, p.sigma_y_px, p.sigma_phi_deg, p.sigma_scale);
       std::fputc('\n', file_);
       ++lines;
     }

@@ -93,6 +93,15 @@ void Tracker::Impl::to_estimate(const Measurement& m, int origin_x, int origin_y
   e.angle_steps = m.steps;
 }
 
+// σ in the loaded ROI's pixels, back to the scanned ones (a resampled ROI is 1/scale of them).
+void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept {
+  if (!s.valid) return;
+  e.sigma_x_px = s.x_px * used_scale;
+  e.sigma_y_px = s.y_px * used_scale;
+  e.sigma_phi_deg = s.phi_deg;
+  e.sigma_scale = s.scale * used_scale;
+}
+
 void Tracker::Impl::go_lost() noexcept {
   if (observer) observer->discard();
   filter.reset();
@@ -203,6 +212,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   Measurement m = track(bank);
   const ScaleReading reading = scale_probe.read(bank, m);
   to_estimate(m, scored.x, scored.y, e);
+  set_sigma(uncertainty.estimate(bank, m, reading.valid ? reading.factor : 1.0), used_scale, e);
   if (rescaled) {
     // The pose in the resampled ROI, back to the scanned one.
     e.x_px = scored.x + RoiRescaler::to_raw(e.x_px - scored.x, std::min(scored.w, sizes.roi_fft_px), used_scale);

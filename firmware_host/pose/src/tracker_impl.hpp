@@ -24,6 +24,7 @@
 #include "sempose/pose/pattern_bank.hpp"
 #include "sempose/pose/pose_filter.hpp"
 #include "sempose/pose/pose_refinement.hpp"
+#include "sempose/pose/pose_uncertainty.hpp"
 #include "sempose/pose/prefilter.hpp"
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/pose/roi_rescaler.hpp"
@@ -58,6 +59,7 @@ struct Tracker::Impl {
   AngleSweep sweep;
   StartSearch search;
   const PoseRefinement refinement;
+  PoseUncertainty uncertainty;
   LossPolicy loss;
   MotionModel motion;
   PoseFilter filter;
@@ -130,6 +132,8 @@ struct Tracker::Impl {
         sweep(half, walk, angles, maps),
         search(cfg, sizes, angles, coarse, half, loader, walk, sweep, maps),
         refinement(scorer),
+        uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
+                    c.sigma_noise_factor),
         loss(cfg),
         motion(c.predict_velocity),
         filter(c.filter) {
@@ -160,6 +164,7 @@ struct Tracker::Impl {
   PoseEstimate update(const PoseFrame& frame) noexcept;
   Measurement track(const PatternBank& bank) noexcept;
   void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
+  static void set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept;
   void go_lost() noexcept;
   void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;
 };

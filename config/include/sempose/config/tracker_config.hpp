@@ -57,6 +57,16 @@ struct TrackerConfig {
   // Sub-pixel / sub-step: one joint quadratic fit in (x, y, φ) over 19 exact scores around
   // the best grid point, on log scores (gaussian) or scores (quadratic).
   std::string subpixel = "gaussian";       // gaussian | quadratic
+  // σ per tracked pose (pose_uncertainty.hpp): the side of the tiles the sandwich covariance
+  // sums the residual's scores over (px; the residual is correlated within a tile), and the
+  // factor every σ is multiplied by (README: Uncertainty, fitted on needle_tip and lamella_post).
+  std::int32_t sigma_tile_px = 8;
+  double sigma_calibration = 1.0;
+  // A floor added in quadrature to σx, σy (px of the loaded ROI) and σφ (deg): the pattern's bias
+  // against the target that no single frame shows (README: Uncertainty).
+  double sigma_floor_px = 0.0, sigma_floor_deg = 0.0;
+  // Factor on the white-noise part (Fisher information × the residual's variance), in quadrature.
+  double sigma_noise_factor = 0.0;
   // Fit on Σtf/√(var − noise var) rather than the ZNCC, noise var estimated at the best
   // match: removes the pull of noisy windows towards more signal/noise variance.
   bool fit_noise_correction = true;

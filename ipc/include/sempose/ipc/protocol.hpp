@@ -4,11 +4,13 @@
 //   base + 0x10*t + 0   POSE_XY    x_nm, y_nm (signed 28 bit each, saturating), seq
 //   base + 0x10*t + 1   POSE_ATTR  phi (mdeg), score (1/1000), state, reason bits, seq, age_us
 //   base + 0x10*t + 2   POSE_FD    (CAN FD only, 64 bytes) everything above at full width
+//   base + 0x10*t + 3   POSE_UNC   1σ of x, y (0.1 nm), φ (mdeg), scale; the target's scale; seq
 //   base + 0x40         HEARTBEAT  state, bus state, pattern set, dwell, counters (fixed rate)
 //   base + 0x50         COMMAND    from the controller: select pattern set, start, stop, re-acquire
 // t = target index 0..3. All signals little-endian (DBC "@1"). seq is the low 8 bits (32 in FD)
-// of the per-target pose counter and is the same in both frames of one pose, so a receiver
-// pairs them and sees gaps.
+// of the per-target pose counter and is the same in the three classic frames of one pose, so
+// a receiver pairs them and sees gaps. A σ of 0 means "not measured" (no match, a frame of the
+// start search).
 //
 // Pure and header-only: encode/decode are noexcept, allocation-free, and depend on nothing
 // but the standard library. Out-of-range inputs saturate; NaN becomes 0 (see bit_pack.hpp).
@@ -29,6 +31,7 @@ inline constexpr int kMaxTargets = 4;
 inline constexpr std::uint32_t kPoseXyOffset = 0;
 inline constexpr std::uint32_t kPoseAttrOffset = 1;
 inline constexpr std::uint32_t kPoseFdOffset = 2;
+inline constexpr std::uint32_t kPoseUncOffset = 3;
 inline constexpr std::uint32_t kHeartbeatOffset = 0x40;
 inline constexpr std::uint32_t kCommandOffset = 0x50;
 inline constexpr std::uint32_t kMaxStandardId = 0x7FF;
@@ -41,6 +44,15 @@ inline constexpr unsigned kScoreBits = 11;     // ±1023 holds ±1000 (score × 
 inline constexpr unsigned kAgeBits = 16;       // 0..65 535 µs
 inline constexpr std::int64_t kPhiMaxMdeg = 180'000;
 inline constexpr std::int64_t kScoreMaxMilli = 1'000;
+// POSE_UNC (classic): σx, σy in 0.1 nm (12 bit: ≤ 409.5 nm), σφ in mdeg (11 bit: ≤ 2.047°),
+// target scale − 0.5 in 1/10 000 (14 bit: 0.5 … 2.1383), σ of the scale in 1/2000 (7 bit:
+// ≤ 0.0635). All saturate; the FD frame carries the same at full width.
+inline constexpr unsigned kSigmaXyBits = 12;
+inline constexpr unsigned kSigmaPhiBits = 11;
+inline constexpr unsigned kUncScaleBits = 14;
+inline constexpr double kUncScaleOffset = 0.5;
+inline constexpr unsigned kSigmaScaleBits = 7;
+inline constexpr double kSigmaScaleStep = 0.0005;
 
 // Wire values of the tracker state (the same numbers as pose::TrackState).
 enum class WireState : std::uint8_t { kTracking = 0, kAcquiring = 1, kLost = 2 };
@@ -56,7 +68,7 @@ inline constexpr std::uint8_t kAllTargets = 0xFF;
 inline constexpr std::uint32_t kMaxScalePmPerPx = 100'000'000;  // 100 µm per pixel
 
 // Which message an id is, for a given base.
-enum class MessageKind : std::uint8_t { kUnknown = 0, kPoseXy, kPoseAttr, kPoseFd, kHeartbeat, kCommand };
+enum class MessageKind : std::uint8_t { kUnknown = 0, kPoseXy, kPoseAttr, kPoseFd, kHeartbeat, kCommand, kPoseUnc };
 
 struct IdMap {
   std::uint32_t base = kDefaultBaseId;
@@ -66,6 +78,7 @@ struct IdMap {
   constexpr std::uint32_t pose_xy(int target) const noexcept { return base + kTargetBlock * static_cast<std::uint32_t>(target) + kPoseXyOffset; }
   constexpr std::uint32_t pose_attr(int target) const noexcept { return base + kTargetBlock * static_cast<std::uint32_t>(target) + kPoseAttrOffset; }
   constexpr std::uint32_t pose_fd(int target) const noexcept { return base + kTargetBlock * static_cast<std::uint32_t>(target) + kPoseFdOffset; }
+  constexpr std::uint32_t pose_unc(int target) const noexcept { return base + kTargetBlock * static_cast<std::uint32_t>(target) + kPoseUncOffset; }
   constexpr std::uint32_t heartbeat() const noexcept { return base + kHeartbeatOffset; }
   // Every id fits 11 bits and the command id does not collide with a sempose-sent id.
   constexpr bool valid() const noexcept {
@@ -82,6 +95,7 @@ struct IdMap {
       case kPoseXyOffset: return {MessageKind::kPoseXy, t};
       case kPoseAttrOffset: return {MessageKind::kPoseAttr, t};
       case kPoseFdOffset: return {MessageKind::kPoseFd, t};
+      case kPoseUncOffset: return {MessageKind::kPoseUnc, t};
       default: return {};
     }
   }
@@ -109,7 +123,9 @@ struct PoseValues {
   std::uint32_t dwell_ns = 0;
   std::uint64_t frame_seq = 0;
   double nm_per_px = 0;
-  double target_scale = 0;     // the target's size over its pattern's (FD only)
+  double target_scale = 0;     // the target's size over its pattern's (FD and POSE_UNC)
+  // 1σ of the measured pose (0 = not measured): nm at nm_per_px, degrees, scale.
+  double sigma_x_nm = 0, sigma_y_nm = 0, sigma_phi_deg = 0, sigma_scale = 0;
 };
 
 // Wraps into (-180, 180] then rounds to millidegrees.
@@ -168,7 +184,20 @@ struct PoseFd {
   std::uint32_t frame_seq = 0;    // low 32 bits
   std::uint32_t scale_pm_per_px = 0;
   std::uint16_t target_scale_e4 = 0;  // the target's size over its pattern's × 10 000
+  std::uint32_t sigma_x_pm = 0, sigma_y_pm = 0;  // 1σ, picometres
+  std::uint32_t sigma_phi_udeg = 0;              // 1σ, µdeg
+  std::uint32_t sigma_scale_e6 = 0;              // 1σ of the target's scale × 10⁶
   friend bool operator==(const PoseFd&, const PoseFd&) = default;
+};
+
+struct PoseUnc {
+  std::uint16_t sigma_x_dnm = 0;     // 0.1 nm
+  std::uint16_t sigma_y_dnm = 0;
+  std::uint16_t sigma_phi_mdeg = 0;
+  std::uint16_t target_scale_e4 = 0; // (scale − 0.5) × 10 000
+  std::uint8_t sigma_scale = 0;      // × 2000
+  std::uint8_t seq = 0;
+  friend bool operator==(const PoseUnc&, const PoseUnc&) = default;
 };
 
 struct Heartbeat {
@@ -220,6 +249,11 @@ constexpr const char* to_string(CommandCheck c) noexcept {
 
 // ---- encoders: data must hold kClassicLen (or kFdLen) bytes; every byte is written ----
 
+// A non-negative physical value × factor, rounded, saturating to [0, 2^bits − 1] (NaN → 0).
+inline std::uint64_t unsigned_wire(double v, double factor, unsigned bits) noexcept {
+  return static_cast<std::uint64_t>(saturate_round(v * factor, 0, static_cast<std::int64_t>(unsigned_max(bits))));
+}
+
 inline void encode_pose_xy(const PoseValues& p, std::uint8_t* data) noexcept {
   for (int i = 0; i < kClassicLen; ++i) data[i] = 0;
   put_bits(data, 0, kXyBits, static_cast<std::uint64_t>(nm_to_wire(p.x_nm, kXyBits)));
@@ -254,6 +288,20 @@ inline void encode_pose_fd(const PoseValues& p, std::uint8_t* data) noexcept {
   put_bits(data, 256, 32, p.frame_seq & 0xFFFFFFFFu);
   put_bits(data, 288, 32, static_cast<std::uint64_t>(saturate_round(p.nm_per_px * 1000.0, 0, 0xFFFFFFFFll)));
   put_bits(data, 320, 16, static_cast<std::uint64_t>(saturate_round(p.target_scale * 10000.0, 0, 65535)));
+  put_bits(data, 336, 32, unsigned_wire(p.sigma_x_nm, 1000.0, 32));
+  put_bits(data, 368, 32, unsigned_wire(p.sigma_y_nm, 1000.0, 32));
+  put_bits(data, 400, 32, unsigned_wire(p.sigma_phi_deg, 1e6, 32));
+  put_bits(data, 432, 32, unsigned_wire(p.sigma_scale, 1e6, 32));
+}
+
+inline void encode_pose_unc(const PoseValues& p, std::uint8_t* data) noexcept {
+  for (int i = 0; i < kClassicLen; ++i) data[i] = 0;
+  put_bits(data, 0, kSigmaXyBits, unsigned_wire(p.sigma_x_nm, 10.0, kSigmaXyBits));
+  put_bits(data, 12, kSigmaXyBits, unsigned_wire(p.sigma_y_nm, 10.0, kSigmaXyBits));
+  put_bits(data, 24, kSigmaPhiBits, unsigned_wire(p.sigma_phi_deg, 1000.0, kSigmaPhiBits));
+  put_bits(data, 35, kUncScaleBits, unsigned_wire(p.target_scale - kUncScaleOffset, 10000.0, kUncScaleBits));
+  put_bits(data, 49, kSigmaScaleBits, unsigned_wire(p.sigma_scale, 1.0 / kSigmaScaleStep, kSigmaScaleBits));
+  put_bits(data, 56, 8, p.seq & 0xFFu);
 }
 
 inline void encode_heartbeat(const Heartbeat& h, std::uint8_t* data) noexcept {
@@ -320,6 +368,21 @@ inline bool decode_pose_fd(const std::uint8_t* data, std::uint8_t len, PoseFd& o
   out.frame_seq = static_cast<std::uint32_t>(get_bits(data, 256, 32));
   out.scale_pm_per_px = static_cast<std::uint32_t>(get_bits(data, 288, 32));
   out.target_scale_e4 = static_cast<std::uint16_t>(get_bits(data, 320, 16));
+  out.sigma_x_pm = static_cast<std::uint32_t>(get_bits(data, 336, 32));
+  out.sigma_y_pm = static_cast<std::uint32_t>(get_bits(data, 368, 32));
+  out.sigma_phi_udeg = static_cast<std::uint32_t>(get_bits(data, 400, 32));
+  out.sigma_scale_e6 = static_cast<std::uint32_t>(get_bits(data, 432, 32));
+  return true;
+}
+
+inline bool decode_pose_unc(const std::uint8_t* data, std::uint8_t len, PoseUnc& out) noexcept {
+  if (len != kClassicLen) return false;
+  out.sigma_x_dnm = static_cast<std::uint16_t>(get_bits(data, 0, kSigmaXyBits));
+  out.sigma_y_dnm = static_cast<std::uint16_t>(get_bits(data, 12, kSigmaXyBits));
+  out.sigma_phi_mdeg = static_cast<std::uint16_t>(get_bits(data, 24, kSigmaPhiBits));
+  out.target_scale_e4 = static_cast<std::uint16_t>(get_bits(data, 35, kUncScaleBits));
+  out.sigma_scale = static_cast<std::uint8_t>(get_bits(data, 49, kSigmaScaleBits));
+  out.seq = static_cast<std::uint8_t>(get_bits(data, 56, 8));
   return true;
 }
 

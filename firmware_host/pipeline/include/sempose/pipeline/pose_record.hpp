@@ -27,6 +27,10 @@ inline PoseRecord make_pose_record(const hal::FrameMeta& m, const pose::PoseEsti
   p.score = est.score;
   p.psr = est.psr;
   p.target_scale = est.scale;
+  p.sigma_x_px = est.sigma_x_px;
+  p.sigma_y_px = est.sigma_y_px;
+  p.sigma_phi_deg = est.sigma_phi_deg;
+  p.sigma_scale = est.sigma_scale;
   p.dwell_ns = m.dwell_ns;
   p.nm_per_px = nm_per_px;
   p.t_scan_end_ns = m.t_scan_end_ns;

@@ -26,6 +26,8 @@ struct PoseRecord {
   std::uint32_t dwell_ns = 0;       // dwell of the frame this pose came from
   double nm_per_px = 1;             // scale of the active magnification step
   double target_scale = 1;          // the target's size on screen over its pattern's (PoseEstimate::scale)
+  // 1σ of the measured pose (PoseEstimate::sigma_*; 0 = not measured): px, deg, scale.
+  double sigma_x_px = 0, sigma_y_px = 0, sigma_phi_deg = 0, sigma_scale = 0;
   std::int64_t t_scan_end_ns = 0;
   std::int64_t t_pose_done_ns = 0;
   // Simulated sources only: where the target really was (validation, never on the wire).

@@ -37,6 +37,10 @@ struct PoseEstimate {
   // a wrong scale, a look-alike or a torn frame leaves structure unexplained (≫ 1). 0: not
   // measured (no match, or a score at or above tracker.explained_threshold, which passes).
   float chi2 = 0;
+  // 1σ of this frame's measured pose (meas_x_px, meas_y_px, meas_phi_deg, scale) from the fit's
+  // sandwich covariance (pose_uncertainty.hpp), calibrated (README: Uncertainty). 0: not
+  // measured (no match, or a frame of the start search).
+  double sigma_x_px = 0, sigma_y_px = 0, sigma_phi_deg = 0, sigma_scale = 0;
   std::uint8_t pattern_set = 0;
   int angle_steps = 0;  // correlations spent on orientation this frame
   bool searched = false;  // this frame ran the full-field start search

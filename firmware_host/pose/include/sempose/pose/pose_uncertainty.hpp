@@ -1,0 +1,62 @@
+// σ of one tracked pose (issue 13 item 5): a cluster-robust ("sandwich") covariance of the
+// pose's least-squares fit, computed on the loaded ROI at the walk's pose.
+//
+// Model: ROI(pattern origin + q) = gain · T_j(q warped by (x, y, φ, scale)) + offset + residual.
+// With J the residual's Jacobian w.r.t. (x, y, φ, scale, gain, offset) at the pose (∂T/∂x, ∂y by
+// central differences of the bank copy, ∂/∂φ from the neighbouring bank angles, ∂/∂scale the
+// radial derivative), H = JᵀJ and g_b = J_bᵀ r_b summed over square tiles b of the pattern:
+//     Cov = H⁻¹ (Σ_b g_b g_bᵀ) H⁻¹ .
+// Why not Fisher × χ²: the error is dominated by a spatially correlated model error (the
+// background under the pattern's rim differs wherever the target moves; the prefilter and the
+// PSF correlate the noise too), which Fisher information, assuming independent pixels, misses by
+// 2–5×. The tile sums keep whatever is correlated within a tile, so σ grows exactly when the
+// residual is structured. The residual is taken at the walk's sub-pixel / sub-step pose (its
+// offsets from the integer grid point are applied to first order), so a walk that stopped off
+// the least-squares optimum leaves a common component in every g_b and σ grows by it too.
+// The calibration factor (set at setup) multiplies every σ; README: Uncertainty says where it
+// came from. RT: noexcept, no allocation (the tile row buffer is sized at setup), one pass.
+#pragma once
+
+#include <vector>
+
+#include "sempose/pose/exact_scorer.hpp"
+#include "sempose/pose/measurement.hpp"
+#include "sempose/pose/pattern_bank.hpp"
+
+namespace sempose::pose {
+
+// In the loaded ROI's pixels (the tracker converts a resampled ROI back to the scanned one).
+struct PoseSigma {
+  bool valid = false;  // false: the window left the ROI, the fit is singular or the ROI flat
+  double x_px = 0, y_px = 0, phi_deg = 0, scale = 0;
+};
+
+class PoseUncertainty {
+ public:
+  static constexpr int kDefaultTilePx = 8;
+  // Setup: pattern_px the bank's pattern side; tile_px the side of a tile (≥ 1); calibration
+  // the factor on the sandwich and step part (1: as it is); floor_px, floor_deg the model-error
+  // floor added in quadrature to σx, σy and σφ (0: none); noise_factor the factor on the
+  // white-noise (Fisher × residual variance) part added in quadrature (0: none).
+  PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration, double floor_px = 0,
+                  double floor_deg = 0, double noise_factor = 0);
+
+  // RT: σ of the measurement m of the loaded ROI against bank angle m.j; scale_factor is the
+  // scale probe's reading of this ROI (1 when it had none).
+  PoseSigma estimate(const PatternBank& bank, const Measurement& m, double scale_factor) noexcept;
+
+  int tile_px() const noexcept { return tile_; }
+  double calibration() const noexcept { return calibration_; }
+
+ private:
+  const ExactScorer& scorer_;
+  int pattern_px_;
+  int tile_;
+  double calibration_;
+  double floor_px_, floor_deg_;
+  double noise_factor_;
+  std::vector<double> tile_sums_;  // one tile row's g_b: (pattern_px / tile + 1) × 6
+  std::vector<float> row_;         // one pattern row's Jacobian columns and residual: 5 × pattern_px
+};
+
+}  // namespace sempose::pose

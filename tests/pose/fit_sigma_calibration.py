@@ -1,0 +1,93 @@
+#!/usr/bin/python3
+"""Fits the σ stage's calibration on the fitting targets' rows of pose_accuracy_bench and
+prints z = RMS(error/σ) pooled per group and dose, and how many rows have every axis in 0.8–1.25.
+
+    B=build/release/tests/pose/pose_accuracy_bench
+    BENCH_TRACE=1 $B --quick --no-visp --sigma-calibration 1 --sigma-noise-factor 0 --sigma-floor 0 0 2> a.txt >/dev/null
+    BENCH_TRACE=1 $B --quick --no-visp --sigma-calibration 0 --sigma-noise-factor 1 --sigma-floor 0 0 2> f.txt >/dev/null
+    tests/pose/fit_sigma_calibration.py a.txt f.txt
+
+a.txt holds each pose's sandwich + walk-step σ, f.txt its white-noise (Fisher) σ; the poses are
+the same in both runs (σ never moves a pose). Model, per axis:
+    σ² = k²·σ_a² + kF²·σ_F² + floor²      (tracker.sigma_calibration, sigma_noise_factor, sigma_floor_px/deg)
+chosen to minimise Σ (log z)² over every (row, axis) of the fitting targets (needle_tip,
+lamella_post) at doses 2.5–20, so that no row is far off either way. The held-out targets
+(lamella, warped, gripper) are only reported, never fitted on.
+"""
+import math
+import sys
+from collections import defaultdict
+
+FIT = {"needle_tip", "lamella_post"}
+
+
+def load(path):
+    poses = {}  # (target, label, dose, frame) -> (ex, ey, ephi, sx, sy, sphi)
+    for line in open(path):
+        f = line.split()
+        if not f or f[0] != "T" or f[5] != "st0":  # TRACKING only
+            continue
+        kv = {f[i]: f[i + 1] for i in range(5, len(f) - 1)}
+        ex, ey, ephi = float(kv["ex"]), float(kv["ey"]), float(kv["dphi"])
+        sx, sy, sphi = float(kv["sx"]), float(kv["sy"]), float(kv["sphi"])
+        if sx <= 0 or sy <= 0 or sphi <= 0 or math.hypot(ex, ey) > 3 or abs(ephi) > 10:
+            continue
+        poses[(f[1], f[2], float(f[3]), int(f[4]))] = (ex, ey, ephi, sx, sy, sphi)
+    return poses
+
+
+def rows_of(a, f):
+    rows = defaultdict(list)  # (target, label, dose) -> [(ex, ey, ephi, ax², ay², aphi², fx², fy², fphi²)]
+    for key, pa in a.items():
+        pf = f.get(key)
+        if pf is None:
+            continue
+        rows[key[:3]].append(pa[:3] + tuple(v * v for v in pa[3:]) + tuple(v * v for v in pf[3:]))
+    return {k: v for k, v in rows.items() if len(v) >= 5}
+
+
+def z_axis(a, axis, k2, kf2, floor2):
+    return math.sqrt(sum(p[axis] ** 2 / (k2 * p[3 + axis] + kf2 * p[6 + axis] + floor2) for p in a) / len(a))
+
+
+def z_of(a, k, kf, fpx, fdeg):
+    k2, kf2 = k * k, kf * kf
+    return (z_axis(a, 0, k2, kf2, fpx * fpx), z_axis(a, 1, k2, kf2, fpx * fpx), z_axis(a, 2, k2, kf2, fdeg * fdeg))
+
+
+def frange(lo, hi, step):
+    return [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
+
+
+def main(path_a, path_f):
+    rows = rows_of(load(path_a), load(path_f))
+    fit_rows = [a for (t, _, d), a in rows.items() if t in FIT and d >= 2.5]
+    best = None
+    for k in frange(0.0, 3.0, 0.15):
+        for kf in frange(0.0, 3.0, 0.15):
+            if k == 0 and kf == 0:
+                continue
+            k2, kf2 = k * k, kf * kf
+            pos = min((sum(math.log(z_axis(a, ax, k2, kf2, fp * fp)) ** 2 for a in fit_rows for ax in (0, 1)), fp)
+                      for fp in frange(0.0, 0.3, 0.02))
+            ang = min((sum(math.log(z_axis(a, 2, k2, kf2, fd * fd)) ** 2 for a in fit_rows), fd)
+                      for fd in frange(0.0, 0.6, 0.03))
+            cost = pos[0] + ang[0]
+            if best is None or cost < best[0]:
+                best = (cost, k, kf, pos[1], ang[1])
+    _, k, kf, fpx, fdeg = best
+    print(f"fitted on {len(fit_rows)} rows of {sorted(FIT)}: sigma_calibration {k:.2f} sigma_noise_factor {kf:.2f} "
+          f"sigma_floor_px {fpx:.2f} sigma_floor_deg {fdeg:.2f}")
+    for name, sel in (("fit", lambda t: t in FIT), ("held out", lambda t: t not in FIT)):
+        for dose in sorted({d for (_, _, d) in rows}, reverse=True):
+            grp = [a for (t, _, d), a in rows.items() if sel(t) and d == dose]
+            if not grp:
+                continue
+            allp = [p for a in grp for p in a]
+            zx, zy, zp = z_of(allp, k, kf, fpx, fdeg)
+            inside = sum(all(0.8 <= z <= 1.25 for z in z_of(a, k, kf, fpx, fdeg)) for a in grp)
+            print(f"{name:9s} dose {dose:4.1f}: pooled z_x {zx:.2f} z_y {zy:.2f} z_phi {zp:.2f}; rows in 0.8-1.25: {inside}/{len(grp)}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2])
