@@ -288,6 +288,7 @@ int main(int argc, char** argv) {
     else if (a == "--sigma-tile" && i + 1 < argc) sigma_tile = std::atoi(argv[++i]);
     else if (a == "--sigma-calibration" && i + 1 < argc) sigma_cal = std::atof(argv[++i]);
     else if (a == "--sigma-noise-factor" && i + 1 < argc) tc.sigma_noise_factor = std::atof(argv[++i]);
+    else if (a == "--sigma-angle-factor" && i + 1 < argc) tc.sigma_angle_factor = std::atof(argv[++i]);
     else if (a == "--sigma-floor" && i + 2 < argc) {
       tc.sigma_floor_px = std::atof(argv[++i]);
       tc.sigma_floor_deg = std::atof(argv[++i]);
@@ -297,7 +298,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N] [--require-no-false] [--appearance on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N] [--require-no-false] [--appearance on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
       return 2;
     }
   }

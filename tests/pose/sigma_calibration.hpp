@@ -1,7 +1,7 @@
 // The benchmark's check of the reported σ (issue 13 item 5): RMS(error / σ) per axis over a
 // row's valid TRACKING poses (calibrated: 0.8–1.25), and pooled over groups of rows — the
 // targets the calibration factor is fitted on (needle_tip, lamella_post) and the held-out ones
-// (lamella, warped, gripper), per dose — so that a factor is never judged on the rows it was
+// (lamella, warped; the gripper's jaws apart: a deforming target), per dose — so that a factor is never judged on the rows it was
 // fitted on. The per-row sums are over the poses the bench's RMS errors are over (TRACKING, not a
 // start-search frame, ≤ 3 px and ≤ 10° off, not the frame of a jump).
 #pragma once
@@ -59,8 +59,9 @@ inline bool sigma_fit_target(const std::string& target) { return target == "need
 class SigmaCalibrationTable {
  public:
   void add(const std::string& target, const std::string& label, double dose, const ZSums& z) {
-    const bool fit = sigma_fit_target(target);
-    groups_[{fit ? 0 : 1, -dose}].add(z);
+    // The gripper's jaws deform the target under a rigid pattern: reported on their own.
+    const int group = sigma_fit_target(target) ? 0 : target == "gripper" ? 2 : 1;
+    groups_[{group, -dose}].add(z);
     const bool special = label == "jaws" || label == "charge+defoc" || label.rfind("scale", 0) == 0;
     kinds_[special ? label : std::string("motion")].add(z);
     ++rows_;
@@ -74,7 +75,7 @@ class SigmaCalibrationTable {
     std::printf("%-34s %5s | %5s %5s %5s %6s | %8s %8s\n", "group", "dose", "z_x", "z_y", "z_phi", "z_scl", "sig_px", "sig_deg");
     for (const auto& [key, z] : groups_) {
       std::printf("%-34s %5.1f | %5.2f %5.2f %5.2f %6.2f | %8.4f %8.4f\n",
-                  key.first == 0 ? "fit (needle_tip, lamella_post)" : "held out (lamella, warped, gripper)", -key.second,
+                  key.first == 0 ? "fit (needle_tip, lamella_post)" : key.first == 1 ? "held out (lamella, warped)" : "held out: gripper jaws", -key.second,
                   z.zx(), z.zy(), z.zphi(), z.zscale(), z.n ? z.sigma_px / z.n : NAN, z.n ? z.sigma_deg / z.n : NAN);
     }
     for (const auto& [kind, z] : kinds_) {

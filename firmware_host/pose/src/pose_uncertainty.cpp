@@ -50,7 +50,7 @@ bool invert6(double a[kParams][kParams]) noexcept {
 }  // namespace
 
 PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration,
-                                 double floor_px, double floor_deg, double noise_factor)
+                                 double floor_px, double floor_deg, double noise_factor, double angle_factor)
     : scorer_(scorer),
       pattern_px_(pattern_px),
       tile_(std::max(1, tile_px)),
@@ -58,6 +58,7 @@ PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int 
       floor_px_(floor_px),
       floor_deg_(floor_deg),
       noise_factor_(noise_factor),
+      angle_factor_(angle_factor),
       tile_sums_(static_cast<std::size_t>(pattern_px / std::max(1, tile_px) + 1) * kParams, 0.0),
       row_(static_cast<std::size_t>(5) * pattern_px, 0.0f) {}
 
@@ -228,7 +229,7 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
   // single frame's residual shows (it is orthogonal to J at the optimum by construction).
   out.x_px = std::hypot(std::sqrt(var[0]), floor_px_);
   out.y_px = std::hypot(std::sqrt(var[1]), floor_px_);
-  out.phi_deg = std::hypot(std::sqrt(var[2]), floor_deg_);
+  out.phi_deg = std::hypot(angle_factor_ * std::sqrt(var[2]), floor_deg_);
   out.scale = std::sqrt(var[3]);
   out.valid = true;
   return out;

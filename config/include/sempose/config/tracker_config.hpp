@@ -58,15 +58,18 @@ struct TrackerConfig {
   // the best grid point, on log scores (gaussian) or scores (quadratic).
   std::string subpixel = "gaussian";       // gaussian | quadratic
   // σ per tracked pose (pose_uncertainty.hpp): the side of the tiles the sandwich covariance
-  // sums the residual's scores over (px; the residual is correlated within a tile), and the
-  // factor every σ is multiplied by (README: Uncertainty, fitted on needle_tip and lamella_post).
+  // sums the residual's scores over (px; the residual is correlated within a tile). The factors
+  // were fitted on needle_tip and lamella_post rows of pose_accuracy_bench only
+  // (tests/pose/fit_sigma_calibration.py; README: Uncertainty):
+  //   σ² = calibration²·(sandwich + walk step²) + noise_factor²·(Fisher × residual variance) + floor²
+  // and σφ's first two parts × angle_factor.
   std::int32_t sigma_tile_px = 8;
-  double sigma_calibration = 1.0;
-  // A floor added in quadrature to σx, σy (px of the loaded ROI) and σφ (deg): the pattern's bias
-  // against the target that no single frame shows (README: Uncertainty).
+  double sigma_calibration = 0.75;
+  double sigma_noise_factor = 5.75;
+  double sigma_angle_factor = 1.40;
+  // A floor added in quadrature to σx, σy (px of the loaded ROI) and σφ (deg): a bias of the
+  // pattern against the target that no single frame shows (0: the fit chose none).
   double sigma_floor_px = 0.0, sigma_floor_deg = 0.0;
-  // Factor on the white-noise part (Fisher information × the residual's variance), in quadrature.
-  double sigma_noise_factor = 0.0;
   // Fit on Σtf/√(var − noise var) rather than the ZNCC, noise var estimated at the best
   // match: removes the pull of noisy windows towards more signal/noise variance.
   bool fit_noise_correction = true;

@@ -37,9 +37,10 @@ class PoseUncertainty {
   // Setup: pattern_px the bank's pattern side; tile_px the side of a tile (≥ 1); calibration
   // the factor on the sandwich and step part (1: as it is); floor_px, floor_deg the model-error
   // floor added in quadrature to σx, σy and σφ (0: none); noise_factor the factor on the
-  // white-noise (Fisher × residual variance) part added in quadrature (0: none).
+  // white-noise (Fisher × residual variance) part added in quadrature (0: none); angle_factor
+  // a further factor on σφ's two parts (the walk's angle fit is less efficient than its position).
   PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration, double floor_px = 0,
-                  double floor_deg = 0, double noise_factor = 0);
+                  double floor_deg = 0, double noise_factor = 0, double angle_factor = 1);
 
   // RT: σ of the measurement m of the loaded ROI against bank angle m.j; scale_factor is the
   // scale probe's reading of this ROI (1 when it had none).
@@ -55,6 +56,7 @@ class PoseUncertainty {
   double calibration_;
   double floor_px_, floor_deg_;
   double noise_factor_;
+  double angle_factor_;
   std::vector<double> tile_sums_;  // one tile row's g_b: (pattern_px / tile + 1) × 6
   std::vector<float> row_;         // one pattern row's Jacobian columns and residual: 5 × pattern_px
 };
