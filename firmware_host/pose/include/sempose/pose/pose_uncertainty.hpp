@@ -58,7 +58,7 @@ class PoseUncertainty {
   double noise_factor_;
   double angle_factor_;
   std::vector<double> tile_sums_;  // one tile row's g_b: (pattern_px / tile + 1) × 6
-  std::vector<float> row_;         // one pattern row's Jacobian columns and residual: 5 × pattern_px
+  std::vector<float> row_;         // one row's ∂T/∂x and a tile row's column sums (7): 8 × pattern_px
 };
 
 }  // namespace sempose::pose
