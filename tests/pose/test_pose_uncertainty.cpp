@@ -202,5 +202,14 @@ TEST(PoseUncertainty, InvalidOutsideTheRoiAndNoAllocation) {
   }
   EXPECT_EQ(allocs, 0u);
   EXPECT_TRUE(s.valid);
+  // The per-angle JᵀJ cache (as the tracker builds the stage) changes nothing: first call
+  // (computes and keeps it), second call (reads it), a stage without the cache.
+  PoseUncertainty cached(*st.scorer, kPattern, PoseUncertainty::kDefaultTilePx, 1.0, 0, 0, 0, 1, st.angles.count);
+  const PoseSigma first = cached.estimate(*st.bank, m, 1.0), again = cached.estimate(*st.bank, m, 1.0);
+  const PoseSigma plain = st.sigma->estimate(*st.bank, m, 1.0);
+  EXPECT_EQ(first.x_px, plain.x_px);
+  EXPECT_EQ(again.x_px, plain.x_px);
+  EXPECT_EQ(again.phi_deg, plain.phi_deg);
+  EXPECT_EQ(again.scale, plain.scale);
   EXPECT_TRUE(std::isfinite(s.x_px) && std::isfinite(s.phi_deg) && std::isfinite(s.scale));
 }

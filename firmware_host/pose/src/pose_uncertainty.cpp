@@ -24,6 +24,7 @@ struct RowInputs {
 // 7 × P) and H0's 20 distinct sums (h). gx: P floats of scratch. Every load is unconditional
 // (up/dn are valid rows) so that the loop vectorises. Not cloned for AVX-512 / AVX2: those
 // clones measured slower here (pose_speed_bench, 192²: +65 µs against +30 µs).
+template <bool kWithH>
 void row_terms(const RowInputs& in, float* gx, float* col, float* h) noexcept {
   const float* t = in.t;
   const int x0 = in.x0, x1 = in.x1, P = in.P;
@@ -53,12 +54,15 @@ void row_terms(const RowInputs& in, float* gx, float* col, float* h) noexcept {
     col[4 * P + u] += tc * r;
     col[5 * P + u] += r;
     col[6 * P + u] += r * r;
-    h00 += a0 * a0; h01 += a0 * a1; h02 += a0 * a2; h03 += a0 * a3; h04 += a0 * tc; h05 += a0;
-    h11 += a1 * a1; h12 += a1 * a2; h13 += a1 * a3; h14 += a1 * tc; h15 += a1;
-    h22 += a2 * a2; h23 += a2 * a3; h24 += a2 * tc; h25 += a2;
-    h33 += a3 * a3; h34 += a3 * tc; h35 += a3;
-    h44 += tc * tc; h45 += tc;
+    if constexpr (kWithH) {
+      h00 += a0 * a0; h01 += a0 * a1; h02 += a0 * a2; h03 += a0 * a3; h04 += a0 * tc; h05 += a0;
+      h11 += a1 * a1; h12 += a1 * a2; h13 += a1 * a3; h14 += a1 * tc; h15 += a1;
+      h22 += a2 * a2; h23 += a2 * a3; h24 += a2 * tc; h25 += a2;
+      h33 += a3 * a3; h34 += a3 * tc; h35 += a3;
+      h44 += tc * tc; h45 += tc;
+    }
   }
+  if constexpr (!kWithH) return;
   const float out[20] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, h24, h25, h33, h34, h35, h44, h45};
   for (int i = 0; i < 20; ++i) h[i] = out[i];
 }
@@ -104,7 +108,8 @@ bool invert6(double a[kParams][kParams]) noexcept {
 }  // namespace
 
 PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration,
-                                 double floor_px, double floor_deg, double noise_factor, double angle_factor)
+                                 double floor_px, double floor_deg, double noise_factor, double angle_factor,
+                                 int max_angles)
     : scorer_(scorer),
       pattern_px_(pattern_px),
       tile_(std::max(1, tile_px)),
@@ -114,7 +119,9 @@ PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int 
       noise_factor_(noise_factor),
       angle_factor_(angle_factor),
       tile_sums_(static_cast<std::size_t>(pattern_px / std::max(1, tile_px) + 1) * kParams, 0.0),
-      row_(static_cast<std::size_t>(8) * pattern_px, 0.0f) {}
+      row_(static_cast<std::size_t>(8) * pattern_px, 0.0f),
+      h0_cache_(static_cast<std::size_t>(std::max(0, max_angles)) * kParams * kParams, 0.0),
+      h0_valid_(static_cast<std::size_t>(std::max(0, max_angles)), 0) {}
 
 PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& m, double scale_factor) noexcept {
   PoseSigma out;
@@ -162,6 +169,20 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
   // Pass 2: the Jacobian (pose columns without the gain, which D = diag(g, g, g, g, 1, 1) adds
   // back at the end), the residual at the walk's pose, H0 = Σ J0 J0ᵀ and the tiles' J0ᵀ r.
   double H[kParams][kParams] = {};
+  // H0 depends on the bank's copy at angle j only: kept per angle after its first frame. The
+  // cache follows the last bank used; that bank is never freed while in use (the learned-bank
+  // slots are only replaced when not in use), so its address cannot come back as another bank.
+  if (&bank != cached_bank_) {
+    std::fill(h0_valid_.begin(), h0_valid_.end(), std::uint8_t{0});
+    cached_bank_ = &bank;
+  }
+  const bool cacheable = j < static_cast<int>(h0_valid_.size());
+  const bool cached_h = cacheable && h0_valid_[static_cast<std::size_t>(j)] != 0;
+  if (cached_h) {
+    const double* c0 = h0_cache_.data() + static_cast<std::size_t>(j) * kParams * kParams;
+    for (int a = 0; a < kParams; ++a)
+      for (int k = 0; k < kParams; ++k) H[a][k] = c0[a * kParams + k];
+  }
   double M[kParams][kParams] = {};
   double G[kParams] = {};  // Σ_b g_b = J0ᵀ r: H0 times the step from the walk's pose to the least-squares optimum
   double sum_r2 = 0;       // the residual's variance: the white-noise (Fisher) part of the covariance
@@ -224,8 +245,12 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
       in.dy = dy;
       in.ds = ds;
       in.dphi = dphi;
+      if (cached_h) {
+        row_terms<false>(in, gx, col, nullptr);
+        continue;
+      }
       float hsum[20];
-      row_terms(in, gx, col, hsum);
+      row_terms<true>(in, gx, col, hsum);
       const int idx[kParams][kParams] = {{0, 1, 2, 3, 4, 5}, {1, 6, 7, 8, 9, 10}, {2, 7, 11, 12, 13, 14},
                                          {3, 8, 12, 15, 16, 17}, {4, 9, 13, 16, 18, 19}, {5, 10, 14, 17, 19, -1}};
       for (int a = 0; a < kParams; ++a)
@@ -235,6 +260,12 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
     }
   }
   flush_tile_row();
+  if (cacheable && !cached_h) {
+    double* c0 = h0_cache_.data() + static_cast<std::size_t>(j) * kParams * kParams;
+    for (int a = 0; a < kParams; ++a)
+      for (int k = 0; k < kParams; ++k) c0[a * kParams + k] = H[a][k];
+    h0_valid_[static_cast<std::size_t>(j)] = 1;
+  }
   if (!invert6(H)) return out;
   // Cov0 = H0⁻¹ M0 H0⁻¹; the pose's σ is √Cov0 over |gain| (D), times the calibration.
   // Plus the walk's own fit error: the squared step δ = H0⁻¹ G from its pose to the

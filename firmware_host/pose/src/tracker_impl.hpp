@@ -133,7 +133,7 @@ struct Tracker::Impl {
         search(cfg, sizes, angles, coarse, half, loader, walk, sweep, maps),
         refinement(scorer),
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
-                    c.sigma_noise_factor, c.sigma_angle_factor),
+                    c.sigma_noise_factor, c.sigma_angle_factor, angles.count),
         loss(cfg),
         motion(c.predict_velocity),
         filter(c.filter) {

@@ -14,9 +14,11 @@
 // offsets from the integer grid point are applied to first order), so a walk that stopped off
 // the least-squares optimum leaves a common component in every g_b and σ grows by it too.
 // The calibration factor (set at setup) multiplies every σ; README: Uncertainty says where it
-// came from. RT: noexcept, no allocation (the tile row buffer is sized at setup), one pass.
+// came from. RT: noexcept, no allocation (buffers and the per-angle JᵀJ cache are sized at
+// setup), one pass over the support.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "sempose/pose/exact_scorer.hpp"
@@ -39,8 +41,9 @@ class PoseUncertainty {
   // floor added in quadrature to σx, σy and σφ (0: none); noise_factor the factor on the
   // white-noise (Fisher × residual variance) part added in quadrature (0: none); angle_factor
   // a further factor on σφ's two parts (the walk's angle fit is less efficient than its position).
+  // max_angles: the banks' angle count, for the per-angle cache of JᵀJ (0: no cache).
   PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration, double floor_px = 0,
-                  double floor_deg = 0, double noise_factor = 0, double angle_factor = 1);
+                  double floor_deg = 0, double noise_factor = 0, double angle_factor = 1, int max_angles = 0);
 
   // RT: σ of the measurement m of the loaded ROI against bank angle m.j; scale_factor is the
   // scale probe's reading of this ROI (1 when it had none).
@@ -59,6 +62,9 @@ class PoseUncertainty {
   double angle_factor_;
   std::vector<double> tile_sums_;  // one tile row's g_b: (pattern_px / tile + 1) × 6
   std::vector<float> row_;         // one row's ∂T/∂x and a tile row's column sums (7): 8 × pattern_px
+  const PatternBank* cached_bank_ = nullptr;  // the bank h0_cache_ belongs to
+  std::vector<double> h0_cache_;              // JᵀJ (gain-free) per angle: max_angles × 36
+  std::vector<std::uint8_t> h0_valid_;
 };
 
 }  // namespace sempose::pose
