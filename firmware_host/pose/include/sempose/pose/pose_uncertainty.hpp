@@ -11,11 +11,12 @@
 // PSF correlate the noise too), which Fisher information, assuming independent pixels, misses by
 // 2–5×. The tile sums keep whatever is correlated within a tile, so σ grows exactly when the
 // residual is structured. The residual is taken at the walk's sub-pixel / sub-step pose (its
-// offsets from the integer grid point are applied to first order), so a walk that stopped off
-// the least-squares optimum leaves a common component in every g_b and σ grows by it too.
-// The calibration factor (set at setup) multiplies every σ; README: Uncertainty says where it
-// came from. RT: noexcept, no allocation (buffers and the per-angle JᵀJ cache are sized at
-// setup), one pass over the support.
+// offsets from the integer grid point are applied to first order); the walk's distance from the
+// least-squares optimum, δ = H⁻¹ Σ_b g_b, is added as δδᵀ (the walk's own fit error), and the
+// white-noise part s²·H⁻¹ with its own factor. The factors (set at setup) were fitted on part
+// of the benchmark's targets; README: Uncertainty says how and what they give on the others.
+// RT: noexcept, no allocation (buffers and the per-angle JᵀJ cache are sized at setup), one
+// pass over the support.
 #pragma once
 
 #include <cstdint>
