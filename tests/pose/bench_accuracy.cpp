@@ -392,13 +392,14 @@ int main(int argc, char** argv) {
       std::snprintf(tag, sizeof tag, "run %s %s %g f%zu", row.target.c_str(), row.label.c_str(), row.dose, f);
       dump_pose(tag, e);
       // BENCH_TRACE=1: one line per pose on stderr (state, score, normalised χ², error, true
-      // and estimated scale, reason bits) to see what separates false poses from true ones.
+      // and estimated scale, reason bits, correlations spent, start search) to see what separates false poses from true ones.
       if (std::getenv("BENCH_TRACE")) {
         const hal::TargetTruth& tr = h.records()[f].truth;
-        std::fprintf(stderr, "T %s %s %g %zu st%d score %.4f chi2 %.3f dpos %.3f dphi %.3f scale %.3f est %.3f rb %02x ex %.3f ey %.3f sx %.3f sy %.3f sphi %.3f\n", row.target.c_str(),
+        std::fprintf(stderr, "T %s %s %g %zu st%d score %.4f chi2 %.3f dpos %.3f dphi %.3f scale %.3f est %.3f rb %02x ex %.3f ey %.3f sx %.3f sy %.3f sphi %.3f steps %d srch %d\n", row.target.c_str(),
                      row.label.c_str(), row.dose, f, static_cast<int>(e.state), e.score, e.chi2,
                      std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), angle_error(e.phi_deg, tr.phi_deg), tr.scale, e.scale, e.reason_bits,
-                     e.meas_x_px - tr.x_px, e.meas_y_px - tr.y_px, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg);
+                     e.meas_x_px - tr.x_px, e.meas_y_px - tr.y_px, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg, e.angle_steps,
+                     static_cast<int>(e.searched));
       }
       if (!std::isfinite(e.x_px) || !std::isfinite(e.phi_deg) || !std::isfinite(e.score)) ++bad;
       sem.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, h.records()[f].truth});

@@ -118,3 +118,58 @@ TEST(MotionModel, WindowAtThePredictionStaysInTheField) {
   mm.accept(640, 10, 0, true);
   EXPECT_TRUE(mm.prediction_outside(640, 480));
 }
+
+// A pose is surprising when it lands farther from the prediction than the innovations seen so
+// far (× kSurpriseSigmas, with floors); the first frame after a search has no velocity, so any
+// move beyond the floors is one.
+TEST(MotionModel, SurprisingAgainstTheInnovationsSeenSoFar) {
+  MotionModel mm(true);
+  mm.accept(100, 100, 0, true);
+  EXPECT_FALSE(mm.surprising(101, 100, 2));  // inside the floors (2 px, 4°)
+  EXPECT_TRUE(mm.surprising(100, 100, 8));   // no velocity yet: an 8° turn is not vouched for
+  EXPECT_TRUE(mm.surprising(104, 100, 0));
+  // A steady spin of 8°/frame with ±0.25 px, ±0.5° of jitter (innovations ±1 px, ±2°): the
+  // prediction carries the rate.
+  double phi = 0;
+  for (int f = 1; f <= 12; ++f) {
+    phi += 8;
+    mm.accept(100 + (f % 2 ? 0.25 : -0.25), 100, phi + (f % 2 ? 0.5 : -0.5), false);
+  }
+  EXPECT_NEAR(mm.predicted_phi_deg(), phi + 8, 1.5);
+  EXPECT_FALSE(mm.surprising(mm.predicted_x_px() + 1.5, mm.predicted_y_px(), mm.predicted_phi_deg() + 2));
+  EXPECT_TRUE(mm.surprising(mm.predicted_x_px(), mm.predicted_y_px(), mm.predicted_phi_deg() - 16));  // a stale angle's local maximum
+  EXPECT_TRUE(mm.surprising(mm.predicted_x_px() + 11, mm.predicted_y_px(), mm.predicted_phi_deg()));
+  EXPECT_NEAR(mm.innovation_rms_px(), 1.0, 0.05);  // the jitter was learnt ...
+  EXPECT_NEAR(mm.innovation_rms_deg(), 2.0, 0.1);
+  // ... and an erratic target (±6 px innovations) widens what is plausible.
+  MotionModel jerky(true);
+  jerky.accept(0, 0, 0, true);
+  for (int f = 1; f <= 12; ++f) jerky.accept(f % 3 == 0 ? 6.0 : 0.0, 0, 0, false);
+  EXPECT_FALSE(jerky.surprising(jerky.predicted_x_px() + 8, jerky.predicted_y_px(), jerky.predicted_phi_deg()));
+  // Without velocity prediction the last pose is the prediction, and innovations are learnt from the start.
+  MotionModel still(false);
+  still.accept(0, 0, 0, true);
+  still.accept(0.5, 0, 0, false);
+  EXPECT_TRUE(still.has_velocity());
+  EXPECT_GT(still.innovation_rms_px(), 0.4);
+}
+
+// A score vouches for a pose when it lies within the spread of the target's recent accepted
+// scores (3 SD, at least 0.1 × (1 − mean²)); no level yet: nothing is confirmed.
+TEST(LossPolicy, ScoreConfirmsAgainstTheTargetsOwnLevel) {
+  config::TrackerConfig c;
+  LossPolicy loss(c);
+  EXPECT_FALSE(loss.confirmed(0.99f));
+  for (int f = 0; f < 20; ++f) loss.accepted(f % 2 ? 0.95f : 0.93f);  // dose 20: mean 0.94, SD 0.01
+  EXPECT_TRUE(loss.confirmed(0.925f));
+  EXPECT_FALSE(loss.confirmed(0.79f));  // the warped crop's neighbouring maximum at dose 20
+  LossPolicy noisy(c);
+  for (int f = 0; f < 20; ++f) noisy.accepted(f % 2 ? 0.75f : 0.70f);  // dose 2.5: mean ~0.72, SD ~0.025
+  EXPECT_TRUE(noisy.confirmed(0.66f));
+  EXPECT_FALSE(noisy.confirmed(0.60f));
+  noisy.reset();  // a loss keeps the spread; the level comes back with the next accepted score
+  EXPECT_FALSE(noisy.confirmed(0.72f));
+  noisy.accepted(0.72f);
+  EXPECT_TRUE(noisy.confirmed(0.68f));
+  EXPECT_FALSE(noisy.confirmed(0.60f));
+}

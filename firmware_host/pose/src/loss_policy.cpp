@@ -1,5 +1,8 @@
 #include "sempose/pose/loss_policy.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 #include "sempose/pose/track_state.hpp"
 
 namespace sempose::pose {
@@ -15,14 +18,14 @@ bool LossPolicy::unexplained(const Measurement& m) const noexcept {
 
 bool LossPolicy::weak(const Measurement& m) const noexcept {
   return !m.valid || m.score < cfg_.score_threshold || m.score <= roi_floor_ || below_recent(m) ||
-         (cfg_.psr_threshold > 0 && m.psr_valid && m.psr < cfg_.psr_threshold) || unexplained(m);
+         (cfg_.psr_threshold > 0 && m.psr_valid && m.psr < cfg_.psr_threshold) || unexplained(m) || m.implausible;
 }
 
 std::uint8_t LossPolicy::weak_reasons(const Measurement& m) const noexcept {
   std::uint8_t b = 0;
   if (!m.valid || m.score < cfg_.score_threshold || m.score <= roi_floor_ || below_recent(m)) b |= kReasonLowScore;
   if (cfg_.psr_threshold > 0 && m.psr_valid && m.psr < cfg_.psr_threshold) b |= kReasonLowPsr;
-  if (unexplained(m)) b |= kReasonUnexplained;
+  if (unexplained(m) || m.implausible) b |= kReasonUnexplained;
   return b;
 }
 
@@ -38,7 +41,18 @@ FrameVerdict LossPolicy::judge(const Measurement& m) noexcept {
   return ++weak_frames_ >= cfg_.lost_after_frames ? FrameVerdict::kLost : FrameVerdict::kCoast;
 }
 
+bool LossPolicy::confirmed(float score) const noexcept {
+  if (!have_score_mean_) return false;
+  const double margin = std::max(kConfirmSigmas * std::sqrt(score_var_), kConfirmShare * (1.0 - score_mean_ * score_mean_));
+  return score >= score_mean_ - margin;
+}
+
 void LossPolicy::accepted(float score) noexcept {
+  if (have_score_mean_ && !calibrating_) {
+    const double d = score - score_mean_;
+    score_var_ = have_score_var_ ? 0.8 * score_var_ + 0.2 * d * d : d * d;
+    have_score_var_ = true;
+  }
   score_mean_ = have_score_mean_ ? 0.8 * score_mean_ + 0.2 * score : score;
   have_score_mean_ = true;
   weak_frames_ = 0;

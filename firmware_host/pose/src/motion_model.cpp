@@ -8,6 +8,17 @@
 namespace sempose::pose {
 
 void MotionModel::accept(double x, double y, double phi, bool fresh) noexcept {
+  if (!fresh && have_prev_ && have_velocity_) {
+    // Same share as the loss policy's running score mean: a few frames' memory.
+    const double px2 = (x - pred_x_) * (x - pred_x_) + (y - pred_y_) * (y - pred_y_);
+    const double dphi = rt::wrap_deg(phi - pred_phi_);
+    innov_px2_ = have_innov_ ? 0.8 * innov_px2_ + 0.2 * px2 : px2;
+    innov_deg2_ = have_innov_ ? 0.8 * innov_deg2_ + 0.2 * dphi * dphi : dphi * dphi;
+    have_innov_ = true;
+  }
+  // The next prediction is the model's full one: with a velocity from two poses in a row (or,
+  // without velocity prediction, from any previous pose).
+  have_velocity_ = !predict_velocity_ || (!fresh && have_prev_);
   if (!fresh && have_prev_) {
     vx_ = x - x_;
     vy_ = y - y_;
@@ -32,6 +43,7 @@ void MotionModel::coast() noexcept {
 
 void MotionModel::reset() noexcept {
   have_prev_ = false;
+  have_velocity_ = false;
   vx_ = vy_ = vphi_ = 0;
 }
 
@@ -40,6 +52,15 @@ void MotionModel::predict() noexcept {
   pred_x_ = x_ + (v ? vx_ : 0);
   pred_y_ = y_ + (v ? vy_ : 0);
   pred_phi_ = rt::wrap_deg(phi_ + (v ? vphi_ : 0));
+}
+
+bool MotionModel::surprising(double x, double y, double phi) const noexcept {
+  const double dpos = std::hypot(x - pred_x_, y - pred_y_);
+  const double dphi = std::fabs(rt::wrap_deg(phi - pred_phi_));
+  const bool known = have_velocity_ && have_innov_;
+  const double lim_px = std::max(kSurpriseFloorPx, known ? kSurpriseSigmas * std::sqrt(innov_px2_) : 0.0);
+  const double lim_deg = std::max(kSurpriseFloorDeg, known ? kSurpriseSigmas * std::sqrt(innov_deg2_) : 0.0);
+  return dpos > lim_px || dphi > lim_deg;
 }
 
 Roi MotionModel::window_at_prediction(int rw, int rh, int field_w, int field_h) const noexcept {

@@ -64,20 +64,48 @@ void Tracker::Impl::forget_everything() noexcept {
 // Tracking: the predicted angle's FFT peak in the loaded ROI, the walk and the fit; when the
 // walk hit its bound or the score collapsed, a bounded angle sweep in this ROI before giving
 // up (a fast spin or a slip in angle is recovered here, not followed).
-Measurement Tracker::Impl::track(const PatternBank& bank) noexcept {
+Measurement Tracker::Impl::track(const PatternBank& bank, bool& swept) noexcept {
   const int max_moves = cfg.max_angle_steps_per_frame;
   const int j_pred = angles.index_of(motion.predicted_phi_deg());
   half.correlate(bank.spectrum(j_pred), maps.work());
   maps.keep_work_as_best();
   Measurement m = walk.measure(bank, j_pred, find_peak(maps.best(), half.valid_w(), half.valid_h()), max_moves);
   m.steps += 1;
-  if ((loss.weak(m) || m.unsettled) && cfg.recover_sweep_deg > 0) {
+  swept = (loss.weak(m) || m.unsettled) && cfg.recover_sweep_deg > 0;
+  if (swept) {
     Measurement r = sweep.sweep(bank, m.unsettled ? m.j : j_pred, cfg.recover_sweep_deg, cfg.recover_step_deg, max_moves);
     r.steps += m.steps;
     if (r.score > m.score) m = r;
     else m.steps = r.steps;
   }
   return refinement.refine(bank, m);
+}
+
+// The motion check (a pose stream must never lie): a pose that lands farther from the
+// prediction than the motion seen so far makes plausible is first searched again around the
+// prediction — the walk may have started from a stale angle (the first frame after a search
+// knows no angular rate, and a full-field scan lasts ~8 ROI frames) and climbed a
+// neighbouring local maximum — and the better of the two is kept. A pose that is still
+// surprising and whose score does not vouch for it (below the target's recent level by more
+// than its spread) is implausible: not TRACKING. A real jump or a bounce scores at the
+// target's level and passes; a look-alike or a wrong angle does not.
+template <class Place>
+void Tracker::Impl::check_motion(const PatternBank& bank, Measurement& m, PoseEstimate& e, bool swept,
+                                 const Place& place) noexcept {
+  if (!motion.surprising(e.x_px, e.y_px, e.phi_deg) || loss.confirmed(m.score)) return;
+  if (!swept && cfg.recover_sweep_deg > 0) {
+    const int j_pred = angles.index_of(motion.predicted_phi_deg());
+    Measurement r = sweep.sweep(bank, j_pred, cfg.recover_sweep_deg, cfg.recover_step_deg, cfg.max_angle_steps_per_frame);
+    r.steps += m.steps;
+    if (r.score > m.score) {
+      m = r;
+      place(m, e);
+    } else {
+      m.steps = r.steps;
+      e.angle_steps = m.steps;
+    }
+  }
+  m.implausible = motion.surprising(e.x_px, e.y_px, e.phi_deg) && !loss.confirmed(m.score);
 }
 
 void Tracker::Impl::to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept {
@@ -209,17 +237,22 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     go_lost();
     return e;
   }
-  Measurement m = track(bank);
+  // A measurement's pose in the field (from the resampled ROI back to the scanned one).
+  auto place = [&](const Measurement& mm, PoseEstimate& out) {
+    to_estimate(mm, scored.x, scored.y, out);
+    if (rescaled) {
+      out.x_px = scored.x + RoiRescaler::to_raw(out.x_px - scored.x, std::min(scored.w, sizes.roi_fft_px), used_scale);
+      out.y_px = scored.y + RoiRescaler::to_raw(out.y_px - scored.y, std::min(scored.h, sizes.roi_fft_px), used_scale);
+      out.meas_x_px = out.x_px;
+      out.meas_y_px = out.y_px;
+    }
+  };
+  bool swept = false;
+  Measurement m = track(bank, swept);
+  place(m, e);
+  check_motion(bank, m, e, swept, place);
   const ScaleReading reading = scale_probe.read(bank, m);
-  to_estimate(m, scored.x, scored.y, e);
   set_sigma(uncertainty.estimate(bank, m, reading.valid ? reading.factor : 1.0), used_scale, e);
-  if (rescaled) {
-    // The pose in the resampled ROI, back to the scanned one.
-    e.x_px = scored.x + RoiRescaler::to_raw(e.x_px - scored.x, std::min(scored.w, sizes.roi_fft_px), used_scale);
-    e.y_px = scored.y + RoiRescaler::to_raw(e.y_px - scored.y, std::min(scored.h, sizes.roi_fft_px), used_scale);
-    e.meas_x_px = e.x_px;
-    e.meas_y_px = e.y_px;
-  }
   e.scale = reading.valid ? used_scale * reading.factor : scale;
   // The attainable score is ≤ 1, so a score at or above explained_threshold passes the
   // check whatever it is: measured only when it can matter (~30 µs a frame saved).

@@ -162,7 +162,9 @@ struct Tracker::Impl {
   void forget_everything() noexcept;
 
   PoseEstimate update(const PoseFrame& frame) noexcept;
-  Measurement track(const PatternBank& bank) noexcept;
+  Measurement track(const PatternBank& bank, bool& swept) noexcept;
+  template <class Place>
+  void check_motion(const PatternBank& bank, Measurement& m, PoseEstimate& e, bool swept, const Place& place) noexcept;
   void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
   static void set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept;
   void go_lost() noexcept;

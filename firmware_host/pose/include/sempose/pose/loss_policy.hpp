@@ -55,7 +55,20 @@ class LossPolicy {
   // Setup's noise trials: no own level is learnt from them.
   void set_calibrating(bool on) noexcept { calibrating_ = on; }
   // The target's look may have changed (commanded re-acquisition, new magnification).
-  void forget_target() noexcept { have_ref_ = false; }
+  void forget_target() noexcept {
+    have_ref_ = false;
+    have_score_var_ = false;
+    score_var_ = 0;
+  }
+
+  // The score vouches for a pose: it is within the spread of the target's recent accepted
+  // scores (kConfirmSigmas × their running SD, at least kConfirmShare × (1 − mean²), the
+  // room a ZNCC of that level has), so a pose that landed where the motion does not explain
+  // it is still the target. A neighbouring local maximum (the walk started from a stale angle,
+  // a look-alike) scores visibly below the target's level. No level yet: not confirmed.
+  bool confirmed(float score) const noexcept;
+  static constexpr double kConfirmSigmas = 3.0;
+  static constexpr double kConfirmShare = 0.1;
 
   // The reported score of an accepted pose (the recent mean the relative threshold uses).
   void accepted(float score) noexcept;
@@ -75,6 +88,10 @@ class LossPolicy {
   const config::TrackerConfig& cfg_;
   int weak_frames_ = 0;
   double score_mean_ = 0;  // running mean of accepted scores
+  // Running variance of accepted scores around their mean: kept across a loss (the spread
+  // belongs to the target at this dose), forgotten with the target.
+  double score_var_ = 0;
+  bool have_score_var_ = false;
   bool have_score_mean_ = false;
   float roi_floor_ = -1.0f, field_floor_ = -1.0f;
   bool calibrating_ = false;

@@ -17,6 +17,9 @@ struct Measurement {
   // The ZNCC the noise model says the target reaches in the window at this pose (Tracker:
   // attainable score); < 0: not measured yet (the walk's own decisions run without it).
   float attainable = -1.0f;
+  // The pose lands where the motion seen so far does not put it and its score does not vouch
+  // for it (Tracker: motion check): not the target, however well the pattern fits there.
+  bool implausible = false;
 };
 
 }  // namespace sempose::pose

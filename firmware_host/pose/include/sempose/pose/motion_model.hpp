@@ -1,8 +1,12 @@
 // Where the target will be next: constant velocity in x, y and φ from the last two accepted
 // poses (or the last pose when tracker.predict_velocity is off), and the ROI centred on that
 // prediction, clamped to the field. Also keeps the last tracked angle across a loss (the
-// start search's prior). RT, no allocation.
+// start search's prior). It also learns how far accepted poses land from their prediction
+// (the innovations), so a pose that lands much farther than the motion seen so far can be
+// told apart (surprising()). RT, no allocation.
 #pragma once
+
+#include <cmath>
 
 #include "sempose/pose/pose_frame.hpp"
 #include "sempose/pose/start_search.hpp"
@@ -28,6 +32,22 @@ class MotionModel {
   double predicted_phi_deg() const noexcept { return pred_phi_; }
   const AnglePrior& last_angle() const noexcept { return last_angle_; }
 
+  // The pose lands farther from the prediction than the motion seen so far makes plausible:
+  // beyond kSurpriseSigmas × the RMS innovation of the accepted frames (with floors for a
+  // target that moved exactly as predicted so far), in position or in angle. Without a
+  // velocity (the first frame after a search) the prediction is the last pose and any move
+  // beyond the floors is a surprise: nothing was seen yet that would vouch for it.
+  bool surprising(double x_px, double y_px, double phi_deg) const noexcept;
+  // RMS of the innovations (accepted pose − its prediction), 0 before any.
+  double innovation_rms_px() const noexcept { return std::sqrt(innov_px2_); }
+  double innovation_rms_deg() const noexcept { return std::sqrt(innov_deg2_); }
+  bool has_velocity() const noexcept { return have_velocity_; }
+
+  static constexpr double kSurpriseSigmas = 4.0;
+  // Floors: an innovation this small is never a surprise (measurement noise at 1 e⁻/px is
+  // ~0.5 px / 1° per frame, a constant-velocity prediction from two of them ~2.5× that).
+  static constexpr double kSurpriseFloorPx = 2.0, kSurpriseFloorDeg = 4.0;
+
   // A roi_w×roi_h window centred on the prediction, inside a field_w×field_h field.
   Roi window_at_prediction(int roi_w, int roi_h, int field_w, int field_h) const noexcept;
   // The prediction lies outside the field.
@@ -38,6 +58,11 @@ class MotionModel {
 
   bool predict_velocity_;
   bool have_prev_ = false;
+  bool have_velocity_ = false;  // the prediction is the model's full one (velocity from two poses in a row)
+  // Running mean squares of the innovations of frames predicted with a velocity. Kept across
+  // a loss: how irregularly the target moves is a property of the target and its drive.
+  double innov_px2_ = 0, innov_deg2_ = 0;
+  bool have_innov_ = false;
   double x_ = 0, y_ = 0, phi_ = 0;
   double vx_ = 0, vy_ = 0, vphi_ = 0;
   double pred_x_ = 0, pred_y_ = 0, pred_phi_ = 0;
