@@ -12,8 +12,21 @@ bool LossPolicy::below_recent(const Measurement& m) const noexcept {
 }
 
 bool LossPolicy::unexplained(const Measurement& m) const noexcept {
-  return !calibrating_ && cfg_.explained_threshold > 0 && m.attainable > 0 &&
-         m.score < cfg_.explained_threshold * m.attainable;
+  if (calibrating_ || cfg_.explained_threshold <= 0 || !(m.attainable > 0)) return false;
+  if (m.score < cfg_.explained_threshold * m.attainable) return true;
+  // A held target comes back only when the pattern explains it: its level may be a deformed one.
+  return m.score < explained_bound() * m.attainable && (held_ || !at_own_level(m.score));
+}
+
+bool LossPolicy::at_own_level(float score) const noexcept {
+  if (!have_peak_) return true;  // nothing known of the target yet: the plain threshold decides
+  // Only the room a ZNCC of that level has, not the running spread: a deforming target's
+  // scores spread widely, which would excuse the very frames this is about.
+  return score >= peak_ - kConfirmShare * (1.0 - peak_ * peak_);
+}
+
+bool LossPolicy::only_unexplained(const Measurement& m) const noexcept {
+  return weak_reasons(m) == kReasonUnexplained && !m.implausible && m.score > roi_floor_ && m.score >= cfg_.score_threshold;
 }
 
 bool LossPolicy::weak(const Measurement& m) const noexcept {
@@ -52,6 +65,10 @@ void LossPolicy::accepted(float score) noexcept {
     const double d = score - score_mean_;
     score_var_ = have_score_var_ ? 0.8 * score_var_ + 0.2 * d * d : d * d;
     have_score_var_ = true;
+  }
+  if (!calibrating_) {
+    peak_ = have_peak_ ? std::max<double>(score, 0.97 * peak_ + 0.03 * score) : score;
+    have_peak_ = true;
   }
   score_mean_ = have_score_mean_ ? 0.8 * score_mean_ + 0.2 * score : score;
   have_score_mean_ = true;

@@ -130,10 +130,24 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
   e.sigma_scale = s.scale * used_scale;
 }
 
+void Tracker::Impl::hold(const PoseEstimate& e) noexcept {
+  if (observer) observer->discard();
+  filter.reset();
+  tracking = false;
+  ++held_frames;
+  // The next ROI at this frame's pose, without a velocity (a dragged pose's motion is not the
+  // target's); the score level stays, the weak-frame count restarts.
+  motion.accept(e.x_px, e.y_px, e.phi_deg, true);
+  loss.judge_reset();
+  loss.set_held(true);
+}
+
 void Tracker::Impl::go_lost() noexcept {
   if (observer) observer->discard();
   filter.reset();
   tracking = false;
+  held_frames = 0;
+  loss.set_held(false);
   loss.reset();
   motion.reset();
 }
@@ -143,6 +157,8 @@ void Tracker::Impl::go_lost() noexcept {
 // mid-scan: with a varying dwell the ROI's centre is scanned mid-frame.
 void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept {
   e.state = TrackState::kTracking;
+  held_frames = 0;
+  loss.set_held(false);
   motion.accept(e.x_px, e.y_px, e.phi_deg, fresh);
   loss.accepted(e.score);
   tracking = true;
@@ -191,12 +207,13 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   // A full-field frame while tracking (scanned before the last search's result reached the
   // scan plan): track in its crop at the predicted pose instead of searching again.
   Roi scored = roi;
-  if (full_field && tracking) {
+  const bool on_target = tracking || held_frames > 0;
+  if (full_field && on_target) {
     const Roi crop = motion.window_at_prediction(std::min(sizes.roi_px, roi.w), std::min(sizes.roi_px, roi.h), roi.w, roi.h);
     px += static_cast<std::size_t>(crop.y) * roi.w + crop.x;
     scored = {roi.x + crop.x, roi.y + crop.y, crop.w, crop.h};
   }
-  if (!tracking || scored.w > sizes.roi_fft_px || scored.h > sizes.roi_fft_px) {
+  if (!on_target || scored.w > sizes.roi_fft_px || scored.h > sizes.roi_fft_px) {
     int rx = 0, ry = 0;
     e.searched = true;
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), rx, ry);
@@ -254,9 +271,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   const ScaleReading reading = scale_probe.read(bank, m);
   set_sigma(uncertainty.estimate(bank, m, reading.valid ? reading.factor : 1.0), used_scale, e);
   e.scale = reading.valid ? used_scale * reading.factor : scale;
-  // The attainable score is ≤ 1, so a score at or above explained_threshold passes the
-  // check whatever it is: measured only when it can matter (~30 µs a frame saved).
-  if (e.score < cfg.explained_threshold) {
+  // The attainable score is ≤ 1, so a score at or above the explained check's upper bound
+  // passes whatever it is: measured only when it can matter (~30 µs a frame saved).
+  if (e.score < loss.explained_bound()) {
     m.attainable = static_cast<float>(attainable_score(frame.pixels, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y));
     e.chi2 = normalised_chi2(e.score, m.attainable);
   }
@@ -277,7 +294,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     case FrameVerdict::kLost:
       e.reason_bits |= loss.weak_reasons(m);
       e.state = TrackState::kLost;
-      go_lost();
+      if (loss.only_unexplained(m) && held_frames < kMaxHeldFrames) hold(e);
+      else go_lost();
       break;
     case FrameVerdict::kCoast:
       // Not yet lost: report the measurement with its reasons, coast on the motion model.
@@ -297,7 +315,7 @@ Tracker::~Tracker() = default;
 Roi Tracker::next_roi() const noexcept {
   const Impl& t = *impl_;
   const int field_w = t.field.field_w, field_h = t.field.field_h;
-  if (!t.tracking || t.reacquire.load(std::memory_order_relaxed)) return {0, 0, field_w, field_h};
+  if ((!t.tracking && t.held_frames == 0) || t.reacquire.load(std::memory_order_relaxed)) return {0, 0, field_w, field_h};
   return t.motion.window_at_prediction(std::min(t.sizes.roi_px, field_w), std::min(t.sizes.roi_px, field_h), field_w,
                                        field_h);
 }

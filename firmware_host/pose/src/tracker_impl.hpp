@@ -67,6 +67,13 @@ struct Tracker::Impl {
   std::vector<double> nm_per_px;
 
   bool tracking = false;
+  // Held: the last frames were LOST only because the rigid pattern did not explain the window
+  // (the target is there, its score at its level, but part of it moved: jaws). The ROI stays
+  // on the target instead of a full-field search (77 ms of scan at 640×480, and the search
+  // would not find a deformed target either) for at most kMaxHeldFrames; the poses are not
+  // TRACKING until a frame passes every check again.
+  int held_frames = 0;
+  static constexpr int kMaxHeldFrames = 25;  // ~0.25 s of 192² ROIs, then the field is searched
   // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
   // Learnt from the accepted frames' scale readings, kept across a loss (the magnification
   // has not changed), back to the expected scale when the target is forgotten (new pattern
@@ -168,6 +175,7 @@ struct Tracker::Impl {
   void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
   static void set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept;
   void go_lost() noexcept;
+  void hold(const PoseEstimate& e) noexcept;
   void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;
 };
 

@@ -41,6 +41,11 @@ class LossPolicy {
   // kReasonLowScore / kReasonLowPsr bits of a weak measurement.
   std::uint8_t weak_reasons(const Measurement& m) const noexcept;
 
+  // Weak only because the pattern does not explain the window (not a low score, PSR or an
+  // implausible move): the target is there but does not look like its pattern right now (a
+  // gripper's jaws open). The tracker then holds the ROI instead of searching the field.
+  bool only_unexplained(const Measurement& m) const noexcept;
+
   // A tracked frame's verdict (counts weak frames).
   FrameVerdict judge(const Measurement& m) noexcept;
   // A start search's result is the target when valid, not weak, above the field's noise
@@ -59,6 +64,7 @@ class LossPolicy {
     have_ref_ = false;
     have_score_var_ = false;
     score_var_ = 0;
+    have_peak_ = false;
   }
 
   // The score vouches for a pose: it is within the spread of the target's recent accepted
@@ -70,10 +76,27 @@ class LossPolicy {
   static constexpr double kConfirmSigmas = 3.0;
   static constexpr double kConfirmShare = 0.1;
 
+  // Between explained_threshold and explained_threshold + kExplainedDoubt of the attainable
+  // score a pose is unexplained unless its score is at the target's own best level: a target
+  // dragged by a part that moves (a gripper's jaws opening) fits ever worse over many frames,
+  // so the running mean follows it down, but its best level does not. At low dose a true
+  // target's ratio reaches down to ~0.7 (the procedural lamella at 2.5 e⁻/px) and its score
+  // stays at its level, so it passes.
+  static constexpr double kExplainedDoubt = 0.1;
+  // A score at or above this always passes the explained check (the attainable score is ≤ 1):
+  // the tracker measures the attainable score only below it.
+  double explained_bound() const noexcept {
+    return cfg_.explained_threshold > 0 ? cfg_.explained_threshold + kExplainedDoubt : 0.0;
+  }
+
   // The reported score of an accepted pose (the recent mean the relative threshold uses).
   void accepted(float score) noexcept;
   // The target is lost: forget the recent scores and the weak-frame count.
   void reset() noexcept;
+  // The weak-frame count only (the tracker holds its ROI on a target it does not report).
+  void judge_reset() noexcept { weak_frames_ = 0; }
+  // The tracker holds its ROI on a target it does not report (only_unexplained frames).
+  void set_held(bool on) noexcept { held_ = on; }
 
  private:
   // A score far below the target's recent scores is a look-alike, not the target (after a
@@ -84,6 +107,9 @@ class LossPolicy {
   // pattern lacks — a wrong scale, a look-alike, a torn frame. A gradual drift (scale creeping
   // away) passes below_recent, whose reference drifts along; this reference does not.
   bool unexplained(const Measurement& m) const noexcept;
+  // The score is at the target's own best level (peak_, within its spread): a frame the rigid
+  // pattern fits as it fits the undisturbed target.
+  bool at_own_level(float score) const noexcept;
 
   const config::TrackerConfig& cfg_;
   int weak_frames_ = 0;
@@ -92,6 +118,13 @@ class LossPolicy {
   // belongs to the target at this dose), forgotten with the target.
   double score_var_ = 0;
   bool have_score_var_ = false;
+  // The target's best recent level: jumps up to a higher accepted score, relaxes towards lower
+  // ones with a time constant of ~30 frames (so charging or a slow scale change that lower
+  // what the target scores are followed, the few frames of a jaw opening are not). Kept
+  // across a loss, forgotten with the target.
+  double peak_ = 0;
+  bool have_peak_ = false;
+  bool held_ = false;
   bool have_score_mean_ = false;
   float roi_floor_ = -1.0f, field_floor_ = -1.0f;
   bool calibrating_ = false;
