@@ -187,3 +187,73 @@ INSTANTIATE_TEST_SUITE_P(TargetsDoses, ScaleRamp,
                                            std::make_tuple("lamella_post", 1.25, 6.0),
                                            std::make_tuple("lamella_post", 0.75, 2.5),
                                            std::make_tuple("lamella", 1.25, 6.0)));
+
+namespace {
+// TRACKING poses > 3 px or > 10° off the truth, TRACKING poses, full-field searches.
+struct FalseCount {
+  int tracked = 0, false_n = 0, searches = 0;
+};
+FalseCount count_false(const pt::SimHarness& h) {
+  FalseCount c;
+  for (std::size_t f = 0; f < h.poses().size(); ++f) {
+    const auto& e = h.poses()[f];
+    const auto& t = h.records()[f].truth;
+    c.searches += e.searched;
+    if (e.state != TrackState::kTracking) continue;
+    ++c.tracked;
+    const double dphi = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
+    if (!(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && dphi <= 10.0)) ++c.false_n;
+  }
+  return c;
+}
+}  // namespace
+
+// The warped real crop spinning 450°/s (issue 13 item 6): the frame after the full-field
+// search (a 77 ms scan, the target turned ~20°) has no angular rate in its prediction; the walk
+// from the stale angle climbed a neighbouring maximum 16–18° and 11–16 px off that scored
+// below the target's level but above every threshold, and its wrong velocity kept the track
+// off for up to 17 frames (2 / 5 / 35 false poses at dose 20 / 6 / 2.5). The motion check
+// searches such a pose again around the prediction and does not report it if it stays.
+TEST(NoFalseTracking, FastSpinAfterTheStartSearch) {
+  for (double dose : {20.0, 2.5}) {
+    pt::Scenario s;
+    s.target = "warped";
+    s.motion = "spin";
+    s.dose_e = dose;
+    s.frames = 60;
+    s.start_phi_deg = 30;
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    const FalseCount c = count_false(h);
+    std::printf("warped spin dose %4.1f: TRACKING %d/%d, false %d, searches %d\n", dose, c.tracked, s.frames, c.false_n,
+                c.searches);
+    EXPECT_EQ(c.false_n, 0) << "TRACKING while > 3 px or > 10 deg off";
+    EXPECT_GE(c.tracked, s.frames - 2) << "the spin is followed, not rejected";
+  }
+}
+
+// Gripper jaws opening and closing 8 px (issue 13 items 4 and 6): the rigid pattern drags the
+// body's pose 3–6 px over several frames while its score sinks slowly. Such poses are not
+// TRACKING (the pattern explains < 0.7 of the attainable score and the score is below the
+// target's best level); the target is held in its ROI meanwhile (frames that also score far
+// below its recent level still go to a full-field search, as after a jump), and it is
+// TRACKING again when the jaws close.
+TEST(NoFalseTracking, GripperJawsDoNotDragATrackedPose) {
+  for (double dose : {20.0, 6.0}) {
+    pt::Scenario s;
+    s.target = "gripper";
+    s.jaws = true;
+    s.dose_e = dose;
+    s.frames = 60;
+    s.start_phi_deg = 30;
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    const FalseCount c = count_false(h);
+    std::printf("gripper jaws dose %4.1f: TRACKING %d/%d, false %d, searches %d\n", dose, c.tracked, s.frames, c.false_n,
+                c.searches);
+    EXPECT_EQ(c.false_n, 0) << "TRACKING while > 3 px or > 10 deg off";
+    EXPECT_GE(c.tracked, s.frames / 5) << "tracked again whenever the jaws close";
+  }
+}
