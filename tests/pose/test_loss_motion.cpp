@@ -173,3 +173,44 @@ TEST(LossPolicy, ScoreConfirmsAgainstTheTargetsOwnLevel) {
   EXPECT_TRUE(noisy.confirmed(0.68f));
   EXPECT_FALSE(noisy.confirmed(0.60f));
 }
+
+// The explained check's doubtful band: below explained_threshold (0.6) × the attainable score a
+// pose is always unexplained; from there to 0.7 × only when its score is below the target's
+// best level (a gripper dragged by its jaws) or the target is held (it comes back only when
+// the pattern explains it). only_unexplained: the target is there, it just does not look
+// like its pattern (the tracker holds its ROI).
+TEST(LossPolicy, DoubtfulExplanationNeedsTheTargetsLevel) {
+  config::TrackerConfig c;
+  c.explained_threshold = 0.6;
+  LossPolicy loss(c);
+  for (int f = 0; f < 30; ++f) loss.accepted(0.85f);  // the undisturbed gripper at dose 20
+  auto at = [](float score, float attainable) {
+    Measurement m = scored(score);
+    m.attainable = attainable;
+    return m;
+  };
+  EXPECT_FALSE(loss.weak(at(0.84f, 1.0f)));               // 0.84 of what is attainable
+  EXPECT_TRUE(loss.weak(at(0.55f, 0.97f)));                // < 0.6: unexplained whatever the level
+  const Measurement dragged = at(0.64f, 0.97f);            // 0.66 of attainable, far below the 0.85 level
+  EXPECT_TRUE(loss.weak(dragged));
+  EXPECT_EQ(loss.weak_reasons(dragged), kReasonUnexplained);
+  EXPECT_TRUE(loss.only_unexplained(dragged));             // held, not searched for
+  // A target whose own level is that low (the procedural lamella at 2.5 e⁻/px, attainable
+  // overestimated) passes at the same ratio.
+  LossPolicy low(c);
+  for (int f = 0; f < 30; ++f) low.accepted(0.58f);
+  EXPECT_FALSE(low.weak(at(0.56f, 0.84f)));
+  low.set_held(true);                                      // ... unless it is held
+  EXPECT_TRUE(low.weak(at(0.56f, 0.84f)));
+  low.set_held(false);
+  // A loss restarts the level: found again on other background, the target has its own.
+  loss.reset();
+  loss.accepted(0.62f);
+  EXPECT_FALSE(loss.weak(at(0.6f, 0.9f)));
+  // An implausible pose or a low score is not "only unexplained": a full-field search follows.
+  Measurement jumped = at(0.3f, 0.9f);
+  EXPECT_FALSE(loss.only_unexplained(jumped));
+  Measurement odd = dragged;
+  odd.implausible = true;
+  EXPECT_FALSE(loss.only_unexplained(odd));
+}

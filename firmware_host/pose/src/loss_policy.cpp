@@ -22,7 +22,7 @@ bool LossPolicy::at_own_level(float score) const noexcept {
   if (!have_peak_) return true;  // nothing known of the target yet: the plain threshold decides
   // Only the room a ZNCC of that level has, not the running spread: a deforming target's
   // scores spread widely, which would excuse the very frames this is about.
-  return score >= peak_ - kConfirmShare * (1.0 - peak_ * peak_);
+  return score >= peak_ - kLevelShare * (1.0 - peak_ * peak_);
 }
 
 bool LossPolicy::only_unexplained(const Measurement& m) const noexcept {
@@ -66,11 +66,14 @@ void LossPolicy::accepted(float score) noexcept {
     score_var_ = have_score_var_ ? 0.8 * score_var_ + 0.2 * d * d : d * d;
     have_score_var_ = true;
   }
+  score_mean_ = have_score_mean_ ? 0.8 * score_mean_ + 0.2 * score : score;
   if (!calibrating_) {
-    peak_ = have_peak_ ? std::max<double>(score, 0.97 * peak_ + 0.03 * score) : score;
+    // Of the running mean, not of single scores: the highest of noisy scores sits well above
+    // the level a target keeps (at 2.5 e⁻/px by ~2 SD), which would make its ordinary frames
+    // look like a decline.
+    peak_ = have_peak_ ? std::max(score_mean_, 0.97 * peak_ + 0.03 * score_mean_) : score_mean_;
     have_peak_ = true;
   }
-  score_mean_ = have_score_mean_ ? 0.8 * score_mean_ + 0.2 * score : score;
   have_score_mean_ = true;
   weak_frames_ = 0;
   ref_score_ = score_mean_;
@@ -80,6 +83,9 @@ void LossPolicy::accepted(float score) noexcept {
 void LossPolicy::reset() noexcept {
   have_score_mean_ = false;
   weak_frames_ = 0;
+  // Found again after a loss, the target sits on other background (a jump) and scores at a
+  // level of its own there; a held target keeps its level (judge_reset() only).
+  have_peak_ = false;
 }
 
 }  // namespace sempose::pose
