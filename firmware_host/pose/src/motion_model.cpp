@@ -41,6 +41,12 @@ void MotionModel::coast() noexcept {
   predict();
 }
 
+void MotionModel::hold() noexcept {
+  vx_ = vy_ = vphi_ = 0;
+  have_velocity_ = !predict_velocity_;
+  predict();
+}
+
 void MotionModel::reset() noexcept {
   have_prev_ = false;
   have_velocity_ = false;

@@ -171,11 +171,12 @@ struct Tracker::Impl {
   PoseEstimate update(const PoseFrame& frame) noexcept;
   Measurement track(const PatternBank& bank, bool& swept) noexcept;
   template <class Place>
-  void check_motion(const PatternBank& bank, Measurement& m, PoseEstimate& e, bool swept, const Place& place) noexcept;
+  void check_motion(const PatternBank& bank, Measurement& m, PoseEstimate& e, bool swept, double origin_x, double origin_y,
+                    double scale, const Place& place) noexcept;
   void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
   static void set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept;
   void go_lost() noexcept;
-  void hold(const PoseEstimate& e) noexcept;
+  void hold() noexcept;
   void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;
 };
 

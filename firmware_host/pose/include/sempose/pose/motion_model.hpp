@@ -21,6 +21,9 @@ class MotionModel {
   void accept(double x_px, double y_px, double phi_deg, bool fresh) noexcept;
   // A weak frame that is not yet a loss: the prediction stands in for the pose.
   void coast() noexcept;
+  // The target is there but its pose is not trusted (held): the prediction stays at the last
+  // accepted pose, without velocity, so the ROI does not wander after what it cannot vouch for.
+  void hold() noexcept;
   // The target is lost: no velocity, no previous pose (the prediction and the angle prior stay).
   void reset() noexcept;
 
