@@ -15,7 +15,9 @@ void MotionModel::accept(double x, double y, double phi, bool fresh) noexcept {
     innov_px2_ = have_innov_ ? 0.8 * innov_px2_ + 0.2 * px2 : px2;
     innov_deg2_ = have_innov_ ? 0.8 * innov_deg2_ + 0.2 * dphi * dphi : dphi * dphi;
     have_innov_ = true;
+    ++innovations_since_fresh_;
   }
+  if (fresh) innovations_since_fresh_ = 0;
   // The next prediction is the model's full one: with a velocity from two poses in a row (or,
   // without velocity prediction, from any previous pose).
   have_velocity_ = !predict_velocity_ || (!fresh && have_prev_);
@@ -48,6 +50,7 @@ void MotionModel::hold() noexcept {
 }
 
 void MotionModel::reset() noexcept {
+  innovations_since_fresh_ = 0;
   have_prev_ = false;
   have_velocity_ = false;
   vx_ = vy_ = vphi_ = 0;
@@ -60,12 +63,12 @@ void MotionModel::predict() noexcept {
   pred_phi_ = rt::wrap_deg(phi_ + (v ? vphi_ : 0));
 }
 
-bool MotionModel::surprising(double x, double y, double phi) const noexcept {
+bool MotionModel::surprising(double x, double y, double phi, double wider) const noexcept {
   const double dpos = std::hypot(x - pred_x_, y - pred_y_);
   const double dphi = std::fabs(rt::wrap_deg(phi - pred_phi_));
   const bool known = have_velocity_ && have_innov_;
-  const double lim_px = std::max(kSurpriseFloorPx, known ? kSurpriseSigmas * std::sqrt(innov_px2_) : 0.0);
-  const double lim_deg = std::max(kSurpriseFloorDeg, known ? kSurpriseSigmas * std::sqrt(innov_deg2_) : 0.0);
+  const double lim_px = wider * std::max(kSurpriseFloorPx, known ? kSurpriseSigmas * std::sqrt(innov_px2_) : 0.0);
+  const double lim_deg = wider * std::max(kSurpriseFloorDeg, known ? kSurpriseSigmas * std::sqrt(innov_deg2_) : 0.0);
   return dpos > lim_px || dphi > lim_deg;
 }
 

@@ -73,6 +73,7 @@ struct Tracker::Impl {
   // would not find a deformed target either) for at most kMaxHeldFrames; the poses are not
   // TRACKING until a frame passes every check again.
   int held_frames = 0;
+  static constexpr double kImplausibleWider = 1.5;  // motion check: implausible beyond 1.5 × the surprise limits
   static constexpr int kMaxHeldFrames = 25;  // ~0.25 s of 192² ROIs, then the field is searched
   // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
   // Learnt from the accepted frames' scale readings, kept across a loss (the magnification

@@ -40,11 +40,16 @@ class MotionModel {
   // target that moved exactly as predicted so far), in position or in angle. Without a
   // velocity (the first frame after a search) the prediction is the last pose and any move
   // beyond the floors is a surprise: nothing was seen yet that would vouch for it.
-  bool surprising(double x_px, double y_px, double phi_deg) const noexcept;
+  // wider > 1 scales the sigmas and the floors (a graver surprise).
+  bool surprising(double x_px, double y_px, double phi_deg, double wider = 1.0) const noexcept;
   // RMS of the innovations (accepted pose − its prediction), 0 before any.
   double innovation_rms_px() const noexcept { return std::sqrt(innov_px2_); }
   double innovation_rms_deg() const noexcept { return std::sqrt(innov_deg2_); }
   bool has_velocity() const noexcept { return have_velocity_; }
+  // The motion since the last search is known: a velocity and at least two innovations of
+  // predictions made from ROI frames only (the velocity right after a search spans the long
+  // full-field scan and overshoots once).
+  bool motion_known() const noexcept { return have_velocity_ && innovations_since_fresh_ >= 2; }
 
   static constexpr double kSurpriseSigmas = 4.0;
   // Floors: an innovation this small is never a surprise (measurement noise at 1 e⁻/px is
@@ -66,6 +71,7 @@ class MotionModel {
   // a loss: how irregularly the target moves is a property of the target and its drive.
   double innov_px2_ = 0, innov_deg2_ = 0;
   bool have_innov_ = false;
+  int innovations_since_fresh_ = 0;
   double x_ = 0, y_ = 0, phi_ = 0;
   double vx_ = 0, vy_ = 0, vphi_ = 0;
   double pred_x_ = 0, pred_y_ = 0, pred_phi_ = 0;
