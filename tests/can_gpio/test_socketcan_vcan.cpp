@@ -130,16 +130,22 @@ TEST_F(SocketCanTest, PosesAndHeartbeatReachAnotherSocket) {
   auto ch = open();
   ASSERT_TRUE(ch);
   co::CanPoseSink sink(*ch, {});
-  // Few enough that the peer's default receive buffer holds them all (no reader thread here).
-  constexpr std::uint32_t kPoses = 100;
+  // Few enough that the peer's default receive buffer holds them all (no reader thread here):
+  // three classic frames per pose (XY, ATTR, POSE_UNC) plus a heartbeat.
+  constexpr std::uint32_t kPoses = 60;
   for (std::uint32_t i = 0; i < kPoses; ++i) ASSERT_EQ(sink.publish(pose(i), 0), pl::PublishResult::kSent) << i;
   sink.service({}, 0);  // first heartbeat
   for (std::uint32_t i = 0; i < kPoses; ++i) {
-    canfd_frame xy{}, at{};
+    canfd_frame xy{}, at{}, un{};
     ASSERT_TRUE(peer.receive(xy)) << "pose " << i << " XY not received";
     ASSERT_TRUE(peer.receive(at)) << "pose " << i << " ATTR not received";
+    ASSERT_TRUE(peer.receive(un)) << "pose " << i << " POSE_UNC not received";
     EXPECT_EQ(xy.can_id, 0x100u);
     EXPECT_EQ(at.can_id, 0x101u);
+    EXPECT_EQ(un.can_id, 0x103u);
+    ipc::PoseUnc u;
+    ASSERT_TRUE(ipc::decode_pose_unc(un.data, un.len, u));
+    EXPECT_EQ(u.seq, i % 256);
     ipc::PoseXy d;
     ASSERT_TRUE(ipc::decode_pose_xy(xy.data, xy.len, d));
     EXPECT_EQ(d.seq, i % 256);
@@ -150,7 +156,7 @@ TEST_F(SocketCanTest, PosesAndHeartbeatReachAnotherSocket) {
   ASSERT_TRUE(peer.receive(hb));
   EXPECT_EQ(hb.can_id, 0x140u);
   EXPECT_EQ(ch->bus_state(), hal::CanBusState::kActive);
-  EXPECT_EQ(ch->counters().tx_frames.load(), 2 * kPoses + 1);
+  EXPECT_EQ(ch->counters().tx_frames.load(), 3 * kPoses + 1);
 }
 
 TEST_F(SocketCanTest, CommandsAreReadWithoutBlockingAndValidated) {
