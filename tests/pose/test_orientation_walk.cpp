@@ -14,6 +14,7 @@
 #include "sempose/pose/orientation_walk.hpp"
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/pose/start_search.hpp"
+#include "analytic_scene.hpp"
 
 using namespace sempose;
 using namespace sempose::pose;
@@ -23,22 +24,9 @@ namespace {
 constexpr int kPattern = 32;
 constexpr double kStepDeg = 2.0;
 
-// The target's texture in its own frame (u right, v down, origin at its centre).
-double texture(double u, double v) {
-  return 1000 + 400 * std::exp(-((u - 5) * (u - 5) + (v + 3) * (v + 3)) / 30) +
-         300 * std::sin(0.35 * u + 0.1 * v) * std::cos(0.22 * v) + 250 * std::exp(-((u + 8) * (u + 8) + (v - 6) * (v - 6)) / 10);
-}
-
-// A w×h image with the target's centre at (cx, cy), turned by phi_deg (CCW on screen).
+// The noise-free target as the walk's tests see it.
 std::vector<std::uint16_t> render(int w, int h, double cx, double cy, double phi_deg) {
-  const double c = std::cos(phi_deg * M_PI / 180), s = std::sin(phi_deg * M_PI / 180);
-  std::vector<std::uint16_t> out(static_cast<std::size_t>(w) * h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      const double dx = x - cx, dy = y - cy;
-      out[static_cast<std::size_t>(y) * w + x] = static_cast<std::uint16_t>(std::lround(texture(dx * c - dy * s, dx * s + dy * c)));
-    }
-  return out;
+  return test::render_analytic(w, h, cx, cy, phi_deg);
 }
 
 // The tracker's stages for a 32 px pattern, 64 px ROI, 160×128 field, 2° steps, no prefilter.

@@ -18,6 +18,7 @@
 #include "sempose/pose/pose_uncertainty.hpp"
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/rt/alloc_counter.hpp"
+#include "analytic_scene.hpp"
 
 using namespace sempose;
 using namespace sempose::pose;
@@ -28,26 +29,16 @@ constexpr int kPattern = 48;
 constexpr int kRoi = 80;
 constexpr double kStepDeg = 1.0;
 
-double texture(double u, double v) {
-  return 1000 + 400 * std::exp(-((u - 5) * (u - 5) + (v + 3) * (v + 3)) / 40) +
-         300 * std::sin(0.35 * u + 0.1 * v) * std::cos(0.22 * v) + 250 * std::exp(-((u + 8) * (u + 8) + (v - 6) * (v - 6)) / 16);
-}
+const test::AnalyticTexture kTexture{40, 16};  // smoother than the walk tests' target
 
 // The target at (cx, cy) turned by phi_deg, plus `clutter` × a smooth blob that is not in the
 // pattern (static background under the target's rim), plus white noise of SD noise_sd.
 std::vector<std::uint16_t> render(double cx, double cy, double phi_deg, double clutter, double noise_sd, std::mt19937& rng) {
-  const double c = std::cos(phi_deg * M_PI / 180), s = std::sin(phi_deg * M_PI / 180);
   std::normal_distribution<double> noise(0.0, noise_sd);
-  std::vector<std::uint16_t> out(static_cast<std::size_t>(kRoi) * kRoi);
-  for (int y = 0; y < kRoi; ++y)
-    for (int x = 0; x < kRoi; ++x) {
-      const double dx = x - cx, dy = y - cy;
-      double v = texture(dx * c - dy * s, dx * s + dy * c);
-      v += clutter * std::exp(-((x - 50.0) * (x - 50.0) + (y - 30.0) * (y - 30.0)) / 120.0);
-      if (noise_sd > 0) v += noise(rng);
-      out[static_cast<std::size_t>(y) * kRoi + x] = static_cast<std::uint16_t>(std::lround(std::clamp(v, 0.0, 65535.0)));
-    }
-  return out;
+  return test::render_analytic(kRoi, kRoi, cx, cy, phi_deg, kTexture, [&](int x, int y, double v) {
+    v += clutter * std::exp(-((x - 50.0) * (x - 50.0) + (y - 30.0) * (y - 30.0)) / 120.0);
+    return noise_sd > 0 ? v + noise(rng) : v;
+  });
 }
 
 struct Stages {
@@ -77,11 +68,8 @@ struct Stages {
     maps.assign(static_cast<std::size_t>(sizes.half_fft_px) * sizes.half_fft_px, 0.0f);
     walk = std::make_unique<OrientationWalk>(*scorer, fit, angles);
     PatternBankSpec spec;
-    std::vector<std::uint16_t> pattern(static_cast<std::size_t>(kPattern) * kPattern);
-    for (int y = 0; y < kPattern; ++y)
-      for (int x = 0; x < kPattern; ++x)
-        pattern[static_cast<std::size_t>(y) * kPattern + x] =
-            static_cast<std::uint16_t>(std::lround(texture(x - (kPattern - 1) / 2.0, y - (kPattern - 1) / 2.0)));
+    const std::vector<std::uint16_t> pattern =
+        test::render_analytic(kPattern, kPattern, (kPattern - 1) / 2.0, (kPattern - 1) / 2.0, 0, kTexture);
     spec.pattern = {kPattern, kPattern, pattern};
     spec.angle_step_deg = kStepDeg;
     spec.coarse_step_deg = 20;
