@@ -115,7 +115,7 @@ int run_replay(int argc, char** argv) {
   if (frames_dir.empty() || out_path.empty()) return usage(stderr);
 
   config::AppConfig app;
-  app.path = "sempose replay";
+  app.path = "command line";  // names where the targets came from in errors when there is no --config
   if (!config_path.empty()) {
     std::string errors;
     if (!config::load_app_config(config_path, app, errors)) {
