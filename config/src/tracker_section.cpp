@@ -52,6 +52,9 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("search_candidates", c.search_candidates, 1, 64);
   s.opt("search_refine_window_deg", c.search_refine_window_deg, 0.0, 180.0);
   s.opt("search_refine_step_deg", c.search_refine_step_deg, 0.25, 90.0);
+  // The tracked scale's own range is 0.7–1.45 (the ROI must hold the target).
+  s.opt("search_scale_min", c.search_scale_min, 0.7, 1.0);
+  s.opt("search_scale_max", c.search_scale_max, 1.0, 1.45);
   s.opt("predict_velocity", c.predict_velocity);
   s.opt_choice("subpixel", c.subpixel, {"gaussian", "quadratic"});
   s.opt("fit_noise_correction", c.fit_noise_correction);

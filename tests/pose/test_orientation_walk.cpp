@@ -38,6 +38,8 @@ struct Stages {
   std::unique_ptr<FftCorrelator> half, coarse;
   std::unique_ptr<ExactScorer> scorer;
   std::unique_ptr<RoiLoader> loader;
+  std::unique_ptr<RoiRescaler> rescaler;
+  std::unique_ptr<ScaleProbe> probe;
   std::unique_ptr<CorrelationMaps> maps;
   SubpixelFit fit{true, true};
   std::unique_ptr<OrientationWalk> walk;
@@ -56,10 +58,12 @@ struct Stages {
     coarse = std::make_unique<FftCorrelator>(good_fft_size(sizes.coarse_max_w), good_fft_size(sizes.coarse_max_h), coarse_mask);
     scorer = std::make_unique<ExactScorer>(fine, sizes.roi_fft_px);
     loader = std::make_unique<RoiLoader>(0, sizes.roi_fft_px, *scorer, *half);
+    rescaler = std::make_unique<RoiRescaler>(sizes.roi_fft_px);
+    probe = std::make_unique<ScaleProbe>(*scorer);
     maps = std::make_unique<CorrelationMaps>(static_cast<std::size_t>(sizes.half_fft_px) * sizes.half_fft_px);
     walk = std::make_unique<OrientationWalk>(*scorer, fit, angles);
     sweep = std::make_unique<AngleSweep>(*half, *walk, angles, *maps);
-    search = std::make_unique<StartSearch>(cfg, sizes, angles, *coarse, *half, *loader, *walk, *sweep, *maps);
+    search = std::make_unique<StartSearch>(cfg, sizes, angles, *coarse, *half, *loader, *rescaler, *probe, *walk, *sweep, *maps);
     PatternBankSpec spec;
     const std::vector<std::uint16_t> pattern = render(kPattern, kPattern, (kPattern - 1) / 2.0, (kPattern - 1) / 2.0, 0);
     spec.pattern = {kPattern, kPattern, pattern};
@@ -116,14 +120,16 @@ TEST(StartSearch, FindsTheTargetOnTheFullField) {
   const double cx = 97.3, cy = 52.8, phi = 64.0;
   const auto field = render(160, 128, cx, cy, phi);
   int rx = -1, ry = -1;
-  const Measurement m = st.search->search(*st.bank, field.data(), 160, 128, 16, {}, rx, ry);
+  double scale = 0;
+  const Measurement m = st.search->search(*st.bank, field.data(), 160, 128, 16, {}, {}, rx, ry, scale);
   ASSERT_TRUE(m.valid);
+  EXPECT_NEAR(scale, 1.0, 0.03) << "searched over 0.75–1.33, found at its size";
   EXPECT_NEAR(pose_x(m, rx), cx, 0.15);
   EXPECT_NEAR(pose_y(m, ry), cy, 0.15);
   EXPECT_NEAR(pose_phi(m), phi, 0.3);
   // A flat field has nothing to find.
   const std::vector<std::uint16_t> flat(160 * 128, 500);
-  EXPECT_FALSE(st.search->search(*st.bank, flat.data(), 160, 128, 16, {}, rx, ry).valid);
+  EXPECT_FALSE(st.search->search(*st.bank, flat.data(), 160, 128, 16, {}, {}, rx, ry, scale).valid);
 }
 
 TEST(StartSearch, AScoreTieGoesToTheAngleNearTheLastTrackedOne) {

@@ -232,6 +232,59 @@ TEST(Tracker, SelectsExpectedScaleFromMicroscopeNmPerPx) {
   EXPECT_EQ(t.next_roi().w, 640) << "same set at twice the magnification: searched again";
 }
 
+// No SELECT, the target at 0.8 or 1.25 of its pattern's size from the first frame: the start
+// search covers scale, so the first pose is already at the target's scale and the tracked
+// ones keep it (at scale 1 only, a 1.25 target was found off by its size and tracked from 1).
+class AcquireScaled : public ::testing::TestWithParam<std::tuple<const char*, double>> {};
+TEST_P(AcquireScaled, FirstPoseHasTheTargetsScale) {
+  Scenario s;
+  s.target = std::get<0>(GetParam());
+  s.scale_from = s.scale_to = std::get<1>(GetParam());
+  s.motion = "static";
+  s.dose_e = 6;
+  s.start_phi_deg = 37;
+  s.start_x_px = 300;
+  s.start_y_px = 230;
+  s.frames = 4;
+  SimHarness h(s, small_config());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  for (std::size_t f = 0; f < h.poses().size(); ++f) {
+    const PoseEstimate& e = h.poses()[f];
+    const auto& tr = h.truth()[f];
+    EXPECT_EQ(e.searched, f == 0) << "frame " << f;
+    ASSERT_EQ(e.state, TrackState::kTracking) << "frame " << f << " score " << e.score;
+    EXPECT_NEAR(e.scale, tr.scale, 0.04) << "frame " << f;
+    EXPECT_LT(std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), 1.5) << "frame " << f;
+    EXPECT_LT(angle_error(e.phi_deg, tr.phi_deg), 2.0) << "frame " << f;
+  }
+}
+INSTANTIATE_TEST_SUITE_P(TargetsScales, AcquireScaled,
+                         ::testing::Combine(::testing::Values("needle_tip", "lamella_post", "lamella"),
+                                            ::testing::Values(0.8, 1.25)));
+
+// After a loss the search covers scale too: a 1.25 target that jumps is re-found at 1.25.
+TEST(Tracker, ReSearchAfterJumpFindsScale) {
+  Scenario s;
+  s.target = "needle_tip";
+  s.scale_from = s.scale_to = 1.25;
+  s.motion = "jump";
+  s.dose_e = 6;
+  s.frames = 120;
+  SimHarness h(s, small_config());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  int found = 0;
+  for (std::size_t f = 0; f < h.poses().size(); ++f) {
+    const PoseEstimate& e = h.poses()[f];
+    if (!e.searched || e.state != TrackState::kTracking) continue;
+    ++found;
+    EXPECT_NEAR(e.scale, 1.25, 0.04) << "frame " << f;
+    EXPECT_LT(std::hypot(e.x_px - h.truth()[f].x_px, e.y_px - h.truth()[f].y_px), 2.0) << "frame " << f;
+  }
+  EXPECT_GE(found, 2) << "the start and at least one re-search after a jump";
+}
+
 TEST(Tracker, NoHeapAllocationOverThousandFrames) {
   Scenario s;
   s.motion = "jump";  // searches, losses and tracking all happen

@@ -1,6 +1,7 @@
 #include "sempose/pose/candidate_list.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdlib>
 #include <utility>
@@ -10,7 +11,8 @@ namespace sempose::pose {
 CandidateList::CandidateList(int capacity, int separation_px)
     : items_(static_cast<std::size_t>(capacity)), separation_px_(separation_px) {}
 
-void CandidateList::add_local_maxima(const float* map, int vw, int vh, int k) noexcept {
+void CandidateList::add_local_maxima(const float* map, int vw, int vh, int k, int level, double scale,
+                                     double centre_px) noexcept {
   const int capacity = static_cast<int>(items_.size());
   for (int y = 0; y < vh; ++y) {
     for (int x = 0; x < vw; ++x) {
@@ -27,7 +29,13 @@ void CandidateList::add_local_maxima(const float* map, int vw, int vh, int k) no
           }
         }
       }
-      if (local_max) insert({x, y, k, s});
+      if (!local_max) continue;
+      if (level == 0 && scale == 1.0) {
+        insert({x, y, k, s, 0});
+      } else {
+        insert({static_cast<int>(std::lround((x + centre_px) * scale - centre_px)),
+                static_cast<int>(std::lround((y + centre_px) * scale - centre_px)), k, s, level});
+      }
     }
   }
 }

@@ -8,21 +8,88 @@
 
 namespace sempose::pose {
 
+namespace {
+// 1, then the levels below and above it, geometric steps at most kLevelRatio apart.
+std::vector<double> scale_levels_of(double lo, double hi, double ratio) {
+  std::vector<double> v{1.0};
+  const int below = lo < 1.0 ? static_cast<int>(std::ceil(std::log(1.0 / lo) / std::log(ratio) - 1e-9)) : 0;
+  const int above = hi > 1.0 ? static_cast<int>(std::ceil(std::log(hi) / std::log(ratio) - 1e-9)) : 0;
+  for (int i = 1; i <= below; ++i) v.push_back(std::pow(lo, static_cast<double>(i) / below));
+  for (int i = 1; i <= above; ++i) v.push_back(std::pow(hi, static_cast<double>(i) / above));
+  return v;
+}
+}  // namespace
+
 StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& sizes, const AngleGrid& angles,
-                         FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, const OrientationWalk& walk,
-                         AngleSweep& sweep, CorrelationMaps& maps)
+                         FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
+                         const ScaleProbe& probe, const OrientationWalk& walk, AngleSweep& sweep, CorrelationMaps& maps)
     : cfg_(cfg),
       sizes_(sizes),
       angles_(angles),
       coarse_(coarse),
       half_(half),
       loader_(loader),
+      rescaler_(rescaler),
+      probe_(probe),
       walk_(walk),
       sweep_(sweep),
       maps_(maps),
+      levels_(scale_levels_of(cfg.search_scale_min, cfg.search_scale_max, kLevelRatio)),
+      active_(levels_),
       coarse_frame_(static_cast<std::size_t>(sizes.coarse_max_w) * sizes.coarse_max_h, 0),
+      level_frame_(coarse_frame_.size(), 0),
       coarse_map_(coarse_frame_.size(), 0.0f),
       candidates_(cfg.search_candidates, std::max(2, sizes.coarse_pattern_px / 2)) {}
+
+void StartSearch::resample_coarse(int cw, int ch, double s, int& lw, int& lh) noexcept {
+  lw = std::min(coarse_.fft_w(), std::min(sizes_.coarse_max_w, static_cast<int>((cw - 1) / s) + 1));
+  lh = std::min(coarse_.fft_h(), std::min(sizes_.coarse_max_h, static_cast<int>((ch - 1) / s) + 1));
+  const std::int32_t* in = coarse_frame_.data();
+  for (int y = 0; y < lh; ++y) {
+    const double v = std::min(y * s, ch - 1.0);
+    const int y0 = std::min(static_cast<int>(v), ch - 2);
+    const double wy = v - y0;
+    const std::int32_t* r0 = in + static_cast<std::ptrdiff_t>(y0) * cw;
+    const std::int32_t* r1 = r0 + cw;
+    std::int32_t* o = level_frame_.data() + static_cast<std::ptrdiff_t>(y) * lw;
+    for (int x = 0; x < lw; ++x) {
+      const double u = std::min(x * s, cw - 1.0);
+      const int x0 = std::min(static_cast<int>(u), cw - 2);
+      const double wx = u - x0;
+      const double top = r0[x0] + wx * (r0[x0 + 1] - r0[x0]);
+      const double bot = r1[x0] + wx * (r1[x0 + 1] - r1[x0]);
+      o[x] = static_cast<std::int32_t>(std::lround(top + wy * (bot - top)));
+    }
+  }
+}
+
+double StartSearch::load_at(const std::uint16_t* px, int w, int rx, int ry, int rw, int rh, int bits, double s) noexcept {
+  const std::uint16_t* roi = px + static_cast<std::size_t>(ry) * w + rx;
+  if (std::fabs(s - 1.0) <= RoiRescaler::kMinChange) return loader_.load(roi, rw, rh, w, bits) ? 1.0 : 0.0;
+  const std::uint16_t* resampled = rescaler_.rescale(roi, rw, rh, w, bits, s);
+  return loader_.load(resampled, rw, rh, rw, RoiRescaler::out_bits(bits)) ? s : 0.0;
+}
+
+double StartSearch::refine_factor(const PatternBank& bank, const Measurement& m, double span) const noexcept {
+  const double step = ScaleProbe::kStep;
+  const int n = static_cast<int>(std::ceil(span / step));
+  double best = -3.0;
+  int ib = 0;
+  for (int i = -n; i <= n; ++i) {
+    const double sc = probe_.score(bank, m, 1.0 + i * step);
+    if (sc > best) {
+      best = sc;
+      ib = i;
+    }
+  }
+  if (best < -1.5) return 1.0;
+  const double f = 1.0 + ib * step;
+  if (ib == -n || ib == n) return f;
+  const double lo = probe_.score(bank, m, f - step), hi = probe_.score(bank, m, f + step);
+  const double curv = lo - 2.0 * best + hi;
+  if (!(curv < 0) || lo < -1.5 || hi < -1.5) return f;
+  return f + std::clamp(0.5 * (lo - hi) / curv, -0.5, 0.5) * step;
+}
 
 bool StartSearch::prefer_opposite(const Measurement& m, const Measurement& f, const AnglePrior& prior) const noexcept {
   if (std::fabs(f.score - m.score) >= kFlipTieScore) return f.score > m.score;
@@ -30,35 +97,59 @@ bool StartSearch::prefer_opposite(const Measurement& m, const Measurement& f, co
 }
 
 Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px, int w, int h, int bits,
-                                const AnglePrior& prior, int& roi_x, int& roi_y) noexcept {
+                                const AnglePrior& prior, const ScalePrior& scale_prior, int& roi_x, int& roi_y,
+                                double& found_scale) noexcept {
   Measurement none;
-  const int d = sizes_.search_factor, pattern_px = sizes_.pattern_px;
+  const int d = sizes_.search_factor, pattern_px = sizes_.pattern_px, cp = sizes_.coarse_pattern_px;
   const int cw = std::min(w / d, sizes_.coarse_max_w), ch = std::min(h / d, sizes_.coarse_max_h);
-  if (cw < sizes_.coarse_pattern_px || ch < sizes_.coarse_pattern_px) return none;
+  if (cw < cp || ch < cp) return none;
   box_downsample<std::uint16_t, std::int32_t, std::int32_t>(px, w, 0, 0, d, cw, ch, coarse_frame_.data());
-  if (!coarse_.load(coarse_frame_.data(), cw, ch, cw)) return none;
-  candidates_.clear();
-  const int vw = coarse_.valid_w(), vh = coarse_.valid_h();
-  for (int k = 0; k < bank.coarse_angles(); ++k) {
-    coarse_.correlate(bank.coarse_spectrum(k), coarse_map_.data());
-    candidates_.add_local_maxima(coarse_map_.data(), vw, vh, k);
+  int n_levels = static_cast<int>(levels_.size());
+  if (scale_prior.known) {
+    active_[0] = scale_prior.scale;
+    n_levels = 1;
+  } else {
+    std::copy(levels_.begin(), levels_.end(), active_.begin());
   }
-  Measurement best;
-  best.score = -2.0f;
+  candidates_.clear();
+  for (int l = 0; l < n_levels; ++l) {
+    const double s = active_[static_cast<std::size_t>(l)];
+    bool loaded = false;
+    if (s == 1.0) {
+      loaded = coarse_.load(coarse_frame_.data(), cw, ch, cw);
+    } else {
+      int lw = 0, lh = 0;
+      resample_coarse(cw, ch, s, lw, lh);
+      loaded = lw >= cp && lh >= cp && coarse_.load(level_frame_.data(), lw, lh, lw);
+    }
+    if (!loaded) continue;
+    const int vw = coarse_.valid_w(), vh = coarse_.valid_h();
+    for (int k = 0; k < bank.coarse_angles(); ++k) {
+      coarse_.correlate(bank.coarse_spectrum(k), coarse_map_.data());
+      candidates_.add_local_maxima(coarse_map_.data(), vw, vh, k, l, s, (cp - 1) / 2.0);
+    }
+  }
+  Fine best;
+  best.m.score = -2.0f;
   float best_rank = -10.0f;
   const int rw = std::min(sizes_.roi_px, w), rh = std::min(sizes_.roi_px, h);
   const int max_moves = static_cast<int>(std::ceil(cfg_.search_refine_step_deg / angles_.step_deg)) + 2;
+  const double c_p = (pattern_px - 1) / 2.0;
+  // A level's candidate is at most √kLevelRatio off the target's scale (a known scale: at it).
+  const double span = n_levels > 1 ? std::sqrt(kLevelRatio) - 1.0 + ScaleProbe::kStep : ScaleProbe::kStep;
   for (int c = 0; c < candidates_.size(); ++c) {
     const StartCandidate& cd = candidates_[c];
-    const double cx = cd.ux * d - sizes_.coarse_offset_px + (pattern_px - 1) / 2.0;
-    const double cy = cd.uy * d - sizes_.coarse_offset_px + (pattern_px - 1) / 2.0;
+    const double cx = cd.ux * d - sizes_.coarse_offset_px + c_p;
+    const double cy = cd.uy * d - sizes_.coarse_offset_px + c_p;
     const int rx = std::clamp(static_cast<int>(std::lround(cx - (rw - 1) / 2.0)), 0, w - rw);
     const int ry = std::clamp(static_cast<int>(std::lround(cy - (rh - 1) / 2.0)), 0, h - rh);
-    if (!loader_.load(px + static_cast<std::size_t>(ry) * w + rx, rw, rh, w, bits)) continue;
+    const double s = load_at(px, w, rx, ry, rw, rh, bits, active_[static_cast<std::size_t>(cd.level)]);
+    if (s == 0.0) continue;
     // The coarse position is good to about ±d/2 px: look for the fine peak only near it, so
-    // that at low dose a chance peak elsewhere in the ROI cannot outscore the target.
-    const int ex = static_cast<int>(std::lround(cx - (pattern_px - 1) / 2.0)) - rx;
-    const int ey = static_cast<int>(std::lround(cy - (pattern_px - 1) / 2.0)) - ry;
+    // that at low dose a chance peak elsewhere in the ROI cannot outscore the target. In a
+    // ROI resampled by 1/s the target's centre is (c + (raw − c)/s).
+    const int ex = static_cast<int>(std::lround((rw - 1) / 2.0 + (cx - rx - (rw - 1) / 2.0) / s - c_p));
+    const int ey = static_cast<int>(std::lround((rh - 1) / 2.0 + (cy - ry - (rh - 1) / 2.0) / s - c_p));
     const SearchWindow win{(ex - d - 2) / 2, (ey - d - 2) / 2, (ex + d + 3) / 2, (ey + d + 3) / 2};  // binned px
     Measurement m = sweep_.sweep(bank, angles_.index_of(bank.coarse_angle_deg(cd.k)), cfg_.search_refine_window_deg,
                                  cfg_.search_refine_step_deg, max_moves, win);
@@ -84,16 +175,54 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     // more discriminative statistic at a few electrons per pixel; the fine level refines.
     if (m.valid && m.score + cd.score > best_rank) {
       best_rank = m.score + cd.score;
-      best = m;
-      roi_x = rx;
-      roi_y = ry;
+      best.m = m;
+      best.rx = rx;
+      best.ry = ry;
+      best.rw = rw;
+      best.rh = rh;
+      best.load_scale = s;
+      best.factor = refine_factor(bank, m, span);  // while this candidate's ROI is loaded
     }
   }
-  return best;
+  if (!best.m.valid) return none;
+  roi_x = best.rx;
+  roi_y = best.ry;
+  // The target's centre in the scanned ROI.
+  double x_raw = RoiRescaler::to_raw(best.m.ux + best.m.dx + c_p, rw, best.load_scale);
+  double y_raw = RoiRescaler::to_raw(best.m.uy + best.m.dy + c_p, rh, best.load_scale);
+  found_scale = best.load_scale * best.factor;
+  Measurement m = best.m;
+  // Measured again at the refined scale when it moved by more than the rescaler's threshold:
+  // a pose from a pattern ≥ 3 % off the target's size is biased (its angle most).
+  if (std::fabs(found_scale - best.load_scale) > RoiRescaler::kMinChange) {
+    const double s = load_at(px, w, best.rx, best.ry, rw, rh, bits, found_scale);
+    if (s != 0.0) {
+      const int ex = static_cast<int>(std::lround((rw - 1) / 2.0 + (x_raw - (rw - 1) / 2.0) / s - c_p));
+      const int ey = static_cast<int>(std::lround((rh - 1) / 2.0 + (y_raw - (rh - 1) / 2.0) / s - c_p));
+      half_.correlate(bank.spectrum(m.j), maps_.work());
+      const SearchWindow near{ex / 2 - 2, ey / 2 - 2, ex / 2 + 3, ey / 2 + 3};
+      const Peak pk = find_peak(maps_.work(), half_.valid_w(), half_.valid_h(), near);
+      Measurement again = walk_.measure(bank, m.j, pk, max_moves);
+      if (again.valid) {
+        const ScaleReading r = probe_.read(bank, again);
+        again.steps += m.steps + 1;
+        m = again;
+        found_scale = s * (r.valid ? r.factor : 1.0);
+        x_raw = RoiRescaler::to_raw(m.ux + m.dx + c_p, rw, s);
+        y_raw = RoiRescaler::to_raw(m.uy + m.dy + c_p, rh, s);
+      }
+    }
+  }
+  // Back to the scanned ROI's grid: the integer part and the fraction of the top-left.
+  m.ux = static_cast<int>(std::floor(x_raw - c_p));
+  m.uy = static_cast<int>(std::floor(y_raw - c_p));
+  m.dx = x_raw - c_p - m.ux;
+  m.dy = y_raw - c_p - m.uy;
+  return m;
 }
 
 std::size_t StartSearch::memory_bytes() const noexcept {
-  return coarse_map_.size() * sizeof(float) + coarse_frame_.size() * sizeof(std::int32_t);
+  return coarse_map_.size() * sizeof(float) + (coarse_frame_.size() + level_frame_.size()) * sizeof(std::int32_t);
 }
 
 }  // namespace sempose::pose

@@ -243,13 +243,17 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   if (!on_target || scored.w > sizes.roi_fft_px || scored.h > sizes.roi_fft_px) {
     int rx = 0, ry = 0;
     e.searched = true;
-    const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), rx, ry);
+    double found_scale = scale;
+    const ScalePrior scale_prior{scale_told.load(std::memory_order_relaxed), expected_scale.load(std::memory_order_relaxed)};
+    const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), scale_prior, rx, ry,
+                                        found_scale);
     if (m.valid) to_estimate(m, roi.x + rx, roi.y + ry, e);
-    e.scale = scale;  // the start search matches at the pattern's size (README: Known limitations)
+    e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;
     if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
     if (loss.found(m, attainable)) {
       accept(e, frame, true);
+      scale = e.scale;  // tracking starts at the scale the search found
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable
@@ -358,6 +362,9 @@ bool Tracker::select_pattern_set(std::uint8_t set, double nm_per_px) noexcept {
   const double expected = nm_per_px > 0 && std::isfinite(nm_per_px) && t.nm_per_px[set] > 0
                               ? std::clamp(t.nm_per_px[set] / nm_per_px, Impl::kScaleMin, Impl::kScaleMax)
                               : 1.0;
+  const bool told = nm_per_px > 0 && std::isfinite(nm_per_px) && t.nm_per_px[set] > 0;
+  // Being told the size already assumed is no new look: it only narrows the next search.
+  t.scale_told.store(told, std::memory_order_relaxed);
   const bool new_size = std::fabs(t.expected_scale.exchange(expected, std::memory_order_relaxed) - expected) > 1e-3;
   if (t.active.exchange(set, std::memory_order_relaxed) != set || new_size) {
     // A new magnification changes the target's size on screen: find it again.

@@ -80,16 +80,16 @@ struct Tracker::Impl {
   // has not changed), back to the expected scale when the target is forgotten (new pattern
   // set, REACQUIRE).
   double scale = 1.0;
-  // What scale starts at after a search: 1, or the set's nm/px over a SELECT's (written by
+  // What scale starts at before a search: 1, or the set's nm/px over a SELECT's (written by
   // select_pattern_set, possibly from another thread than update()).
   std::atomic<double> expected_scale{1.0};
+  // Whether a SELECT gave the microscope's nm/px: then the start search looks at the expected
+  // scale only; else over tracker.search_scale_min…max.
+  std::atomic<bool> scale_told{false};
   static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
   static constexpr double kScaleMin = 0.7, kScaleMax = 1.45;  // beyond: the ROI cannot hold the target
-  // Closer to 1 than this: the raw ROI is loaded as scanned. Resampling costs ~40 µs, and at
-  // 1 % its interpolation blur cost more angle accuracy than the size error it removes; the
-  // reading itself runs 0.6–1.7 % high at 20–2.5 e⁻/px on unscaled targets (README: Known
-  // limitations), so below 2.5 % a reading is not acted on (pose_accuracy_bench).
-  static constexpr double kRescaleFrom = 0.025;
+  // Closer to 1 than this: the raw ROI is loaded as scanned (RoiRescaler::kMinChange).
+  static constexpr double kRescaleFrom = RoiRescaler::kMinChange;
   config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
   std::atomic<bool> reacquire{false};
   std::atomic<std::uint8_t> active{0};
@@ -138,7 +138,7 @@ struct Tracker::Impl {
         fit(c.subpixel == "gaussian", c.fit_noise_correction),
         walk(scorer, fit, angles),
         sweep(half, walk, angles, maps),
-        search(cfg, sizes, angles, coarse, half, loader, walk, sweep, maps),
+        search(cfg, sizes, angles, coarse, half, loader, rescaler, scale_probe, walk, sweep, maps),
         refinement(scorer),
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
                     c.sigma_noise_factor, c.sigma_angle_factor, angles.count),

@@ -52,6 +52,10 @@ struct TrackerConfig {
   std::int32_t search_candidates = 4;
   double search_refine_window_deg = 12.0;  // ± around a candidate's coarse angle
   double search_refine_step_deg = 4.0;     // FFT correlations inside that window, then the walk
+  // Scales (target size over the pattern's) the start search covers when no SELECT gave the
+  // microscope's nm/px: a few levels spaced ≤ 16 % apart from min to max (1 = scale 1 only).
+  double search_scale_min = 0.75;
+  double search_scale_max = 1.33;
   // Motion model and sub-pixel.
   bool predict_velocity = true;            // constant-velocity prediction of x, y and phi
   // Sub-pixel / sub-step: one joint quadratic fit in (x, y, φ) over 19 exact scores around

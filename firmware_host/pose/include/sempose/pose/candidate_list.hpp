@@ -9,9 +9,10 @@
 namespace sempose::pose {
 
 struct StartCandidate {
-  int ux = 0, uy = 0;  // displacement in the coarse map
+  int ux = 0, uy = 0;  // displacement in the (unscaled) coarse map
   int k = 0;           // coarse angle index
   float score = 0;
+  int level = 0;       // the start search's scale level
 };
 
 class CandidateList {
@@ -22,8 +23,12 @@ class CandidateList {
   int size() const noexcept { return size_; }
   const StartCandidate& operator[](int i) const noexcept { return items_[static_cast<std::size_t>(i)]; }
 
-  // RT: every positive local maximum (3×3) of a map_w×map_h map at coarse angle k.
-  void add_local_maxima(const float* map, int map_w, int map_h, int k) noexcept;
+  // RT: every positive local maximum (3×3) of a map_w×map_h map at coarse angle k. A map of
+  // the coarse frame resampled by 1/scale (scale level `level`) has its places mapped back to
+  // the unscaled coarse frame (pattern centre (centre_px, centre_px) from the top-left kept), so
+  // that one target seen at two levels is one place.
+  void add_local_maxima(const float* map, int map_w, int map_h, int k, int level = 0, double scale = 1.0,
+                        double centre_px = 0.0) noexcept;
   // RT: one candidate (replaces a weaker one at the same place, or the weakest when full).
   void insert(const StartCandidate& c) noexcept;
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/pose/fft_correlator.hpp"
@@ -28,8 +29,10 @@ struct EngineSizes {
     s.search_factor = cfg.search_downsample;
     s.coarse_pattern_px = pattern_px / s.search_factor;
     s.coarse_offset_px = (pattern_px - s.coarse_pattern_px * s.search_factor) / 2;
-    s.coarse_max_w = std::max(s.coarse_pattern_px, field_w / s.search_factor);
-    s.coarse_max_h = std::max(s.coarse_pattern_px, field_h / s.search_factor);
+    // The start search's smallest scale level enlarges the coarse frame by 1/scale.
+    const double grow = 1.0 / std::clamp(cfg.search_scale_min, 0.5, 1.0);
+    s.coarse_max_w = std::max(s.coarse_pattern_px, static_cast<int>(std::ceil(field_w / s.search_factor * grow)));
+    s.coarse_max_h = std::max(s.coarse_pattern_px, static_cast<int>(std::ceil(field_h / s.search_factor * grow)));
     return s;
   }
 };

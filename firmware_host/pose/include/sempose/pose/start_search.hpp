@@ -1,9 +1,13 @@
 // The full-field start search (at start and after a loss): the frame box-downsampled by
-// search_downsample and correlated at every coarse angle (one FFT each); the strongest
-// separated local maxima become candidates; each candidate's ROI is loaded at full resolution
-// and refined by an angle sweep around the coarse angle (its peak looked for only near the
-// coarse position), and by its own position search at the opposite angle (φ+180°, a
-// look-alike of elongated targets). The best candidate by coarse + fine score wins.
+// search_downsample, resampled by 1/s for each scale level s (levels ≤ 16 % apart over
+// search_scale_min…max when the scale is unknown; only the expected scale when a SELECT gave
+// the microscope's nm/px), and correlated at every coarse angle (one FFT each); the strongest
+// separated local maxima over every level become candidates; each candidate's ROI is loaded
+// at full resolution, resampled by 1/s, and refined by an angle sweep around the coarse angle
+// (its peak looked for only near the coarse position), and by its own position search at the
+// opposite angle (φ+180°, a look-alike of elongated targets), then its scale by the scale
+// probe's scores over the level's span. The best candidate by coarse + fine score wins and is
+// measured once more in its ROI resampled at its refined scale.
 // Setup allocates; search() is RT.
 #pragma once
 
@@ -15,6 +19,8 @@
 #include "sempose/pose/candidate_list.hpp"
 #include "sempose/pose/engine_sizes.hpp"
 #include "sempose/pose/roi_loader.hpp"
+#include "sempose/pose/roi_rescaler.hpp"
+#include "sempose/pose/scale_probe.hpp"
 
 namespace sempose::pose {
 
@@ -25,16 +31,30 @@ struct AnglePrior {
   double phi_deg = 0;
 };
 
+// The scale the search looks at: known (a SELECT's nm/px) or anywhere in the configured span.
+struct ScalePrior {
+  bool known = false;
+  double scale = 1.0;
+};
+
 class StartSearch {
  public:
   StartSearch(const config::TrackerConfig& cfg, const EngineSizes& sizes, const AngleGrid& angles,
-              FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, const OrientationWalk& walk,
-              AngleSweep& sweep, CorrelationMaps& maps);
+              FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
+              const ScaleProbe& probe, const OrientationWalk& walk, AngleSweep& sweep, CorrelationMaps& maps);
 
-  // RT: searches a w×h frame (row stride w). The result is in the ROI at (roi_x, roi_y) of
-  // the frame, which the loader holds afterwards only if it was the last candidate.
+  // RT: searches a w×h frame (row stride w). The result is in the scanned (not resampled)
+  // coordinates of the ROI at (roi_x, roi_y) of the frame; found_scale is the target's size
+  // over the pattern's there. The loader holds some candidate's ROI afterwards.
   Measurement search(const PatternBank& bank, const std::uint16_t* pixels, int w, int h, int bits,
-                     const AnglePrior& prior, int& roi_x, int& roi_y) noexcept;
+                     const AnglePrior& prior, const ScalePrior& scale_prior, int& roi_x, int& roi_y,
+                     double& found_scale) noexcept;
+
+  // The scale levels searched when the scale is unknown (the first is 1).
+  const std::vector<double>& scale_levels() const noexcept { return levels_; }
+  // Levels are at most this ratio apart: a candidate is at most √ of it off its true scale,
+  // which the coarse ×8 level tolerates and the scale refinement's span covers.
+  static constexpr double kLevelRatio = 1.16;
 
   // Exact scores of a target and its 180° look-alike within kFlipTieScore of each other are a
   // tie at a few electrons per pixel (measured on the simulated lamellae: wrong-way-round
@@ -50,16 +70,37 @@ class StartSearch {
   std::size_t memory_bytes() const noexcept;
 
  private:
+  // One candidate's fine measurement at scale level s: loaded (resampled by 1/s when s ≠ 1),
+  // swept, the opposite angle tried; its scale refined (factor over s).
+  struct Fine {
+    Measurement m;
+    int rx = 0, ry = 0, rw = 0, rh = 0;
+    double load_scale = 1.0, factor = 1.0;
+  };
+  // Loads the w×h-frame ROI at (rx, ry) resampled by 1/s (raw when s is within
+  // RoiRescaler::kMinChange of 1); returns the scale it was loaded at, 0 when flat.
+  double load_at(const std::uint16_t* px, int w, int rx, int ry, int rw, int rh, int bits, double s) noexcept;
+  // The scale factor of the loaded ROI's target at m: the probe's score over ± span, the best
+  // of them and a parabola through its neighbours.
+  double refine_factor(const PatternBank& bank, const Measurement& m, double span) const noexcept;
+  // Bilinear: level(x', y') = coarse(s·x', s·y'), up to the correlator's size.
+  void resample_coarse(int cw, int ch, double s, int& lw, int& lh) noexcept;
+
   const config::TrackerConfig& cfg_;
   const EngineSizes& sizes_;
   const AngleGrid& angles_;
   FftCorrelator& coarse_;
   FftCorrelator& half_;
   RoiLoader& loader_;
+  RoiRescaler& rescaler_;
+  const ScaleProbe& probe_;
   const OrientationWalk& walk_;
   AngleSweep& sweep_;
   CorrelationMaps& maps_;
+  std::vector<double> levels_;
+  std::vector<double> active_;              // the levels of this search (no allocation: capacity kept)
   std::vector<std::int32_t> coarse_frame_;  // the frame, box-downsampled
+  std::vector<std::int32_t> level_frame_;   // ... and resampled by 1/s
   std::vector<float> coarse_map_;
   CandidateList candidates_;
 };
