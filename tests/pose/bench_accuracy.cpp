@@ -316,7 +316,8 @@ int main(int argc, char** argv) {
       "         lamella_post = lamella_on_post_eb.pgm crop 420,460 180x180 at 100x100; lamella = procedural 100x64;\n"
       "         warped = lamella_on_post_eb.pgm moved rigidly (σ 1 px PSF, exact crop as pattern); gripper = procedural 110x84\n"
       "effects: scale±25 = scale ramps 1 -> 1.25 / 0.75 over the run; charge+defoc = gain 1 -> 0.65 (±0.1 wobble), offset\n"
-      "         0 -> +0.08, defocus 0 -> 1.5 px, detector tau 120 ns; jaws = each jaw opens/closes 8 px (0.4 s period)\n"
+      "         0 -> +0.08, defocus 0 -> 1.5 px, detector tau 120 ns; jaws = each jaw opens/closes 8 px (0.4 s period);\n"
+      "         scale0.8, scale1.25, jump@1.25 = at that scale from the first frame, no SELECT (the start search finds it)\n"
       "bound_px, bound_deg: Cramér–Rao bound of one frame (2-D RMS, angle SD) at the true state of every 10th frame, over\n"
       "  every pixel the target affects, gain/offset (and scale, jaws where they vary) as nuisances; Poisson x Gamma + read\n"
       "us/pose, ms/frm: median thread CPU time per frame (sempose tracker update; ViSP track()).\n"
@@ -342,6 +343,7 @@ int main(int argc, char** argv) {
     double dose;
     double scale_to = 1.0;
     bool charging = false, jaws = false;
+    bool scaled_start = false;  // at scale_to from the first frame (no SELECT: the start search finds it)
   };
   std::vector<Row> plan;
   const std::vector<double> doses = quick ? std::vector<double>{20.0, 6.0, 2.5} : std::vector<double>{20.0, 6.0, 2.5, 1.0};
@@ -356,6 +358,15 @@ int main(int argc, char** argv) {
     }
   }
   for (double dose : doses) plan.push_back({"gripper", "smooth", "jaws", dose, 1.0, false, true});
+  // Scaled from the first frame, no SELECT: the start search covers scale (and the re-search
+  // after each jump).
+  for (const char* target : {"needle_tip", "lamella_post", "lamella"}) {
+    for (double dose : {6.0, 2.5}) {
+      plan.push_back({target, "smooth", "scale0.8", dose, 0.8, false, false, true});
+      plan.push_back({target, "smooth", "scale1.25", dose, 1.25, false, false, true});
+      plan.push_back({target, "jump", "jump@1.25", dose, 1.25, false, false, true});
+    }
+  }
 
   for (const Row& row : plan) {
     if (bias_only) break;
@@ -367,6 +378,7 @@ int main(int argc, char** argv) {
     s.frames = frames;
     s.start_phi_deg = 30;
     s.scale_to = row.scale_to;
+    if (row.scaled_start) s.scale_from = row.scale_to;
     s.charging_defocus = row.charging;
     s.jaws = row.jaws;
     SimHarness h(s, tc);

@@ -129,9 +129,12 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::printf("\nstart search (full field, x8 pyramid, 18 coarse angles, 4 candidates refined)\n");
-  for (auto [w, hgt] : {std::pair{640, 480}, std::pair{1024, 768}}) {
+  std::printf("\nstart search (full field, x8 pyramid, 18 coarse angles, 4 candidates refined; scale 1 only = a SELECT\n"
+              "gave nm/px (or tracker.search_scale_min = max = 1); 0.75-1.33 = scale unknown, 5 levels)\n");
+  for (auto [w, hgt] : {std::pair{640, 480}, std::pair{1024, 768}})
+  for (const bool cover_scale : {false, true}) {
     config::TrackerConfig tc;
+    if (!cover_scale) tc.search_scale_min = tc.search_scale_max = 1.0;
     Scenario s;
     s.motion = "static";
     s.dose_e = 6;
@@ -161,8 +164,8 @@ int main(int argc, char** argv) {
       const PoseEstimate e = t.update(pipeline::to_pose_frame(meta, px.data()));
       found += e.state == TrackState::kTracking && std::hypot(e.x_px - meta.truth[0].x_px, e.y_px - meta.truth[0].y_px) < 1.0;
     });
-    std::printf("%4dx%-4d  p50 %7.2f ms  max %7.2f ms  found %d/15   (bank + buffers %.1f MB)\n", w, hgt,
-                ts.p50_us * 1e-3, ts.max_us * 1e-3, found, t.memory_bytes() / 1e6);
+    std::printf("%4dx%-4d  %-13s p50 %7.2f ms  max %7.2f ms  found %d/15   (bank + buffers %.1f MB)\n", w, hgt,
+                cover_scale ? "0.75-1.33" : "scale 1 only", ts.p50_us * 1e-3, ts.max_us * 1e-3, found, t.memory_bytes() / 1e6);
   }
   return 0;
 }

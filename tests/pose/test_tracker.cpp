@@ -195,9 +195,10 @@ TEST(Tracker, ReacquireAndPatternSetSelection) {
 
 TEST(Tracker, SelectsExpectedScaleFromMicroscopeNmPerPx) {
   // The target is 1.2× its pattern's size from the first frame (the microscope zoomed in from
-  // the pattern's 40 nm/px to 33.3 nm/px). Told so by SELECT's nm/px, the tracker's first
-  // tracked poses are already at scale 1.2; without it, scale starts at 1 and is learnt.
-  auto first_tracked = [](bool told) {
+  // the pattern's 40 nm/px to 33.3 nm/px). Told so by SELECT's nm/px, the start search looks at
+  // 1.2 only and the first tracked poses are at 1.2; untold, it searches 0.75–1.33 and finds
+  // 1.2 too; told a wrong nm/px (40: scale 1), it trusts it and starts near 1.
+  auto first_tracked = [](double told_nm_per_px) {
     Scenario s;
     s.target = "needle_tip";
     s.motion = "static";
@@ -206,8 +207,8 @@ TEST(Tracker, SelectsExpectedScaleFromMicroscopeNmPerPx) {
     s.frames = 6;
     SimHarness h(s, small_config());
     EXPECT_TRUE(h.status().ok) << h.status().message;
-    if (told) {
-      EXPECT_TRUE(h.tracker()->select_pattern_set(0, 40.0 / 1.2));
+    if (told_nm_per_px > 0) {
+      EXPECT_TRUE(h.tracker()->select_pattern_set(0, told_nm_per_px));
     }
     h.run();
     for (const auto& e : h.poses()) {
@@ -215,10 +216,11 @@ TEST(Tracker, SelectsExpectedScaleFromMicroscopeNmPerPx) {
     }
     return PoseEstimate{};
   };
-  const PoseEstimate told = first_tracked(true), untold = first_tracked(false);
+  const PoseEstimate told = first_tracked(40.0 / 1.2), untold = first_tracked(0), told_wrong = first_tracked(40.0);
   EXPECT_EQ(told.state, TrackState::kTracking);
   EXPECT_NEAR(told.scale, 1.2, 0.04) << "SELECT's nm/px sets the scale tracking starts at";
-  EXPECT_LT(untold.scale, 1.1) << "without it scale starts at 1 (the test would not tell them apart)";
+  EXPECT_NEAR(untold.scale, 1.2, 0.04) << "without it the start search covers scale";
+  EXPECT_LT(told_wrong.scale, 1.1) << "told scale 1, the search stays near it (the test would not tell them apart)";
   // The same set at the same scale again is not a new look: no new search.
   Scenario s;
   s.motion = "static";
