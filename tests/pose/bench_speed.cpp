@@ -130,7 +130,7 @@ int main(int argc, char** argv) {
   }
 
   std::printf("\nstart search (full field, x8 pyramid, 18 coarse angles, 4 candidates refined; scale 1 only = a SELECT\n"
-              "gave nm/px (or tracker.search_scale_min = max = 1); 0.75-1.33 = scale unknown, 5 levels)\n");
+              "gave nm/px (or tracker.search_scale_min = max = 1); 0.75-1.33 = scale unknown: levels 0.8, 1, 1.25)\n");
   for (auto [w, hgt] : {std::pair{640, 480}, std::pair{1024, 768}})
   for (const bool cover_scale : {false, true}) {
     config::TrackerConfig tc;

@@ -8,17 +8,6 @@
 
 namespace sempose::pose {
 
-namespace {
-// 1, then the levels below and above it, geometric steps at most kLevelRatio apart.
-std::vector<double> scale_levels_of(double lo, double hi, double ratio) {
-  std::vector<double> v{1.0};
-  const int below = lo < 1.0 ? static_cast<int>(std::ceil(std::log(1.0 / lo) / std::log(ratio) - 1e-9)) : 0;
-  const int above = hi > 1.0 ? static_cast<int>(std::ceil(std::log(hi) / std::log(ratio) - 1e-9)) : 0;
-  for (int i = 1; i <= below; ++i) v.push_back(std::pow(lo, static_cast<double>(i) / below));
-  for (int i = 1; i <= above; ++i) v.push_back(std::pow(hi, static_cast<double>(i) / above));
-  return v;
-}
-}  // namespace
 
 StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& sizes, const AngleGrid& angles,
                          FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
@@ -34,7 +23,7 @@ StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& si
       walk_(walk),
       sweep_(sweep),
       maps_(maps),
-      levels_(scale_levels_of(cfg.search_scale_min, cfg.search_scale_max, kLevelRatio)),
+      levels_(search_scale_levels(cfg)),
       active_(levels_),
       coarse_frame_(static_cast<std::size_t>(sizes.coarse_max_w) * sizes.coarse_max_h, 0),
       level_frame_(coarse_frame_.size(), 0),
@@ -136,7 +125,7 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   const int max_moves = static_cast<int>(std::ceil(cfg_.search_refine_step_deg / angles_.step_deg)) + 2;
   const double c_p = (pattern_px - 1) / 2.0;
   // A level's candidate is at most √kLevelRatio off the target's scale (a known scale: at it).
-  const double span = n_levels > 1 ? std::sqrt(kLevelRatio) - 1.0 + ScaleProbe::kStep : ScaleProbe::kStep;
+  const double span = n_levels > 1 ? std::sqrt(kSearchLevelRatio) - 1.0 + ScaleProbe::kStep : ScaleProbe::kStep;
   for (int c = 0; c < candidates_.size(); ++c) {
     const StartCandidate& cd = candidates_[c];
     const double cx = cd.ux * d - sizes_.coarse_offset_px + c_p;

@@ -53,7 +53,8 @@ struct TrackerConfig {
   double search_refine_window_deg = 12.0;  // ± around a candidate's coarse angle
   double search_refine_step_deg = 4.0;     // FFT correlations inside that window, then the walk
   // Scales (target size over the pattern's) the start search covers when no SELECT gave the
-  // microscope's nm/px: a few levels spaced ≤ 16 % apart from min to max (1 = scale 1 only).
+  // microscope's nm/px: levels 25 % apart that reach min and max (default: 0.8, 1, 1.25, each
+  // good for ±12 %; min = max = 1: scale 1 only).
   double search_scale_min = 0.75;
   double search_scale_max = 1.33;
   // Motion model and sub-pixel.

@@ -7,6 +7,7 @@
 
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/pose/fft_correlator.hpp"
+#include "sempose/pose/search_scale_levels.hpp"
 
 namespace sempose::pose {
 
@@ -30,7 +31,8 @@ struct EngineSizes {
     s.coarse_pattern_px = pattern_px / s.search_factor;
     s.coarse_offset_px = (pattern_px - s.coarse_pattern_px * s.search_factor) / 2;
     // The start search's smallest scale level enlarges the coarse frame by 1/scale.
-    const double grow = 1.0 / std::clamp(cfg.search_scale_min, 0.5, 1.0);
+    const std::vector<double> levels = search_scale_levels(cfg);
+    const double grow = 1.0 / *std::min_element(levels.begin(), levels.end());
     s.coarse_max_w = std::max(s.coarse_pattern_px, static_cast<int>(std::ceil(field_w / s.search_factor * grow)));
     s.coarse_max_h = std::max(s.coarse_pattern_px, static_cast<int>(std::ceil(field_h / s.search_factor * grow)));
     return s;

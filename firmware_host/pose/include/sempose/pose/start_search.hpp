@@ -1,5 +1,5 @@
 // The full-field start search (at start and after a loss): the frame box-downsampled by
-// search_downsample, resampled by 1/s for each scale level s (levels ≤ 16 % apart over
+// search_downsample, resampled by 1/s for each scale level s (search_scale_levels.hpp, over
 // search_scale_min…max when the scale is unknown; only the expected scale when a SELECT gave
 // the microscope's nm/px), and correlated at every coarse angle (one FFT each); the strongest
 // separated local maxima over every level become candidates; each candidate's ROI is loaded
@@ -21,6 +21,7 @@
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/pose/roi_rescaler.hpp"
 #include "sempose/pose/scale_probe.hpp"
+#include "sempose/pose/search_scale_levels.hpp"
 
 namespace sempose::pose {
 
@@ -50,11 +51,8 @@ class StartSearch {
                      const AnglePrior& prior, const ScalePrior& scale_prior, int& roi_x, int& roi_y,
                      double& found_scale) noexcept;
 
-  // The scale levels searched when the scale is unknown (the first is 1).
+  // The scale levels searched when the scale is unknown (search_scale_levels.hpp; first 1).
   const std::vector<double>& scale_levels() const noexcept { return levels_; }
-  // Levels are at most this ratio apart: a candidate is at most √ of it off its true scale,
-  // which the coarse ×8 level tolerates and the scale refinement's span covers.
-  static constexpr double kLevelRatio = 1.16;
 
   // Exact scores of a target and its 180° look-alike within kFlipTieScore of each other are a
   // tie at a few electrons per pixel (measured on the simulated lamellae: wrong-way-round
