@@ -258,11 +258,47 @@ Bias sim_bias(const config::TrackerConfig& tc, const std::string& target, double
   return b;
 }
 
+// The scale reading's bias on an unscaled target: the mean of the tracked frames' scale
+// over a still run (each frame's reading of its ROI as scanned: below the rescaler's 2.5 %
+// the scale is not acted on), its SD, and how many frames tracked.
+struct ScaleBias {
+  double mean = 0, sd = 0;
+  int n = 0;
+};
+ScaleBias scale_bias(const config::TrackerConfig& tc, const std::string& target, double dose, bool noise, bool background,
+                     double true_scale) {
+  Scenario sc;
+  sc.target = target;
+  sc.motion = "static";
+  sc.noise = noise;
+  sc.dose_e = dose;
+  sc.background = background;
+  sc.scale_from = sc.scale_to = true_scale;
+  sc.frames = 40;
+  sc.start_phi_deg = 30;
+  SimHarness h(sc, tc);
+  h.run();
+  ScaleBias b;
+  double s2 = 0;
+  for (const PoseEstimate& e : h.poses()) {
+    if (e.searched || e.state != TrackState::kTracking) continue;
+    b.mean += e.scale;
+    s2 += e.scale * e.scale;
+    ++b.n;
+  }
+  if (b.n) {
+    b.mean /= b.n;
+    b.sd = std::sqrt(std::max(0.0, s2 / b.n - b.mean * b.mean));
+  }
+  return b;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   // --quick (CI): 60 frames per run, doses 20/6/2.5. --full: 150 frames, dose 1 too.
   // --only TARGET [CASE]: those rows only. --bias: the bias tables only. --no-visp: sempose only.
+  // --scale-bias: only the scale reading's bias on still targets at scale 1 (and 0.8, 1.25).
   // --require-no-false: exit 3 when issue 13's false-TRACKING rule is broken (the CTest
   // pose_false_tracking_rule; the figures run in ci/test only prints the count).
   // --visp-levels N: ViSP's pyramid levels (3 by default, as the issue specifies).
@@ -273,7 +309,7 @@ int main(int argc, char** argv) {
   int appearance = -1;
   int sigma_tile = 0;         // --sigma-tile N: tracker.sigma_tile_px (0: the default)
   double sigma_cal = -1;      // --sigma-calibration K: tracker.sigma_calibration (< 0: the default)
-  bool quick = true, bias_only = false, visp = true, only = false, require_no_false = false;
+  bool quick = true, bias_only = false, visp = true, only = false, require_no_false = false, scale_bias_only = false;
   int visp_levels = 3;
   std::string only_target, only_motion;
   for (int i = 1; i < argc; ++i) {
@@ -281,6 +317,7 @@ int main(int argc, char** argv) {
     if (a == "--full") quick = false;
     else if (a == "--quick") quick = true;
     else if (a == "--bias") bias_only = true;
+    else if (a == "--scale-bias") scale_bias_only = true;
     else if (a == "--no-visp") visp = false;
     else if (a == "--require-no-false") require_no_false = true;
     else if (a == "--visp-levels" && i + 1 < argc) visp_levels = std::atoi(argv[++i]);
@@ -298,7 +335,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--no-visp] [--visp-levels N] [--require-no-false] [--appearance on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--scale-bias] [--no-visp] [--visp-levels N] [--require-no-false] [--appearance on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
       return 2;
     }
   }
@@ -307,6 +344,26 @@ int main(int argc, char** argv) {
   if (sigma_cal >= 0) tc.sigma_calibration = sigma_cal;
   if (const char* dump = std::getenv("POSE_DUMP")) g_dump = std::fopen(dump, "w");
   const int frames = quick ? 60 : 150;
+  if (scale_bias_only) {
+    std::printf("scale reading on a still target (mean of 39 tracked frames' scale, phi 30, 640x480, no SELECT):\n"
+                "%-13s %-6s %-5s | %9s %7s %4s\n", "target", "scale", "dose", "bias %", "sd %", "n");
+    for (const char* target : {"needle_tip", "lamella_post", "lamella"}) {
+      for (double true_scale : {1.0, 0.8, 1.25}) {
+        for (double dose : {0.0, 20.0, 6.0, 2.5}) {
+          if (true_scale != 1.0 && dose != 6.0) continue;
+          const ScaleBias b = scale_bias(tc, target, dose > 0 ? dose : 20.0, dose > 0, true, true_scale);
+          std::printf("%-13s %-6.2f %-5s | %+9.2f %7.2f %4d\n", target, true_scale, dose > 0 ? fmt(dose, "%g").c_str() : "clean",
+                      100.0 * (b.mean / true_scale - 1.0), 100.0 * b.sd / true_scale, b.n);
+        }
+      }
+      const ScaleBias flat = scale_bias(tc, target, 6.0, true, false, 1.0);
+      std::printf("%-13s %-6.2f %-5s | %+9.2f %7.2f %4d   flat background\n", target, 1.0, "6", 100.0 * (flat.mean - 1.0),
+                  100.0 * flat.sd, flat.n);
+      std::fflush(stdout);
+    }
+    return 0;
+  }
+
   const double zone_r = tc.pattern_size_px / 2.0 - (2.0 + 2.0 * tc.prefilter_passes);  // sempose's mask radius
   const std::int64_t bench_t0 = rt::now_ns();
   std::printf(

@@ -62,10 +62,11 @@ double StartSearch::load_at(const std::uint16_t* px, int w, int rx, int ry, int 
 double StartSearch::refine_factor(const PatternBank& bank, const Measurement& m, double span) const noexcept {
   const double step = ScaleProbe::kStep;
   const int n = static_cast<int>(std::ceil(span / step));
+  const double window = 1.0 - (n + 1) * step;  // every score over the same pixels (ScaleProbe::score)
   double best = -3.0;
   int ib = 0;
   for (int i = -n; i <= n; ++i) {
-    const double sc = probe_.score(bank, m, 1.0 + i * step);
+    const double sc = probe_.score(bank, m, 1.0 + i * step, window);
     if (sc > best) {
       best = sc;
       ib = i;
@@ -74,7 +75,7 @@ double StartSearch::refine_factor(const PatternBank& bank, const Measurement& m,
   if (best < -1.5) return 1.0;
   const double f = 1.0 + ib * step;
   if (ib == -n || ib == n) return f;
-  const double lo = probe_.score(bank, m, f - step), hi = probe_.score(bank, m, f + step);
+  const double lo = probe_.score(bank, m, f - step, window), hi = probe_.score(bank, m, f + step, window);
   const double curv = lo - 2.0 * best + hi;
   if (!(curv < 0) || lo < -1.5 || hi < -1.5) return f;
   return f + std::clamp(0.5 * (lo - hi) / curv, -0.5, 0.5) * step;

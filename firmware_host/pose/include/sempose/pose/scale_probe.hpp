@@ -1,6 +1,7 @@
 // The scale estimate of one frame (issue 13 item 2): at the walk's pose, the ZNCC of the bank's
 // pattern stretched by 1 − δ, 1 and 1 + δ about its centre (bilinear) against the loaded ROI's
-// own pixels (every third row and column of the stretched support); a parabola
+// own pixels (every third row and column of the support stretched by 1 − δ, the same pixels
+// for the three); a parabola
 // through the three gives the residual scale of the ROI as loaded (the tracker folds it into
 // its running scale, which resamples the next ROI). Reads the exact scorer's loaded ROI. RT,
 // no allocation.
@@ -25,8 +26,10 @@ class ScaleProbe {
   explicit ScaleProbe(const ExactScorer& scorer) noexcept : scorer_(scorer) {}
 
   ScaleReading read(const PatternBank& bank, const Measurement& m) const noexcept;
-  // The ZNCC at the pose of m with the pattern grid stretched by `factor` (-2 outside the ROI).
-  double score(const PatternBank& bank, const Measurement& m, double factor) const noexcept;
+  // The ZNCC at the pose of m with the pattern grid stretched by `factor`, over the ROI pixels
+  // of the pattern's support stretched by `window` (≤ factor; the same for the scores compared)
+  // (-2 outside the ROI).
+  double score(const PatternBank& bank, const Measurement& m, double factor, double window) const noexcept;
 
  private:
   const ExactScorer& scorer_;
