@@ -28,21 +28,22 @@ StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& si
       coarse_frame_(static_cast<std::size_t>(sizes.coarse_max_w) * sizes.coarse_max_h, 0),
       level_frame_(coarse_frame_.size(), 0),
       coarse_map_(coarse_frame_.size(), 0.0f),
+      tried_(static_cast<std::size_t>(std::max(1, cfg.search_candidates))),
       candidates_(cfg.search_candidates, std::max(2, sizes.coarse_pattern_px / 2)) {}
 
-void StartSearch::resample_coarse(int cw, int ch, double s, int& lw, int& lh) noexcept {
+void StartSearch::resample_coarse(int cw, int ch, double s, double offset, int& lw, int& lh) noexcept {
   lw = std::min(coarse_.fft_w(), std::min(sizes_.coarse_max_w, static_cast<int>((cw - 1) / s) + 1));
   lh = std::min(coarse_.fft_h(), std::min(sizes_.coarse_max_h, static_cast<int>((ch - 1) / s) + 1));
   const std::int32_t* in = coarse_frame_.data();
   for (int y = 0; y < lh; ++y) {
-    const double v = std::min(y * s, ch - 1.0);
+    const double v = std::min(y * s + offset, ch - 1.0);
     const int y0 = std::min(static_cast<int>(v), ch - 2);
     const double wy = v - y0;
     const std::int32_t* r0 = in + static_cast<std::ptrdiff_t>(y0) * cw;
     const std::int32_t* r1 = r0 + cw;
     std::int32_t* o = level_frame_.data() + static_cast<std::ptrdiff_t>(y) * lw;
     for (int x = 0; x < lw; ++x) {
-      const double u = std::min(x * s, cw - 1.0);
+      const double u = std::min(x * s + offset, cw - 1.0);
       const int x0 = std::min(static_cast<int>(u), cw - 2);
       const double wx = u - x0;
       const double top = r0[x0] + wx * (r0[x0 + 1] - r0[x0]);
@@ -105,11 +106,15 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   for (int l = 0; l < n_levels; ++l) {
     const double s = active_[static_cast<std::size_t>(l)];
     bool loaded = false;
-    if (s == 1.0) {
+    // Alone, scale 1 is the frame as downsampled. Among other levels it is interpolated too
+    // (shifted by a quarter coarse px, ~2 px, well inside the fine window): a level's bilinear
+    // resampling smooths it and raised its ZNCCs over the raw level's, and a scale-1 target's
+    // place went to the 0.8 level (the real lamella scene at 2.5 e⁻/px).
+    if (n_levels == 1 && s == 1.0) {
       loaded = coarse_.load(coarse_frame_.data(), cw, ch, cw);
     } else {
       int lw = 0, lh = 0;
-      resample_coarse(cw, ch, s, lw, lh);
+      resample_coarse(cw, ch, s, s == 1.0 ? kEvenSmoothingShift : 0.0, lw, lh);
       loaded = lw >= cp && lh >= cp && coarse_.load(level_frame_.data(), lw, lh, lw);
     }
     if (!loaded) continue;
@@ -122,64 +127,79 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   Fine best;
   best.m.score = -2.0f;
   float best_rank = -10.0f;
+  double best_cx = 0, best_cy = 0;
+  int best_k = 0, best_level = 0;
   const int rw = std::min(sizes_.roi_px, w), rh = std::min(sizes_.roi_px, h);
   const int max_moves = static_cast<int>(std::ceil(cfg_.search_refine_step_deg / angles_.step_deg)) + 2;
   const double c_p = (pattern_px - 1) / 2.0;
   // A level's candidate is at most √kLevelRatio off the target's scale (a known scale: at it).
   const double span = n_levels > 1 ? std::sqrt(kSearchLevelRatio) - 1.0 + ScaleProbe::kStep : ScaleProbe::kStep;
+  int tried = 0;
   for (int c = 0; c < candidates_.size(); ++c) {
     const StartCandidate& cd = candidates_[c];
-    const double cx = cd.ux * d - sizes_.coarse_offset_px + c_p;
-    const double cy = cd.uy * d - sizes_.coarse_offset_px + c_p;
-    const int rx = std::clamp(static_cast<int>(std::lround(cx - (rw - 1) / 2.0)), 0, w - rw);
-    const int ry = std::clamp(static_cast<int>(std::lround(cy - (rh - 1) / 2.0)), 0, h - rh);
-    const double s = load_at(px, w, rx, ry, rw, rh, bits, active_[static_cast<std::size_t>(cd.level)]);
-    if (s == 0.0) continue;
-    // The coarse position is good to about ±d/2 px: look for the fine peak only near it, so
-    // that at low dose a chance peak elsewhere in the ROI cannot outscore the target. In a
-    // ROI resampled by 1/s the target's centre is (c + (raw − c)/s).
-    const int ex = static_cast<int>(std::lround((rw - 1) / 2.0 + (cx - rx - (rw - 1) / 2.0) / s - c_p));
-    const int ey = static_cast<int>(std::lround((rh - 1) / 2.0 + (cy - ry - (rh - 1) / 2.0) / s - c_p));
-    const SearchWindow win{(ex - d - 2) / 2, (ey - d - 2) / 2, (ex + d + 3) / 2, (ey + d + 3) / 2};  // binned px
-    Measurement m = sweep_.sweep(bank, angles_.index_of(bank.coarse_angle_deg(cd.k)), cfg_.search_refine_window_deg,
-                                 cfg_.search_refine_step_deg, max_moves, win);
-    // The coarse level keeps one angle per place, and elongated targets (a needle, a
-    // lamella) look much alike turned by 180° at ×8 and a few electrons per pixel: try the
-    // opposite angle too. Turned about the pattern's centre, the look-alike sits elsewhere
-    // (twice the offset of the target's own centre from the pattern's centre, up to a
-    // quarter pattern), so the opposite angle gets its own position search: one binned FFT
-    // at φ+180° around the match, then the climb, the walk and the fit; the better exact
-    // full-resolution score wins.
-    if (m.valid) {
-      const int jf = angles_.wrap(m.j + angles_.count / 2);
-      half_.correlate(bank.spectrum(jf), maps_.work());
-      const int reach = pattern_px / 8;  // binned px: a quarter pattern at full resolution
-      const SearchWindow around{m.ux / 2 - reach, m.uy / 2 - reach, m.ux / 2 + reach, m.uy / 2 + reach};
-      const Peak pk = find_peak(maps_.work(), half_.valid_w(), half_.valid_h(), around);
-      Measurement f = walk_.measure(bank, jf, pk, max_moves);
-      f.steps += m.steps + 1;
-      if (f.valid && prefer_opposite(m, f, prior)) m = f;
-      else m.steps = f.steps;
-    }
+    Tried& t = tried_[static_cast<std::size_t>(tried)];
+    t.cx = cd.ux * d - sizes_.coarse_offset_px + c_p;
+    t.cy = cd.uy * d - sizes_.coarse_offset_px + c_p;
+    t.k = cd.k;
+    t.level = cd.level;
+    t.coarse_score = cd.score;
+    t.fine = measure_place(bank, px, w, h, bits, prior, t.cx, t.cy, cd.k, active_[static_cast<std::size_t>(cd.level)], span);
     // Rank by coarse + fine score: the ×8 level averages 64 pixels per sample and is the
     // more discriminative statistic at a few electrons per pixel; the fine level refines.
-    if (m.valid && m.score + cd.score > best_rank) {
-      best_rank = m.score + cd.score;
-      best.m = m;
-      best.rx = rx;
-      best.ry = ry;
-      best.rw = rw;
-      best.rh = rh;
-      best.load_scale = s;
-      best.factor = refine_factor(bank, m, span);  // while this candidate's ROI is loaded
+    t.rank = t.fine.m.score + cd.score;
+    if (t.fine.m.valid) ++tried;
+  }
+  // Over several scale levels the fine scores come from differently resampled ROIs (a
+  // resampled one is smoother: its ZNCC runs higher at low dose): each candidate's is taken
+  // again on the scanned ROI's own pixels, the pattern stretched to its scale, over its own
+  // support (the scale probe's score). Without it, a look-alike 190 px away in the real
+  // lamella scene won at 6 e⁻/px.
+  if (n_levels > 1) {
+    for (int i = 0; i < tried; ++i) {
+      Tried& t = tried_[static_cast<std::size_t>(i)];
+      if (!loader_.load(px + static_cast<std::size_t>(t.fine.ry) * w + t.fine.rx, rw, rh, w, bits)) continue;
+      const double sc = t.fine.load_scale * t.fine.factor;
+      // A scale away from the likely one needs a better score to win (kScaleTiePerLevel per
+      // level of distance): the real scene holds look-alikes at other scales.
+      const double levels_away = std::fabs(std::log(sc / scale_prior.likely)) / std::log(kSearchLevelRatio);
+      t.rank = static_cast<float>(probe_.score(bank, in_scanned_roi(t.fine), sc, sc * (1.0 - ScaleProbe::kStep)) -
+                                  kScaleTiePerLevel * levels_away) +
+               t.coarse_score;
+    }
+  }
+  for (int i = 0; i < tried; ++i) {
+    const Tried& t = tried_[static_cast<std::size_t>(i)];
+    if (t.rank > best_rank) {
+      best_rank = t.rank;
+      best = t.fine;
+      best_cx = t.cx;
+      best_cy = t.cy;
+      best_k = t.k;
+      best_level = t.level;
     }
   }
   if (!best.m.valid) return none;
+  // A winner at another level than 1 is checked against the same place measured at 1: a
+  // resampled frame is smoother than the scanned one (its ZNCCs run higher), and a target
+  // with self-similar texture (the real lamella crop) matches a stretched copy of itself a
+  // few px off. The two are compared on the scanned ROI's own pixels with the pattern
+  // stretched to each one's scale, each over its own support (the scale probe's score; over
+  // the smaller one's, the inner part of a self-similar crop favoured the wrong scale at
+  // 6 e⁻/px).
+  if (best_level != 0 && active_[0] == 1.0) {
+    const Fine at_one = measure_place(bank, px, w, h, bits, prior, best_cx, best_cy, best_k, 1.0, span);
+    if (at_one.m.valid && loader_.load(px + static_cast<std::size_t>(best.ry) * w + best.rx, rw, rh, w, bits)) {
+      const Measurement a = in_scanned_roi(best), b = in_scanned_roi(at_one);
+      const double sa = best.load_scale * best.factor, sb = at_one.load_scale * at_one.factor;
+      const double inset = 1.0 - ScaleProbe::kStep;
+      if (probe_.score(bank, b, sb, sb * inset) > probe_.score(bank, a, sa, sa * inset)) best = at_one;
+    }
+  }
   roi_x = best.rx;
   roi_y = best.ry;
   // The target's centre in the scanned ROI.
-  double x_raw = RoiRescaler::to_raw(best.m.ux + best.m.dx + c_p, rw, best.load_scale);
-  double y_raw = RoiRescaler::to_raw(best.m.uy + best.m.dy + c_p, rh, best.load_scale);
+  const Measurement in_raw = in_scanned_roi(best);
+  double x_raw = in_raw.ux + in_raw.dx + c_p, y_raw = in_raw.uy + in_raw.dy + c_p;
   found_scale = best.load_scale * best.factor;
   Measurement m = best.m;
   // Measured again at the refined scale when it moved by more than the rescaler's threshold:
@@ -203,12 +223,71 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
       }
     }
   }
-  // Back to the scanned ROI's grid: the integer part and the fraction of the top-left.
-  m.ux = static_cast<int>(std::floor(x_raw - c_p));
-  m.uy = static_cast<int>(std::floor(y_raw - c_p));
-  m.dx = x_raw - c_p - m.ux;
-  m.dy = y_raw - c_p - m.uy;
+  set_top_left(m, x_raw - c_p, y_raw - c_p);
   return m;
+}
+
+void StartSearch::set_top_left(Measurement& m, double x, double y) noexcept {
+  m.ux = static_cast<int>(std::floor(x));
+  m.uy = static_cast<int>(std::floor(y));
+  m.dx = x - m.ux;
+  m.dy = y - m.uy;
+}
+
+Measurement StartSearch::in_scanned_roi(const Fine& f) const noexcept {
+  const double c_p = (sizes_.pattern_px - 1) / 2.0;
+  Measurement m = f.m;
+  set_top_left(m, RoiRescaler::to_raw(f.m.ux + f.m.dx + c_p, f.rw, f.load_scale) - c_p,
+               RoiRescaler::to_raw(f.m.uy + f.m.dy + c_p, f.rh, f.load_scale) - c_p);
+  return m;
+}
+
+StartSearch::Fine StartSearch::measure_place(const PatternBank& bank, const std::uint16_t* px, int w, int h, int bits,
+                                             const AnglePrior& prior, double cx, double cy, int k, double level_scale,
+                                             double span) noexcept {
+  Fine out;
+  const int d = sizes_.search_factor, pattern_px = sizes_.pattern_px;
+  const double c_p = (pattern_px - 1) / 2.0;
+  const int rw = std::min(sizes_.roi_px, w), rh = std::min(sizes_.roi_px, h);
+  const int max_moves = static_cast<int>(std::ceil(cfg_.search_refine_step_deg / angles_.step_deg)) + 2;
+  const int rx = std::clamp(static_cast<int>(std::lround(cx - (rw - 1) / 2.0)), 0, w - rw);
+  const int ry = std::clamp(static_cast<int>(std::lround(cy - (rh - 1) / 2.0)), 0, h - rh);
+  const double s = load_at(px, w, rx, ry, rw, rh, bits, level_scale);
+  if (s == 0.0) return out;
+  // The coarse position is good to about ±d/2 px: look for the fine peak only near it, so
+  // that at low dose a chance peak elsewhere in the ROI cannot outscore the target. In a
+  // ROI resampled by 1/s the target's centre is (c + (raw − c)/s).
+  const int ex = static_cast<int>(std::lround((rw - 1) / 2.0 + (cx - rx - (rw - 1) / 2.0) / s - c_p));
+  const int ey = static_cast<int>(std::lround((rh - 1) / 2.0 + (cy - ry - (rh - 1) / 2.0) / s - c_p));
+  const SearchWindow win{(ex - d - 2) / 2, (ey - d - 2) / 2, (ex + d + 3) / 2, (ey + d + 3) / 2};  // binned px
+  Measurement m = sweep_.sweep(bank, angles_.index_of(bank.coarse_angle_deg(k)), cfg_.search_refine_window_deg,
+                               cfg_.search_refine_step_deg, max_moves, win);
+  // The coarse level keeps one angle per place, and elongated targets (a needle, a
+  // lamella) look much alike turned by 180° at ×8 and a few electrons per pixel: try the
+  // opposite angle too. Turned about the pattern's centre, the look-alike sits elsewhere
+  // (twice the offset of the target's own centre from the pattern's centre, up to a
+  // quarter pattern), so the opposite angle gets its own position search: one binned FFT
+  // at φ+180° around the match, then the climb, the walk and the fit; the better exact
+  // full-resolution score wins.
+  if (m.valid) {
+    const int jf = angles_.wrap(m.j + angles_.count / 2);
+    half_.correlate(bank.spectrum(jf), maps_.work());
+    const int reach = pattern_px / 8;  // binned px: a quarter pattern at full resolution
+    const SearchWindow around{m.ux / 2 - reach, m.uy / 2 - reach, m.ux / 2 + reach, m.uy / 2 + reach};
+    const Peak pk = find_peak(maps_.work(), half_.valid_w(), half_.valid_h(), around);
+    Measurement f = walk_.measure(bank, jf, pk, max_moves);
+    f.steps += m.steps + 1;
+    if (f.valid && prefer_opposite(m, f, prior)) m = f;
+    else m.steps = f.steps;
+  }
+  out.m = m;
+  out.rx = rx;
+  out.ry = ry;
+  out.rw = rw;
+  out.rh = rh;
+  out.load_scale = s;
+  if (m.valid) out.factor = refine_factor(bank, m, span);  // while this ROI is loaded
+  return out;
 }
 
 std::size_t StartSearch::memory_bytes() const noexcept {

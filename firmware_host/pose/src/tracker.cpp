@@ -244,7 +244,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     int rx = 0, ry = 0;
     e.searched = true;
     double found_scale = scale;
-    const ScalePrior scale_prior{scale_told.load(std::memory_order_relaxed), expected_scale.load(std::memory_order_relaxed)};
+    const ScalePrior scale_prior{scale_told.load(std::memory_order_relaxed), expected_scale.load(std::memory_order_relaxed),
+                                 scale};
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), scale_prior, rx, ry,
                                         found_scale);
     if (m.valid) to_estimate(m, roi.x + rx, roi.y + ry, e);
