@@ -12,13 +12,13 @@ CandidateList::CandidateList(int capacity, int separation_px)
     : items_(static_cast<std::size_t>(capacity)), separation_px_(separation_px) {}
 
 void CandidateList::add_local_maxima(const float* map, int vw, int vh, int k, int level, double scale,
-                                     double centre_px) noexcept {
+                                     double centre_px, float handicap) noexcept {
   const int capacity = static_cast<int>(items_.size());
   for (int y = 0; y < vh; ++y) {
     for (int x = 0; x < vw; ++x) {
       const float s = map[static_cast<std::size_t>(y) * vw + x];
       if (s <= 0.0f) continue;
-      if (size_ == capacity && s <= items_[static_cast<std::size_t>(size_ - 1)].score) continue;
+      if (size_ == capacity && s - handicap <= items_[static_cast<std::size_t>(size_ - 1)].score) continue;
       bool local_max = true;
       for (int j = -1; j <= 1 && local_max; ++j) {
         for (int i = -1; i <= 1; ++i) {
@@ -30,12 +30,8 @@ void CandidateList::add_local_maxima(const float* map, int vw, int vh, int k, in
         }
       }
       if (!local_max) continue;
-      if (level == 0 && scale == 1.0) {
-        insert({x, y, k, s, 0});
-      } else {
-        insert({static_cast<int>(std::lround((x + centre_px) * scale - centre_px)),
-                static_cast<int>(std::lround((y + centre_px) * scale - centre_px)), k, s, level});
-      }
+      insert({static_cast<int>(std::lround((x + centre_px) * scale - centre_px)),
+              static_cast<int>(std::lround((y + centre_px) * scale - centre_px)), k, s - handicap, level});
     }
   }
 }

@@ -13,7 +13,7 @@ namespace sempose::pose {
 // the target's outer contrast, its window's signal-to-noise was higher, and the ZNCC, which
 // noise scales by √(S/(S+N)), favoured it: +0.2 % noise-free to +2.1 % at 2.5 e⁻/px on
 // lamella_post (pose_accuracy_bench --scale-bias).
-double ScaleProbe::score(const PatternBank& bank, const Measurement& m, double factor, double window) const noexcept {
+double ScaleProbe::score(const PatternBank& bank, const Measurement& m, double factor, double window, int stride) const noexcept {
   const int p = bank.size_px();
   const int w = scorer_.roi_w(), h = scorer_.roi_h();
   const float* f = scorer_.roi();
@@ -29,7 +29,7 @@ double ScaleProbe::score(const PatternBank& bank, const Measurement& m, double f
   // Every third row and column of the ROI: a ninth of the cost (the probe's three scores cost
   // less than the walk), the estimate's noise grows by ~3x per frame and the running scale
   // averages it down.
-  for (int y = y_lo; y <= y_hi; y += kStride) {
+  for (int y = y_lo; y <= y_hi; y += stride) {
     const double pv = c + (y - cy) * inv;
     const int v0 = std::clamp(static_cast<int>(pv), 0, p - 2);
     const double wv = pv - v0;
@@ -37,7 +37,7 @@ double ScaleProbe::score(const PatternBank& bank, const Measurement& m, double f
     const float* t0 = t + static_cast<std::ptrdiff_t>(v0) * p;
     const float* t1 = t0 + p;
     const int v_near = std::clamp(static_cast<int>(std::lround(c + (y - cy) * inv_window)), 0, p - 1);
-    for (int x = x_lo; x <= x_hi; x += kStride) {
+    for (int x = x_lo; x <= x_hi; x += stride) {
       const double pu = c + (x - cx) * inv;
       const int u0 = std::clamp(static_cast<int>(pu), 0, p - 2);
       const double wu = pu - u0;

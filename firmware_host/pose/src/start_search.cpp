@@ -31,19 +31,19 @@ StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& si
       tried_(static_cast<std::size_t>(std::max(1, cfg.search_candidates))),
       candidates_(cfg.search_candidates, std::max(2, sizes.coarse_pattern_px / 2)) {}
 
-void StartSearch::resample_coarse(int cw, int ch, double s, double offset, int& lw, int& lh) noexcept {
+void StartSearch::resample_coarse(int cw, int ch, double s, int& lw, int& lh) noexcept {
   lw = std::min(coarse_.fft_w(), std::min(sizes_.coarse_max_w, static_cast<int>((cw - 1) / s) + 1));
   lh = std::min(coarse_.fft_h(), std::min(sizes_.coarse_max_h, static_cast<int>((ch - 1) / s) + 1));
   const std::int32_t* in = coarse_frame_.data();
   for (int y = 0; y < lh; ++y) {
-    const double v = std::min(y * s + offset, ch - 1.0);
+    const double v = std::min(y * s, ch - 1.0);
     const int y0 = std::min(static_cast<int>(v), ch - 2);
     const double wy = v - y0;
     const std::int32_t* r0 = in + static_cast<std::ptrdiff_t>(y0) * cw;
     const std::int32_t* r1 = r0 + cw;
     std::int32_t* o = level_frame_.data() + static_cast<std::ptrdiff_t>(y) * lw;
     for (int x = 0; x < lw; ++x) {
-      const double u = std::min(x * s + offset, cw - 1.0);
+      const double u = std::min(x * s, cw - 1.0);
       const int x0 = std::min(static_cast<int>(u), cw - 2);
       const double wx = u - x0;
       const double top = r0[x0] + wx * (r0[x0 + 1] - r0[x0]);
@@ -106,22 +106,25 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   for (int l = 0; l < n_levels; ++l) {
     const double s = active_[static_cast<std::size_t>(l)];
     bool loaded = false;
-    // Alone, scale 1 is the frame as downsampled. Among other levels it is interpolated too
-    // (shifted by a quarter coarse px, ~2 px, well inside the fine window): a level's bilinear
-    // resampling smooths it and raised its ZNCCs over the raw level's, and a scale-1 target's
-    // place went to the 0.8 level (the real lamella scene at 2.5 e⁻/px).
-    if (n_levels == 1 && s == 1.0) {
+    if (s == 1.0) {
       loaded = coarse_.load(coarse_frame_.data(), cw, ch, cw);
     } else {
       int lw = 0, lh = 0;
-      resample_coarse(cw, ch, s, s == 1.0 ? kEvenSmoothingShift : 0.0, lw, lh);
+      resample_coarse(cw, ch, s, lw, lh);
       loaded = lw >= cp && lh >= cp && coarse_.load(level_frame_.data(), lw, lh, lw);
     }
     if (!loaded) continue;
     const int vw = coarse_.valid_w(), vh = coarse_.valid_h();
+    // A resampled level is smoother than the scanned frame and its ZNCCs run higher: a
+    // scale-1 target's place went to the 0.8 level (the real lamella scene at 2.5 e⁻/px).
+    // Its scores give way by kCoarseTiePerLevel per level away from the likely scale.
+    const float coarse_handicap =
+        n_levels > 1 ? static_cast<float>(kCoarseTiePerLevel * std::fabs(std::log(s / scale_prior.likely)) /
+                                          std::log(kSearchLevelRatio))
+                     : 0.0f;
     for (int k = 0; k < bank.coarse_angles(); ++k) {
       coarse_.correlate(bank.coarse_spectrum(k), coarse_map_.data());
-      candidates_.add_local_maxima(coarse_map_.data(), vw, vh, k, l, s, (cp - 1) / 2.0);
+      candidates_.add_local_maxima(coarse_map_.data(), vw, vh, k, l, s, (cp - 1) / 2.0, coarse_handicap);
     }
   }
   Fine best;
@@ -162,7 +165,9 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
       // A scale away from the likely one needs a better score to win (kScaleTiePerLevel per
       // level of distance): the real scene holds look-alikes at other scales.
       const double levels_away = std::fabs(std::log(sc / scale_prior.likely)) / std::log(kSearchLevelRatio);
-      t.rank = static_cast<float>(probe_.score(bank, in_scanned_roi(t.fine), sc, sc * (1.0 - ScaleProbe::kStep)) -
+      // Every pixel: the probe's every third left the target and its 180° look-alike tied at
+      // 6 e⁻/px (the procedural lamella).
+      t.rank = static_cast<float>(probe_.score(bank, in_scanned_roi(t.fine), sc, sc * (1.0 - ScaleProbe::kStep), 1) -
                                   kScaleTiePerLevel * levels_away) +
                t.coarse_score;
     }
@@ -192,7 +197,7 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
       const Measurement a = in_scanned_roi(best), b = in_scanned_roi(at_one);
       const double sa = best.load_scale * best.factor, sb = at_one.load_scale * at_one.factor;
       const double inset = 1.0 - ScaleProbe::kStep;
-      if (probe_.score(bank, b, sb, sb * inset) > probe_.score(bank, a, sa, sa * inset)) best = at_one;
+      if (probe_.score(bank, b, sb, sb * inset, 1) > probe_.score(bank, a, sa, sa * inset, 1)) best = at_one;
     }
   }
   roi_x = best.rx;

@@ -27,8 +27,9 @@ class CandidateList {
   // the coarse frame resampled by 1/scale (scale level `level`) has its places mapped back to
   // the unscaled coarse frame (pattern centre (centre_px, centre_px) from the top-left kept), so
   // that one target seen at two levels is one place.
+  // A candidate's score is the map's minus `handicap` (a level whose scores run high).
   void add_local_maxima(const float* map, int map_w, int map_h, int k, int level = 0, double scale = 1.0,
-                        double centre_px = 0.0) noexcept;
+                        double centre_px = 0.0, float handicap = 0.0f) noexcept;
   // RT: one candidate (replaces a weaker one at the same place, or the weakest when full).
   void insert(const StartCandidate& c) noexcept;
 

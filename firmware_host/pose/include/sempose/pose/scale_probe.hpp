@@ -29,7 +29,9 @@ class ScaleProbe {
   // The ZNCC at the pose of m with the pattern grid stretched by `factor`, over the ROI pixels
   // of the pattern's support stretched by `window` (≤ factor; the same for the scores compared)
   // (-2 outside the ROI).
-  double score(const PatternBank& bank, const Measurement& m, double factor, double window) const noexcept;
+  // stride: rows and columns of the ROI read (1: every pixel, for comparing candidates).
+  double score(const PatternBank& bank, const Measurement& m, double factor, double window,
+               int stride = kStride) const noexcept;
 
  private:
   const ExactScorer& scorer_;

@@ -67,6 +67,7 @@ class StartSearch {
   // the likely one: the real lamella scene holds a look-alike 190 px away that matched at
   // 1.25 and 95° better than the target at 1 at 2.5 e⁻/px (pose_accuracy_bench warped spin).
   static constexpr double kScaleTiePerLevel = 0.05;
+  static constexpr double kCoarseTiePerLevel = 0.06;
   bool prefer_opposite(const Measurement& coarse_choice, const Measurement& opposite,
                        const AnglePrior& prior) const noexcept;
 
@@ -99,9 +100,8 @@ class StartSearch {
   // The scale factor of the loaded ROI's target at m: the probe's score over ± span, the best
   // of them and a parabola through its neighbours.
   double refine_factor(const PatternBank& bank, const Measurement& m, double span) const noexcept;
-  // Bilinear: level(x', y') = coarse(s·x' + offset, s·y' + offset), up to the correlator's size.
-  void resample_coarse(int cw, int ch, double s, double offset, int& lw, int& lh) noexcept;
-  static constexpr double kEvenSmoothingShift = 0.25;
+  // Bilinear: level(x', y') = coarse(s·x', s·y'), up to the correlator's size.
+  void resample_coarse(int cw, int ch, double s, int& lw, int& lh) noexcept;
 
   const config::TrackerConfig& cfg_;
   const EngineSizes& sizes_;
