@@ -160,14 +160,20 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   if (n_levels > 1) {
     for (int i = 0; i < tried; ++i) {
       Tried& t = tried_[static_cast<std::size_t>(i)];
-      if (!loader_.load(px + static_cast<std::size_t>(t.fine.ry) * w + t.fine.rx, rw, rh, w, bits)) continue;
       const double sc = t.fine.load_scale * t.fine.factor;
+      // One measured in the scanned ROI has its score already (measure_place): no reload.
+      if (t.fine.scanned_score < -1.5 &&
+          !loader_.load(px + static_cast<std::size_t>(t.fine.ry) * w + t.fine.rx, rw, rh, w, bits))
+        continue;
       // A scale away from the likely one needs a better score to win (kScaleTiePerLevel per
       // level of distance): the real scene holds look-alikes at other scales.
       const double levels_away = std::fabs(std::log(sc / scale_prior.likely)) / std::log(kSearchLevelRatio);
       // Every pixel: the probe's every third left the target and its 180° look-alike tied at
       // 6 e⁻/px (the procedural lamella).
-      t.rank = static_cast<float>(probe_.score(bank, in_scanned_roi(t.fine), sc, sc * (1.0 - ScaleProbe::kStep), 1) -
+      const double scanned = t.fine.scanned_score > -1.5
+                                 ? t.fine.scanned_score
+                                 : probe_.score(bank, in_scanned_roi(t.fine), sc, sc * (1.0 - ScaleProbe::kStep), 1);
+      t.rank = static_cast<float>(scanned -
                                   kScaleTiePerLevel * levels_away) +
                t.coarse_score;
     }
@@ -291,7 +297,11 @@ StartSearch::Fine StartSearch::measure_place(const PatternBank& bank, const std:
   out.rw = rw;
   out.rh = rh;
   out.load_scale = s;
-  if (m.valid) out.factor = refine_factor(bank, m, span);  // while this ROI is loaded
+  if (m.valid) {
+    out.factor = refine_factor(bank, m, span);  // while this ROI is loaded
+    // Loaded as scanned: the candidates' common score (search()) can be taken now.
+    if (s == 1.0) out.scanned_score = probe_.score(bank, m, out.factor, out.factor * (1.0 - ScaleProbe::kStep), 1);
+  }
   return out;
 }
 

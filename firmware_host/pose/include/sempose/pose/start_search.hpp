@@ -80,6 +80,7 @@ class StartSearch {
     Measurement m;
     int rx = 0, ry = 0, rw = 0, rh = 0;
     double load_scale = 1.0, factor = 1.0;
+    double scanned_score = -2.0;  // the scale probe's score on the scanned ROI, if loaded as scanned
   };
   struct Tried {
     Fine fine;
