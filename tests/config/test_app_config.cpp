@@ -68,6 +68,22 @@ TEST(AppConfig, AppearanceKeysAreReadAndChecked) {
   EXPECT_NE(e.find("tracker.appearance.blok_px: unknown key"), std::string::npos) << e;
 }
 
+// The start search's scale span: read, and refused outside the tracker's scale range.
+TEST(AppConfig, StartSearchScaleSpan) {
+  const auto good = write_yaml("scale_span.yaml", "tracker:\n  search_scale_min: 0.8\n  search_scale_max: 1.2\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_TRUE(load_app_config(good, c, e)) << e;
+  EXPECT_DOUBLE_EQ(c.tracker.search_scale_min, 0.8);
+  EXPECT_DOUBLE_EQ(c.tracker.search_scale_max, 1.2);
+  const auto bad = write_yaml("scale_span_bad.yaml", "tracker:\n  search_scale_min: 0.5\n  search_scale_max: 0.9\n");
+  AppConfig d;
+  e.clear();
+  EXPECT_FALSE(load_app_config(bad, d, e));
+  EXPECT_NE(e.find("tracker.search_scale_min: 0.5 is outside the allowed range [0.7, 1]"), std::string::npos) << e;
+  EXPECT_NE(e.find("tracker.search_scale_max: 0.9 is outside the allowed range [1, 1.45]"), std::string::npos) << e;
+}
+
 TEST(AppConfig, WrongTypeAndChoice) {
   const auto path = write_yaml("type.yaml", "governor:\n  margin: lots\npipeline:\n  polling: busy\n");
   AppConfig c;
