@@ -135,7 +135,7 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   const int rw = std::min(sizes_.roi_px, w), rh = std::min(sizes_.roi_px, h);
   const int max_moves = static_cast<int>(std::ceil(cfg_.search_refine_step_deg / angles_.step_deg)) + 2;
   const double c_p = (pattern_px - 1) / 2.0;
-  // A level's candidate is at most √kLevelRatio off the target's scale (a known scale: at it).
+  // A level's candidate is at most √kSearchLevelRatio off the target's scale (a known scale: at it).
   const double span = n_levels > 1 ? std::sqrt(kSearchLevelRatio) - 1.0 + ScaleProbe::kStep : ScaleProbe::kStep;
   int tried = 0;
   for (int c = 0; c < candidates_.size(); ++c) {
@@ -173,9 +173,7 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
       const double scanned = t.fine.scanned_score > -1.5
                                  ? t.fine.scanned_score
                                  : probe_.score(bank, in_scanned_roi(t.fine), sc, sc * (1.0 - ScaleProbe::kStep), 1);
-      t.rank = static_cast<float>(scanned -
-                                  kScaleTiePerLevel * levels_away) +
-               t.coarse_score;
+      t.rank = static_cast<float>(scanned - kScaleTiePerLevel * levels_away) + t.coarse_score;
     }
   }
   for (int i = 0; i < tried; ++i) {
