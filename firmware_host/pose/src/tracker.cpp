@@ -360,10 +360,8 @@ PoseEstimate Tracker::update(const PoseFrame& frame) noexcept { return impl_->up
 bool Tracker::select_pattern_set(std::uint8_t set, double nm_per_px) noexcept {
   Impl& t = *impl_;
   if (set >= t.banks.size()) return false;
-  const double expected = nm_per_px > 0 && std::isfinite(nm_per_px) && t.nm_per_px[set] > 0
-                              ? std::clamp(t.nm_per_px[set] / nm_per_px, Impl::kScaleMin, Impl::kScaleMax)
-                              : 1.0;
   const bool told = nm_per_px > 0 && std::isfinite(nm_per_px) && t.nm_per_px[set] > 0;
+  const double expected = told ? std::clamp(t.nm_per_px[set] / nm_per_px, Impl::kScaleMin, Impl::kScaleMax) : 1.0;
   // Being told the size already assumed is no new look: it only narrows the next search.
   t.scale_told.store(told, std::memory_order_relaxed);
   const bool new_size = std::fabs(t.expected_scale.exchange(expected, std::memory_order_relaxed) - expected) > 1e-3;
