@@ -129,12 +129,14 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::printf("\nstart search (full field, x8 pyramid, 18 coarse angles, 4 candidates refined; scale 1 only = a SELECT\n"
-              "gave nm/px (or tracker.search_scale_min = max = 1); 0.75-1.33 = scale unknown: levels 0.8, 1, 1.25)\n");
+  std::printf("\nstart search (full field, x8 pyramid, 18 coarse angles, 4 candidates refined; scale 1 only =\n"
+              "tracker.search_scale_min = max = 1; 0.75-1.33 = a new target, no SELECT: levels 0.8, 1, 1.25 around the\n"
+              "expected scale; narrow = a SELECT gave nm/px, or the re-search after a loss: one level, refined +-14.8 %%)\n");
+  enum class Cover { kScaleOne, kLevels, kNarrow };
   for (auto [w, hgt] : {std::pair{640, 480}, std::pair{1024, 768}})
-  for (const bool cover_scale : {false, true}) {
+  for (const Cover cover : {Cover::kScaleOne, Cover::kLevels, Cover::kNarrow}) {
     config::TrackerConfig tc;
-    if (!cover_scale) tc.search_scale_min = tc.search_scale_max = 1.0;
+    if (cover == Cover::kScaleOne) tc.search_scale_min = tc.search_scale_max = 1.0;
     Scenario s;
     s.motion = "static";
     s.dose_e = 6;
@@ -147,6 +149,7 @@ int main(int argc, char** argv) {
     SimHarness h(s, tc);
     h.run();
     Tracker& t = *h.tracker();
+    if (cover == Cover::kNarrow) t.select_pattern_set(0, t.nm_per_px());  // told: the pattern's own size
     hal::FrameMeta meta;
     meta.roi = {0, 0, w, hgt};
     meta.field_w = w;
@@ -165,7 +168,7 @@ int main(int argc, char** argv) {
       found += e.state == TrackState::kTracking && std::hypot(e.x_px - meta.truth[0].x_px, e.y_px - meta.truth[0].y_px) < 1.0;
     });
     std::printf("%4dx%-4d  %-13s p50 %7.2f ms  max %7.2f ms  found %d/15   (bank + buffers %.1f MB)\n", w, hgt,
-                cover_scale ? "0.75-1.33" : "scale 1 only", ts.p50_us * 1e-3, ts.max_us * 1e-3, found, t.memory_bytes() / 1e6);
+                cover == Cover::kLevels ? "0.75-1.33" : cover == Cover::kNarrow ? "narrow" : "scale 1 only", ts.p50_us * 1e-3, ts.max_us * 1e-3, found, t.memory_bytes() / 1e6);
   }
   return 0;
 }

@@ -48,6 +48,7 @@ struct Scenario {
   double scale_to = 1.0;          // ... to this over the run (equal: a constant scale)
   bool charging_defocus = false;  // gain 1 → 0.65 (±10 % wobble), offset 0 → +0.08, defocus 0 → 1.5 px, detector τ 120 ns
   bool jaws = false;              // target "gripper": each jaw opens and closes 8 px (period 0.4 s)
+  double jaws_open_px = 0;        // target "gripper": each jaw held this far open (the pattern is recorded closed)
   // Approximate frame period (192² ROI at 250 ns + flyback + modelled compute), for ramps over the run.
   double run_s() const { return frames * 0.0101 * (dwell_ns / 250.0); }
   // Faults (the pattern is always recorded from the target as configured above):
@@ -145,6 +146,7 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     t.jaws.amplitude = 8.0;  // 0 → 8 → 0 → −8 px: open and close
     t.jaws.period_s = 0.4;
   }
+  if (s.jaws_open_px != 0 && s.target == "gripper") t.jaws = config::TimeProfile::constant(s.jaws_open_px);
   if (s.charging_defocus) {
     c.charging_gain.from = 1.0;
     c.charging_gain.to = 0.65;
@@ -222,6 +224,7 @@ class SimHarness {
       pat_cfg.targets[0].x_px = s.field_w / 2.0;
       pat_cfg.targets[0].y_px = s.field_h / 2.0;
       pat_cfg.targets[0].scale = config::TimeProfile::constant(1.0);  // recorded at the pattern's own size
+      if (s.jaws_open_px != 0) pat_cfg.targets[0].jaws = config::TimeProfile::constant(0.0);  // recorded closed
       pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, 10, s.dwell_ns, 777);
       if (s.shape_mask)
         sets[0].mask = pipeline::to_pattern_image(hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px));

@@ -40,6 +40,7 @@ struct Stages {
   std::unique_ptr<RoiLoader> loader;
   std::unique_ptr<RoiRescaler> rescaler;
   std::unique_ptr<ScaleProbe> probe;
+  std::unique_ptr<ScaleEvidenceCheck> evidence;
   std::unique_ptr<CorrelationMaps> maps;
   SubpixelFit fit{true, true};
   std::unique_ptr<OrientationWalk> walk;
@@ -60,10 +61,11 @@ struct Stages {
     loader = std::make_unique<RoiLoader>(0, sizes.roi_fft_px, *scorer, *half);
     rescaler = std::make_unique<RoiRescaler>(sizes.roi_fft_px);
     probe = std::make_unique<ScaleProbe>(*scorer);
+    evidence = std::make_unique<ScaleEvidenceCheck>(*scorer);
     maps = std::make_unique<CorrelationMaps>(static_cast<std::size_t>(sizes.half_fft_px) * sizes.half_fft_px);
     walk = std::make_unique<OrientationWalk>(*scorer, fit, angles);
     sweep = std::make_unique<AngleSweep>(*half, *walk, angles, *maps);
-    search = std::make_unique<StartSearch>(cfg, sizes, angles, *coarse, *half, *loader, *rescaler, *probe, *walk, *sweep, *maps);
+    search = std::make_unique<StartSearch>(cfg, sizes, angles, *coarse, *half, *loader, *rescaler, *probe, *evidence, *walk, *sweep, *maps);
     PatternBankSpec spec;
     const std::vector<std::uint16_t> pattern = render(kPattern, kPattern, (kPattern - 1) / 2.0, (kPattern - 1) / 2.0, 0);
     spec.pattern = {kPattern, kPattern, pattern};

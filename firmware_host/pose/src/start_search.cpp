@@ -11,7 +11,8 @@ namespace sempose::pose {
 
 StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& sizes, const AngleGrid& angles,
                          FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
-                         const ScaleProbe& probe, const OrientationWalk& walk, AngleSweep& sweep, CorrelationMaps& maps)
+                         const ScaleProbe& probe, const ScaleEvidenceCheck& evidence, const OrientationWalk& walk,
+                         AngleSweep& sweep, CorrelationMaps& maps)
     : cfg_(cfg),
       sizes_(sizes),
       angles_(angles),
@@ -20,6 +21,7 @@ StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& si
       loader_(loader),
       rescaler_(rescaler),
       probe_(probe),
+      evidence_(evidence),
       walk_(walk),
       sweep_(sweep),
       maps_(maps),
@@ -95,13 +97,15 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   const int cw = std::min(w / d, sizes_.coarse_max_w), ch = std::min(h / d, sizes_.coarse_max_h);
   if (cw < cp || ch < cp) return none;
   box_downsample<std::uint16_t, std::int32_t, std::int32_t>(px, w, 0, 0, d, cw, ch, coarse_frame_.data());
-  int n_levels = static_cast<int>(levels_.size());
-  if (scale_prior.known) {
-    active_[0] = scale_prior.scale;
-    n_levels = 1;
-  } else {
-    std::copy(levels_.begin(), levels_.end(), active_.begin());
+  // The levels around the expected scale, inside the scales the tracker can follow.
+  const double expected = std::clamp(scale_prior.scale, kTrackedScaleMin, kTrackedScaleMax);
+  int n_levels = 0;
+  for (std::size_t i = 0; i < (scale_prior.narrow ? 1 : levels_.size()); ++i) {
+    const double s = std::clamp(expected * levels_[i], kTrackedScaleMin, kTrackedScaleMax);
+    if (i > 0 && std::fabs(std::log(s / expected)) < 0.5 * std::log(kSearchLevelRatio)) continue;  // clamped onto it
+    active_[static_cast<std::size_t>(n_levels++)] = s;
   }
+  evidence_seen_ = ScaleEvidence{};
   candidates_.clear();
   for (int l = 0; l < n_levels; ++l) {
     const double s = active_[static_cast<std::size_t>(l)];
@@ -117,9 +121,9 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     const int vw = coarse_.valid_w(), vh = coarse_.valid_h();
     // A resampled level is smoother than the scanned frame and its ZNCCs run higher: a
     // scale-1 target's place went to the 0.8 level (the real lamella scene at 2.5 e⁻/px).
-    // Its scores give way by kCoarseTiePerLevel per level away from the likely scale.
+    // Its scores give way by kCoarseTiePerLevel per level away from the expected scale.
     const float coarse_handicap =
-        n_levels > 1 ? static_cast<float>(kCoarseTiePerLevel * std::fabs(std::log(s / scale_prior.likely)) /
+        n_levels > 1 ? static_cast<float>(kCoarseTiePerLevel * std::fabs(std::log(s / expected)) /
                                           std::log(kSearchLevelRatio))
                      : 0.0f;
     for (int k = 0; k < bank.coarse_angles(); ++k) {
@@ -131,12 +135,13 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   best.m.score = -2.0f;
   float best_rank = -10.0f;
   double best_cx = 0, best_cy = 0;
-  int best_k = 0, best_level = 0;
+  int best_k = 0;
   const int rw = std::min(sizes_.roi_px, w), rh = std::min(sizes_.roi_px, h);
   const int max_moves = static_cast<int>(std::ceil(cfg_.search_refine_step_deg / angles_.step_deg)) + 2;
   const double c_p = (pattern_px - 1) / 2.0;
-  // A level's candidate is at most √kSearchLevelRatio off the target's scale (a known scale: at it).
-  const double span = n_levels > 1 ? std::sqrt(kSearchLevelRatio) - 1.0 + ScaleProbe::kStep : ScaleProbe::kStep;
+  // A level's candidate is at most √kSearchLevelRatio off the target's scale; a narrow search's
+  // one level covers what the scale may have moved while the target was lost.
+  const double span = n_levels > 1 ? std::sqrt(kSearchLevelRatio) - 1.0 + ScaleProbe::kStep : kNarrowSpan;
   int tried = 0;
   for (int c = 0; c < candidates_.size(); ++c) {
     const StartCandidate& cd = candidates_[c];
@@ -165,9 +170,9 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
       if (t.fine.scanned_score < -1.5 &&
           !loader_.load(px + static_cast<std::size_t>(t.fine.ry) * w + t.fine.rx, rw, rh, w, bits))
         continue;
-      // A scale away from the likely one needs a better score to win (kScaleTiePerLevel per
+      // A scale away from the expected one needs a better score to win (kScaleTiePerLevel per
       // level of distance): the real scene holds look-alikes at other scales.
-      const double levels_away = std::fabs(std::log(sc / scale_prior.likely)) / std::log(kSearchLevelRatio);
+      const double levels_away = std::fabs(std::log(sc / expected)) / std::log(kSearchLevelRatio);
       // Every pixel: the probe's every third left the target and its 180° look-alike tied at
       // 6 e⁻/px (the procedural lamella).
       const double scanned = t.fine.scanned_score > -1.5
@@ -184,24 +189,24 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
       best_cx = t.cx;
       best_cy = t.cy;
       best_k = t.k;
-      best_level = t.level;
     }
   }
   if (!best.m.valid) return none;
-  // A winner at another level than 1 is checked against the same place measured at 1: a
-  // resampled frame is smoother than the scanned one (its ZNCCs run higher), and a target
-  // with self-similar texture (the real lamella crop) matches a stretched copy of itself a
-  // few px off. The two are compared on the scanned ROI's own pixels with the pattern
-  // stretched to each one's scale, each over its own support (the scale probe's score; over
-  // the smaller one's, the inner part of a self-similar crop favoured the wrong scale at
-  // 6 e⁻/px).
-  if (best_level != 0 && active_[0] == 1.0) {
-    const Fine at_one = measure_place(bank, px, w, h, bits, prior, best_cx, best_cy, best_k, 1.0, span);
-    if (at_one.m.valid && loader_.load(px + static_cast<std::size_t>(best.ry) * w + best.rx, rw, rh, w, bits)) {
-      const Measurement a = in_scanned_roi(best), b = in_scanned_roi(at_one);
-      const double sa = best.load_scale * best.factor, sb = at_one.load_scale * at_one.factor;
-      const double inset = 1.0 - ScaleProbe::kStep;
-      if (probe_.score(bank, b, sb, sb * inset, 1) > probe_.score(bank, a, sa, sa * inset, 1)) best = at_one;
+  // The expected scale is a prior: a winner whose scale is more than kPriorBand away from it
+  // is checked against the same place measured at the expected scale, both scored on the
+  // scanned ROI's own pixels (the same ones for both), and kept only when the evidence is
+  // clear (ScaleEvidenceCheck). A gripper whose jaws opened matches a larger rigid pattern a
+  // little better (1.10–1.17) and, tracked from there, its body was dragged 3–4 px; a
+  // resampled frame is smoother than the scanned one and a self-similar texture (the real
+  // lamella crop) matches a stretched copy of itself a few px off.
+  const double won_scale = best.load_scale * best.factor;
+  if (std::fabs(std::log(won_scale / expected)) > kPriorBand) {
+    // At the expected scale exactly (no refinement span): that is the hypothesis kept.
+    const Fine at_prior = measure_place(bank, px, w, h, bits, prior, best_cx, best_cy, best_k, expected, 0.0);
+    if (at_prior.m.valid && loader_.load(px + static_cast<std::size_t>(best.ry) * w + best.rx, rw, rh, w, bits)) {
+      evidence_seen_ = evidence_.compare(bank, in_scanned_roi(best), won_scale, in_scanned_roi(at_prior),
+                                         at_prior.load_scale * at_prior.factor);
+      if (!evidence_seen_.clear) best = at_prior;
     }
   }
   roi_x = best.rx;

@@ -223,6 +223,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // pattern set has its own noise floors and is matched at its own size first.
     loss.forget_target();
     scale = expected_scale.load(std::memory_order_relaxed);
+    scale_tracked = false;
     use_noise_floors_of(set);
     if (!full_field) {
       e.state = TrackState::kAcquiring;
@@ -244,8 +245,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     int rx = 0, ry = 0;
     e.searched = true;
     double found_scale = scale;
-    const ScalePrior scale_prior{scale_told.load(std::memory_order_relaxed), expected_scale.load(std::memory_order_relaxed),
-                                 scale};
+    // The expected scale is a prior: the SELECT's (else 1) for a new target, the last tracked
+    // one after a loss (a loss during a magnification ramp: narrow, centred on it).
+    const ScalePrior scale_prior{scale_tracked ? scale : expected_scale.load(std::memory_order_relaxed),
+                                 scale_tracked || scale_told.load(std::memory_order_relaxed)};
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), scale_prior, rx, ry,
                                         found_scale);
     if (m.valid) to_estimate(m, roi.x + rx, roi.y + ry, e);
@@ -255,6 +258,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     if (loss.found(m, attainable)) {
       accept(e, frame, true);
       scale = e.scale;  // tracking starts at the scale the search found
+      scale_tracked = true;
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable

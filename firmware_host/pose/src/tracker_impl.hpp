@@ -53,6 +53,7 @@ struct Tracker::Impl {
   RoiLoader loader;
   RoiRescaler rescaler;
   const ScaleProbe scale_probe;
+  const ScaleEvidenceCheck scale_evidence;
   CorrelationMaps maps;
   const SubpixelFit fit;
   const OrientationWalk walk;
@@ -83,11 +84,14 @@ struct Tracker::Impl {
   // What scale starts at before a search: 1, or the set's nm/px over a SELECT's (written by
   // select_pattern_set, possibly from another thread than update()).
   std::atomic<double> expected_scale{1.0};
-  // Whether a SELECT gave the microscope's nm/px: then the start search looks at the expected
-  // scale only; else over tracker.search_scale_min…max.
+  // Whether a SELECT gave the microscope's nm/px: then the start search looks near the
+  // expected scale only (one level); else over tracker.search_scale_min…max times it.
   std::atomic<bool> scale_told{false};
+  // `scale` was tracked (a search found the target since it was last forgotten): the
+  // re-search after a loss is centred on it, narrow (StartSearch: ScalePrior).
+  bool scale_tracked = false;
   static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
-  static constexpr double kScaleMin = 0.7, kScaleMax = 1.45;  // beyond: the ROI cannot hold the target
+  static constexpr double kScaleMin = kTrackedScaleMin, kScaleMax = kTrackedScaleMax;  // beyond: the ROI cannot hold the target
   // Closer to 1 than this: the raw ROI is loaded as scanned (RoiRescaler::kMinChange).
   static constexpr double kRescaleFrom = RoiRescaler::kMinChange;
   config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
@@ -134,11 +138,12 @@ struct Tracker::Impl {
         loader(c.prefilter_passes, s.roi_fft_px, scorer, half),
         rescaler(s.roi_fft_px),
         scale_probe(scorer),
+        scale_evidence(scorer),
         maps(static_cast<std::size_t>(s.half_fft_px) * s.half_fft_px),
         fit(c.subpixel == "gaussian", c.fit_noise_correction),
         walk(scorer, fit, angles),
         sweep(half, walk, angles, maps),
-        search(cfg, sizes, angles, coarse, half, loader, rescaler, scale_probe, walk, sweep, maps),
+        search(cfg, sizes, angles, coarse, half, loader, rescaler, scale_probe, scale_evidence, walk, sweep, maps),
         refinement(scorer),
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
                     c.sigma_noise_factor, c.sigma_angle_factor, angles.count),

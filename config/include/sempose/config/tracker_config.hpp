@@ -52,9 +52,11 @@ struct TrackerConfig {
   std::int32_t search_candidates = 4;
   double search_refine_window_deg = 12.0;  // ± around a candidate's coarse angle
   double search_refine_step_deg = 4.0;     // FFT correlations inside that window, then the walk
-  // Scales (target size over the pattern's) the start search covers when no SELECT gave the
-  // microscope's nm/px: levels 25 % apart that reach min and max (default: 0.8, 1, 1.25, each
-  // good for ±12 %; min = max = 1: scale 1 only).
+  // Scales the start search for a new target covers when no SELECT gave the microscope's
+  // nm/px, as factors of the expected scale (the pattern's own size, or a SELECT's): levels
+  // 25 % apart that reach min and max (default: 0.8, 1, 1.25, each good for ±12 %; min = max
+  // = 1: the expected scale only). A scale away from the expected one wins only on clear
+  // evidence; after a loss the search is narrow around the last tracked scale.
   double search_scale_min = 0.75;
   double search_scale_max = 1.33;
   // Motion model and sub-pixel.

@@ -1,5 +1,5 @@
-// The scale levels the start search covers when the target's scale is unknown: 1, then
-// geometric steps of kSearchLevelRatio below and above it until the levels, each good for
+// The scale levels the start search covers around the expected scale (as factors of it): 1,
+// then geometric steps of kSearchLevelRatio below and above it until the levels, each good for
 // ±√ratio, reach tracker.search_scale_min and search_scale_max (0.75–1.33: 0.8, 1, 1.25).
 // Setup only (allocates).
 #pragma once
@@ -16,6 +16,8 @@ namespace sempose::pose {
 // refinement's span covers it. Closer levels cost a coarse pass each (18 FFTs at the size the
 // smallest level enlarges the frame to): 5 levels at 1.16 took 2.5× the scale-1 search.
 inline constexpr double kSearchLevelRatio = 1.25;
+// The scales the tracker can follow (its ROI must hold the target): levels are kept inside.
+inline constexpr double kTrackedScaleMin = 0.7, kTrackedScaleMax = 1.45;
 
 inline std::vector<double> search_scale_levels(const config::TrackerConfig& c) {
   const double half = 0.5 * std::log(kSearchLevelRatio);

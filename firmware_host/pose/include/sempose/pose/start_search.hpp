@@ -1,12 +1,14 @@
 // The full-field start search (at start and after a loss): the frame box-downsampled by
 // search_downsample, resampled by 1/s for each scale level s (search_scale_levels.hpp, over
-// search_scale_min…max when the scale is unknown; only the expected scale when a SELECT gave
-// the microscope's nm/px), and correlated at every coarse angle (one FFT each); the strongest
+// search_scale_min…max times the expected scale, or only the expected scale after a loss or
+// when a SELECT gave the microscope's nm/px: ScalePrior), and correlated at every coarse angle (one FFT each); the strongest
 // separated local maxima over every level become candidates; each candidate's ROI is loaded
 // at full resolution, resampled by 1/s, and refined by an angle sweep around the coarse angle
 // (its peak looked for only near the coarse position), and by its own position search at the
 // opposite angle (φ+180°, a look-alike of elongated targets), then its scale by the scale
-// probe's scores over the level's span. The best candidate by coarse + fine score wins and is
+// probe's scores over the level's span. The best candidate by coarse + fine score wins; when
+// its scale is away from the expected one, the same place is measured at the expected scale
+// too and the away one is kept only on clear evidence (ScaleEvidenceCheck); the winner is
 // measured once more in its ROI resampled at its refined scale.
 // Setup allocates; search() is RT.
 #pragma once
@@ -20,6 +22,7 @@
 #include "sempose/pose/engine_sizes.hpp"
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/pose/roi_rescaler.hpp"
+#include "sempose/pose/scale_evidence.hpp"
 #include "sempose/pose/scale_probe.hpp"
 #include "sempose/pose/search_scale_levels.hpp"
 
@@ -32,18 +35,23 @@ struct AnglePrior {
   double phi_deg = 0;
 };
 
-// The scale the search looks at: known (a SELECT's nm/px) or anywhere in the configured span.
+// The scale the search expects: a prior, not a free parameter. Tracking starts at it unless a
+// match at another scale is clearly better (ScaleEvidenceCheck).
 struct ScalePrior {
-  bool known = false;
-  double scale = 1.0;   // known: the scale searched
-  double likely = 1.0;  // unknown: the scale a tie goes to (the last tracked one, else 1)
+  // A SELECT's nm/px over the pattern's, else 1; after a loss the last tracked scale.
+  double scale = 1.0;
+  // One level at `scale`, refined within ±kNarrowSpan: after a loss (the target was just
+  // tracked at that scale) or when a SELECT gave the microscope's nm/px. Otherwise the levels
+  // of tracker.search_scale_min…max times `scale`.
+  bool narrow = false;
 };
 
 class StartSearch {
  public:
   StartSearch(const config::TrackerConfig& cfg, const EngineSizes& sizes, const AngleGrid& angles,
               FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
-              const ScaleProbe& probe, const OrientationWalk& walk, AngleSweep& sweep, CorrelationMaps& maps);
+              const ScaleProbe& probe, const ScaleEvidenceCheck& evidence, const OrientationWalk& walk, AngleSweep& sweep,
+              CorrelationMaps& maps);
 
   // RT: searches a w×h frame (row stride w). The result is in the scanned (not resampled)
   // coordinates of the ROI at (roi_x, roi_y) of the frame; found_scale is the target's size
@@ -64,10 +72,20 @@ class StartSearch {
   static constexpr float kFlipTieScore = 0.02f;
   static constexpr double kFlipPriorDeg = 45.0;
   // Over scale levels a candidate's score loses this per level (25 %) its scale is away from
-  // the likely one: the real lamella scene holds a look-alike 190 px away that matched at
+  // the expected one: the real lamella scene holds a look-alike 190 px away that matched at
   // 1.25 and 95° better than the target at 1 at 2.5 e⁻/px (pose_accuracy_bench warped spin).
   static constexpr double kScaleTiePerLevel = 0.05;
   static constexpr double kCoarseTiePerLevel = 0.06;
+  // A found scale that would change how the ROI is loaded (RoiRescaler::kMinChange away from
+  // the expected one) must be clear (ScaleEvidenceCheck), or the match at the expected scale
+  // is kept. At 0.05 the gripper's first search at 2.5 e⁻/px took 1.051 unchecked and its
+  // first tracked pose was dragged 3.6 px (pose_accuracy_bench --only gripper jaws).
+  static constexpr double kPriorBand = RoiRescaler::kMinChange;
+  // A narrow search's refinement span: one level's reach (√kSearchLevelRatio, ±11.8 %) plus a
+  // probe step, the scale a magnification ramp can move while the target is lost.
+  static constexpr double kNarrowSpan = 0.148;
+  // The last search's evidence for a scale away from the expected one (valid: it was needed).
+  const ScaleEvidence& last_evidence() const noexcept { return evidence_seen_; }
   bool prefer_opposite(const Measurement& coarse_choice, const Measurement& opposite,
                        const AnglePrior& prior) const noexcept;
 
@@ -112,6 +130,8 @@ class StartSearch {
   RoiLoader& loader_;
   RoiRescaler& rescaler_;
   const ScaleProbe& probe_;
+  const ScaleEvidenceCheck& evidence_;
+  ScaleEvidence evidence_seen_;
   const OrientationWalk& walk_;
   AngleSweep& sweep_;
   CorrelationMaps& maps_;
