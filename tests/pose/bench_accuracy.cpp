@@ -302,6 +302,7 @@ int main(int argc, char** argv) {
   // --require-no-false: exit 3 when issue 13's false-TRACKING rule is broken (the CTest
   // pose_false_tracking_rule; the figures run in ci/test only prints the count).
   // --visp-levels N: ViSP's pyramid levels (3 by default, as the issue specifies).
+  // --search-scale MIN MAX: tracker.search_scale_min/max (what the defaults were chosen against).
   // --appearance on|off: learned appearance (tracker.appearance.enabled) regardless of its default.
   // --sigma-tile N, --sigma-calibration K, --sigma-floor PX DEG, --sigma-noise-factor F: the σ
   // stage's tile side, sandwich factor, model-error floor and white-noise factor (to try them; the defaults are tracker.sigma_*).
@@ -321,6 +322,10 @@ int main(int argc, char** argv) {
     else if (a == "--no-visp") visp = false;
     else if (a == "--require-no-false") require_no_false = true;
     else if (a == "--visp-levels" && i + 1 < argc) visp_levels = std::atoi(argv[++i]);
+    else if (a == "--search-scale" && i + 2 < argc) {
+      tc.search_scale_min = std::atof(argv[++i]);
+      tc.search_scale_max = std::atof(argv[++i]);
+    }
     else if (a == "--appearance" && i + 1 < argc) appearance = std::string(argv[++i]) == "on" ? 1 : 0;
     else if (a == "--sigma-tile" && i + 1 < argc) sigma_tile = std::atoi(argv[++i]);
     else if (a == "--sigma-calibration" && i + 1 < argc) sigma_cal = std::atof(argv[++i]);
@@ -335,7 +340,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--scale-bias] [--no-visp] [--visp-levels N] [--require-no-false] [--appearance on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET [CASE]] [--bias] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--appearance on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
       return 2;
     }
   }
