@@ -4,6 +4,7 @@
 #pragma GCC diagnostic ignored "-Wnull-dereference"  // GCC 12 false positive inside gtest.h
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -146,4 +147,45 @@ TEST(StartSearch, AScoreTieGoesToTheAngleNearTheLastTrackedOne) {
   EXPECT_FALSE(st.search->prefer_opposite(coarse_choice, opposite, {true, 25.0}));
   opposite.score = 0.85f;  // a clear lead wins regardless
   EXPECT_TRUE(st.search->prefer_opposite(coarse_choice, opposite, {true, 25.0}));
+}
+
+// The scale prior's evidence check on exact scenes: the target stretched by 1.25 as a whole
+// (a rigid target at another scale) is clear evidence for 1.25 against 1; the same stretch on
+// the target's right part only (the body fits at 1, a part moved outwards: a gripper's jaws)
+// fits a stretched pattern better but is not; noise as large as the gain is not either.
+TEST(ScaleEvidence, RigidStretchIsClearPartOrNoiseIsNot) {
+  Stages st;
+  const double c = 31.5;
+  const test::AnalyticTexture tex;
+  std::uint32_t lcg = 12345;
+  auto scene = [&](double right_part_scale, double left_part_scale, double noise) {
+    std::vector<std::uint16_t> roi(64 * 64);
+    for (int y = 0; y < 64; ++y)
+      for (int x = 0; x < 64; ++x) {
+        const double dx = x - c, dy = y - c, s = dx > 2 ? right_part_scale : left_part_scale;
+        lcg = lcg * 1664525u + 1013904223u;
+        const double n = noise * ((lcg >> 8) / 16777216.0 - 0.5);
+        const double v = 20000 + tex(dx / s, dy / s) + n;  // noise about a raised level: nothing clipped
+        roi[static_cast<std::size_t>(y) * 64 + x] = static_cast<std::uint16_t>(std::lround(std::clamp(v, 0.0, 65535.0)));
+      }
+    return roi;
+  };
+  Measurement at;
+  at.valid = true;
+  at.ux = at.uy = static_cast<int>(c - (kPattern - 1) / 2.0);
+  auto check = [&](const std::vector<std::uint16_t>& roi) {
+    EXPECT_TRUE(st.loader->load(roi.data(), 64, 64, 64, 16));
+    return st.evidence->compare(*st.bank, at, 1.25, at, 1.0);
+  };
+  const ScaleEvidence rigid = check(scene(1.25, 1.25, 0));
+  ASSERT_TRUE(rigid.valid);
+  EXPECT_TRUE(rigid.clear) << rigid.r_away << " vs " << rigid.r_expected << " rho " << rigid.rho;
+  const ScaleEvidence part = check(scene(1.25, 1.0, 0));
+  ASSERT_TRUE(part.valid);
+  EXPECT_GT(part.r_away, part.r_expected) << "the moved part does fit a stretched pattern better";
+  EXPECT_FALSE(part.clear) << part.r_away << " vs " << part.r_expected << " rho " << part.rho;
+  const ScaleEvidence noisy = check(scene(1.25, 1.25, 5000));
+  ASSERT_TRUE(noisy.valid);
+  EXPECT_LT(noisy.r_away - noisy.r_expected, ScaleEvidenceCheck::kSigmas * noisy.noise) << "within noise";
+  EXPECT_FALSE(noisy.clear);
 }
