@@ -105,7 +105,6 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     if (i > 0 && std::fabs(std::log(s / expected)) < 0.5 * std::log(kSearchLevelRatio)) continue;  // clamped onto it
     active_[static_cast<std::size_t>(n_levels++)] = s;
   }
-  evidence_seen_ = ScaleEvidence{};
   candidates_.clear();
   for (int l = 0; l < n_levels; ++l) {
     const double s = active_[static_cast<std::size_t>(l)];
@@ -204,9 +203,9 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     // At the expected scale exactly (no refinement span): that is the hypothesis kept.
     const Fine at_prior = measure_place(bank, px, w, h, bits, prior, best_cx, best_cy, best_k, expected, 0.0);
     if (at_prior.m.valid && loader_.load(px + static_cast<std::size_t>(best.ry) * w + best.rx, rw, rh, w, bits)) {
-      evidence_seen_ = evidence_.compare(bank, in_scanned_roi(best), won_scale, in_scanned_roi(at_prior),
-                                         at_prior.load_scale * at_prior.factor);
-      if (!evidence_seen_.clear) best = at_prior;
+      const ScaleEvidence ev = evidence_.compare(bank, in_scanned_roi(best), won_scale, in_scanned_roi(at_prior),
+                                                 at_prior.load_scale * at_prior.factor);
+      if (!ev.clear) best = at_prior;
     }
   }
   roi_x = best.rx;

@@ -84,8 +84,6 @@ class StartSearch {
   // A narrow search's refinement span: one level's reach (√kSearchLevelRatio, ±11.8 %) plus a
   // probe step, the scale a magnification ramp can move while the target is lost.
   static constexpr double kNarrowSpan = 0.148;
-  // The last search's evidence for a scale away from the expected one (valid: it was needed).
-  const ScaleEvidence& last_evidence() const noexcept { return evidence_seen_; }
   bool prefer_opposite(const Measurement& coarse_choice, const Measurement& opposite,
                        const AnglePrior& prior) const noexcept;
 
@@ -131,7 +129,6 @@ class StartSearch {
   RoiRescaler& rescaler_;
   const ScaleProbe& probe_;
   const ScaleEvidenceCheck& evidence_;
-  ScaleEvidence evidence_seen_;
   const OrientationWalk& walk_;
   AngleSweep& sweep_;
   CorrelationMaps& maps_;
