@@ -66,8 +66,14 @@ double ScaleProbe::score(const PatternBank& bank, const Measurement& m, double f
 ScaleReading ScaleProbe::read(const PatternBank& bank, const Measurement& m) const noexcept {
   ScaleReading r;
   if (!m.valid) return r;
-  const double lo = score(bank, m, 1.0 - kStep, 1.0 - kStep), mid = score(bank, m, 1.0, 1.0 - kStep),
-               hi = score(bank, m, 1.0 + kStep, 1.0 - kStep);
+  // A support cut to the target's shape (a shape mask, a learned support) follows the target's
+  // own edges: the common window (the support at 1 − δ) holds the smallest stretch's edge but
+  // cuts the larger ones', and the reading ran low (the gripper with learned appearance drifted
+  // to 0.89–0.95 and was lost: pose_appearance_closed_loop_test). There each stretch is scored
+  // over its own support, as before the common window.
+  const bool own_windows = bank.has_shape();
+  const double lo = score(bank, m, 1.0 - kStep, 1.0 - kStep), mid = score(bank, m, 1.0, own_windows ? 1.0 : 1.0 - kStep),
+               hi = score(bank, m, 1.0 + kStep, own_windows ? 1.0 + kStep : 1.0 - kStep);
   if (lo < -1.5 || mid < -1.5 || hi < -1.5) return r;
   const double curv = lo - 2.0 * mid + hi;
   if (!(curv < 0)) {
