@@ -69,6 +69,21 @@ void Prefilter::apply(const std::uint16_t* src, int w, int h, std::ptrdiff_t str
   }
 }
 
+PrefilterNoiseGain::PrefilterNoiseGain(int passes) {
+  // The 1-D kernel of all passes: [1 4 6 4 1]/16 convolved with itself once per pass.
+  std::vector<double> k{1.0};
+  static constexpr double b[5] = {1 / 16.0, 4 / 16.0, 6 / 16.0, 4 / 16.0, 1 / 16.0};
+  for (int pass = 0; pass < passes; ++pass) {
+    std::vector<double> next(k.size() + 4, 0.0);
+    for (std::size_t i = 0; i < k.size(); ++i)
+      for (std::size_t j = 0; j < 5; ++j) next[i + j] += k[i] * b[j];
+    k.swap(next);
+  }
+  lag_.assign(k.size(), 0.0);
+  for (std::size_t d = 0; d < k.size(); ++d)
+    for (std::size_t i = 0; i + d < k.size(); ++i) lag_[d] += k[i] * k[i + d];
+}
+
 void prefilter_pattern(float* p, int n, int passes) {
   std::vector<double> a(static_cast<std::size_t>(n) * n), b(a.size());
   for (std::size_t i = 0; i < a.size(); ++i) a[i] = p[i];

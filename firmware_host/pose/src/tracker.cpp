@@ -11,7 +11,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "sempose/pose/window_noise.hpp"
+#include "sempose/pose/attainable_score.hpp"
 #include "tracker_impl.hpp"
 
 namespace sempose::pose {
@@ -27,31 +27,10 @@ float normalised_chi2(double score, double attainable) noexcept {
 }
 }  // namespace
 
-// The ZNCC the target itself would reach in the window at (cx, cy) of a frame: √(S/(S+N)),
-// S the window's signal variance, N the noise variance the prefilter leaves. A true match
-// explains S; textured background that merely resembles the pattern explains a small part of
-// it. N comes from the raw window by Immerkær's estimator (window_noise.hpp), scaled by the
-// prefilter's noise gain; S = window variance − noise. RT, no allocation (one pass over the P×P window).
+// The ZNCC the target itself would reach in the window at (cx, cy) of a frame, given the
+// frame's noise as the detector delivers it (correlated along the line): attainable_score.hpp.
 double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept {
-  const int p = sizes.pattern_px;
-  if (w < p || h < p || p < 3) return 0.0;
-  const int x0 = std::clamp(static_cast<int>(std::lround(cx - (p - 1) / 2.0)), 0, w - p);
-  const int y0 = std::clamp(static_cast<int>(std::lround(cy - (p - 1) / 2.0)), 0, h - p);
-  double sum = 0, sum2 = 0;
-  for (int y = 0; y < p; ++y) {
-    const std::uint16_t* row = px + static_cast<std::size_t>(y0 + y) * w + x0;
-    for (int x = 0; x < p; ++x) {
-      const double v = row[x];
-      sum += v;
-      sum2 += v * v;
-    }
-  }
-  const double n = static_cast<double>(p) * p;
-  const double var = std::max(0.0, sum2 / n - (sum / n) * (sum / n));
-  const double noise = std::min(var, window_noise_var(px, w, x0, y0, p));
-  const double signal = var - noise;
-  const double left = signal + prefilter_noise_gain * noise;
-  return left > 0 ? std::sqrt(signal / left) : 0.0;
+  return pose::attainable_score(px, w, h, cx, cy, sizes.pattern_px, prefilter_noise).score;
 }
 
 void Tracker::Impl::forget_everything() noexcept {

@@ -129,19 +129,10 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.nm_per_px.push_back(sets[i].nm_per_px);
   }
   {
-    // White-noise variance the prefilter keeps: Σk² of its 2-D kernel, the 5-tap binomial
-    // [1 4 6 4 1]/16 convolved with itself once per pass, separable.
-    std::vector<double> k{1.0};
-    for (int pass = 0; pass < cfg.prefilter_passes; ++pass) {
-      std::vector<double> next(k.size() + 4, 0.0);
-      const double b[5] = {1 / 16.0, 4 / 16.0, 6 / 16.0, 4 / 16.0, 1 / 16.0};
-      for (std::size_t i = 0; i < k.size(); ++i)
-        for (int j = 0; j < 5; ++j) next[i + static_cast<std::size_t>(j)] += k[i] * b[j];
-      k.swap(next);
-    }
-    double g = 0;
-    for (double v : k) g += v * v;
-    t.prefilter_noise_gain = g * g;
+    // The noise variance the prefilter keeps: Σk² of its 2-D kernel for white noise (the
+    // appearance observer), more for the detector's line-correlated noise (attainable score).
+    t.prefilter_noise = PrefilterNoiseGain(cfg.prefilter_passes);
+    t.prefilter_noise_gain = t.prefilter_noise.white();
   }
   if (cfg.appearance.enabled) {
     // The learner's references: each set's recorded pattern, prefiltered like the frames; its

@@ -164,6 +164,7 @@ struct Tracker::Impl {
   static constexpr int kNullFieldMax = 2048;  // the floor grows only as sqrt(ln area)
   std::vector<NoiseFloor> noise_floors;
   double prefilter_noise_gain = 1.0;  // Σk² of the 2-D prefilter kernel (white-noise variance kept)
+  PrefilterNoiseGain prefilter_noise;  // the same for noise correlated along the line (attainable score)
 
   void use_noise_floors_of(std::uint8_t set) noexcept {
     if (set < noise_floors.size())

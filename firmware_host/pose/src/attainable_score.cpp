@@ -1,0 +1,37 @@
+#include "sempose/pose/attainable_score.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace sempose::pose {
+
+AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int p,
+                                 const PrefilterNoiseGain& gain) noexcept {
+  AttainableScore a;
+  if (px == nullptr || w < p || h < p || p < 4) return a;
+  const int x0 = std::clamp(static_cast<int>(std::lround(cx - (p - 1) / 2.0)), 0, w - p);
+  const int y0 = std::clamp(static_cast<int>(std::lround(cy - (p - 1) / 2.0)), 0, h - p);
+  std::int64_t sum = 0, sum2 = 0;  // exact: p² · 65535² < 2^63 for any pattern side that fits a frame
+  for (int y = 0; y < p; ++y) {
+    const std::uint16_t* row = px + static_cast<std::size_t>(y0 + y) * w + x0;
+    std::int64_t s = 0, s2 = 0;
+    for (int x = 0; x < p; ++x) {
+      const std::int64_t v = row[x];
+      s += v;
+      s2 += v * v;
+    }
+    sum += s;
+    sum2 += s2;
+  }
+  const double n = static_cast<double>(p) * p;
+  const double mean = static_cast<double>(sum) / n;
+  a.window_var = std::max(0.0, static_cast<double>(sum2) / n - mean * mean);
+  a.noise = line_correlated_noise(px, w, x0, y0, p);
+  const double noise = std::min(a.window_var, a.noise.var);
+  const double signal = a.window_var - noise;
+  const double left = signal + gain.line_correlated(a.noise.rho) * noise;
+  a.score = left > 0 ? std::sqrt(signal / left) : 0.0;
+  return a;
+}
+
+}  // namespace sempose::pose
