@@ -66,7 +66,7 @@ inline WindowNoise line_correlated_noise(const std::uint16_t* px, std::ptrdiff_t
     const std::uint16_t* r0 = px + static_cast<std::ptrdiff_t>(y0 + y - 1) * stride + x0;
     const std::uint16_t* r1 = r0 + stride;
     const std::uint16_t* r2 = r1 + stride;
-    std::int64_t s1 = 0, s2 = 0;  // squares: |d| ≤ 16·65535, 126 px of d² < 2^47
+    std::int64_t s1 = 0, s2 = 0;  // d² ≤ (16·65535)² < 2^40: a row of up to 2^23 px stays exact
     std::int32_t u_prev = r0[0] - 2 * r1[0] + r2[0];
     std::int32_t u = r0[1] - 2 * r1[1] + r2[1];
     for (int x = 1; x + 1 < p; ++x) {
