@@ -49,6 +49,7 @@ struct Scenario {
   bool charging_defocus = false;  // gain 1 → 0.65 (±10 % wobble), offset 0 → +0.08, defocus 0 → 1.5 px, detector τ 120 ns
   bool jaws = false;              // target "gripper": each jaw opens and closes 8 px (period 0.4 s)
   double jaws_open_px = 0;        // target "gripper": each jaw held this far open (the pattern is recorded closed)
+  double detector_tau_ns = 0;     // > 0: the detector's line low-pass alone (250 ns = 1 px at 250 ns dwell)
   // Approximate frame period (192² ROI at 250 ns + flyback + modelled compute), for ramps over the run.
   double run_s() const { return frames * 0.0101 * (dwell_ns / 250.0); }
   // Faults (the pattern is always recorded from the target as configured above):
@@ -159,6 +160,7 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     c.defocus_px.ramp_s = s.run_s();
     c.detector_tau_ns = 120;
   }
+  if (s.detector_tau_ns > 0) c.detector_tau_ns = s.detector_tau_ns;
   c.targets[1].enabled = false;
   return c;
 }
