@@ -11,7 +11,9 @@
 #include <cstdio>
 #include <vector>
 
+#include "sempose/pose/attainable_score.hpp"
 #include "sempose/pose/bicubic_rotate.hpp"
+#include "sempose/pose/window_noise.hpp"
 #include "sim_harness.hpp"
 
 using namespace sempose;
@@ -105,6 +107,17 @@ int main(int argc, char** argv) {
     std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us | %6.1fx   (tracked %d/400, peer score %.2f)\n", roi,
                 ours.p50_us, ours.p99_us, peer.p50_us, peer.p50_us / ours.p50_us, tracked, peer_best);
     if (roi == 192) {
+      // The attainable score alone (the tracker runs it when a tracked score is below 0.7 and on
+      // every start-search match): the line-correlated noise model, beside Immerkær's white-noise
+      // estimator (what it replaced) on the same 128² window of this ROI.
+      const PrefilterNoiseGain gain(tc.prefilter_passes);
+      const double c = (roi - 1) / 2.0;
+      const int x0 = (roi - 128) / 2;
+      double sink = 0;
+      const Timing att = time_it(4000, [&] { sink += attainable_score(px.data(), roi, roi, c, c, 128, gain).score; });
+      const Timing imm = time_it(4000, [&] { sink += window_noise_var(px.data(), roi, x0, x0, 128); });
+      std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us |          attainable score alone (line-correlated noise; right: Immerkær's white-noise estimator alone)%s\n",
+                  roi, att.p50_us, att.p99_us, imm.p50_us, sink > 0 ? "" : " ");
       // Learned appearance: a tracker that learned its support over 120 moving frames, then the
       // same replay (each update also feeds the appearance observer: its RT cost is included).
       config::TrackerConfig ta = tc;

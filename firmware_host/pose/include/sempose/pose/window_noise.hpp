@@ -45,50 +45,52 @@ inline double window_noise_var(const std::uint16_t* px, std::ptrdiff_t stride, i
 // prefilter keeps more of correlated noise than of white noise (Σ k_i k_j ρ^|i−j| along x).
 // Both the horizontal first (D1) and second (D2) difference of u cancel what is constant
 // along a line in u (a horizontal edge) and u is 0 on a vertical edge, so both see noise;
-// their ratio gives ρ: Var D2 / Var D1 = 3 − ρ (AR(1)), and D2 then gives σ². Mean squares,
-// not Immerkær's mean absolute values: E|X| = σ√(2/π) holds for Gaussian noise only, and at
-// 1–2.5 e⁻/px the Poisson × Gamma cascade is skewed enough that it read 20 % too little noise
-// (pose_attainable_score_test); squares are exact for any distribution, at the price of a few
-// per cent of edge signal counted as noise.
+// their ratio gives ρ: Var D2 / Var D1 = 3 − ρ (AR(1)), and D2 then gives σ². Mean absolute
+// values as Immerkær (E|X| = σ√(2/π)), so on white noise (ρ = 0) this is his estimate, the one
+// the loss policy's thresholds were measured with. Known bias, kept on purpose: at 1–2.5 e⁻/px
+// the Poisson × Gamma cascade is skewed and |D| reads 10–20 % too little noise; mean squares
+// are exact there (pose_attainable_score_test measured both) but the lower attainable score
+// they give let a field without the needle at 1 e⁻/px be TRACKING 4 frames in 40 instead of 1
+// (pose_false_tracking_test's limit is 2): that change belongs with the decision thresholds.
 struct WindowNoise {
   double var = 0;  // variance of one raw pixel's noise (as the detector delivers it, correlation included)
   double rho = 0;  // its correlation with the previous pixel of the same line, in [0, kMaxRho]
   static constexpr double kMaxRho = 0.9;  // τ ≈ 9.5 px: beyond, the line is a smear and ρ is not measurable
 };
 
-// RT: one pass over the p×p window at (x0, y0) of px (row stride `stride`), integer sums per
-// row (exact), no allocation. p ≥ 4.
+// RT: one pass over the p×p window at (x0, y0) of px (row stride `stride`), integer sums
+// (exact, order-independent), no allocation. p ≥ 4.
 inline WindowNoise line_correlated_noise(const std::uint16_t* px, std::ptrdiff_t stride, int x0, int y0, int p) noexcept {
   WindowNoise out;
   if (p < 4) return out;
-  double sq_d1 = 0, sq_d2 = 0;
+  std::int64_t abs_d1 = 0, abs_d2 = 0;  // |d| ≤ 16·65535: exact for any window that fits a frame
   for (int y = 1; y + 1 < p; ++y) {
     const std::uint16_t* r0 = px + static_cast<std::ptrdiff_t>(y0 + y - 1) * stride + x0;
     const std::uint16_t* r1 = r0 + stride;
     const std::uint16_t* r2 = r1 + stride;
-    std::int64_t s1 = 0, s2 = 0;  // d² ≤ (16·65535)² < 2^40: a row of up to 2^23 px stays exact
+    std::int64_t s1 = 0, s2 = 0;
     std::int32_t u_prev = r0[0] - 2 * r1[0] + r2[0];
     std::int32_t u = r0[1] - 2 * r1[1] + r2[1];
     for (int x = 1; x + 1 < p; ++x) {
       const std::int32_t u_next = r0[x + 1] - 2 * r1[x + 1] + r2[x + 1];  // |u| ≤ 4·65535
       const std::int32_t d1 = u_next - u;
       const std::int32_t d2 = u_next - 2 * u + u_prev;
-      s1 += static_cast<std::int64_t>(d1) * d1;
-      s2 += static_cast<std::int64_t>(d2) * d2;
+      s1 += d1 < 0 ? -d1 : d1;
+      s2 += d2 < 0 ? -d2 : d2;
       u_prev = u;
       u = u_next;
     }
-    sq_d1 += static_cast<double>(s1);
-    sq_d2 += static_cast<double>(s2);
+    abs_d1 += s1;
+    abs_d2 += s2;
   }
-  if (sq_d1 <= 0) return out;
+  if (abs_d1 <= 0) return out;
   const double n = static_cast<double>(p - 2) * (p - 2);
-  const double var_d2 = sq_d2 / n;  // E D2²
-  const double ratio = sq_d2 / sq_d1;
-  double rho = 3.0 - ratio;
+  const double mean_abs_d2 = static_cast<double>(abs_d2) / n;
+  const double ratio = static_cast<double>(abs_d2) / static_cast<double>(abs_d1);  // sd D2 / sd D1 = √(3 − ρ)
+  double rho = 3.0 - ratio * ratio;
   rho = rho < 0.0 ? 0.0 : rho > WindowNoise::kMaxRho ? WindowNoise::kMaxRho : rho;
   out.rho = rho;
-  out.var = var_d2 / (12.0 * (1.0 - rho) * (3.0 - rho));
+  out.var = M_PI / 2.0 * mean_abs_d2 * mean_abs_d2 / (12.0 * (1.0 - rho) * (3.0 - rho));  // Var D2 = (π/2)(E|D2|)²
   return out;
 }
 
