@@ -3,7 +3,23 @@
 #include <algorithm>
 #include <cmath>
 
+#include "sempose/pose/simd_clones.hpp"
+
 namespace sempose::pose {
+
+namespace {
+// Σv and Σv² of one row (p ≤ 512: the 64-bit sums are exact).
+SEMPOSE_CLONES void row_moments(const std::uint16_t* row, int p, std::int64_t& sum, std::int64_t& sum2) noexcept {
+  std::int64_t s = 0, s2 = 0;
+  for (int x = 0; x < p; ++x) {
+    const std::int64_t v = row[x];
+    s += v;
+    s2 += v * v;
+  }
+  sum += s;
+  sum2 += s2;
+}
+}  // namespace
 
 AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int p,
                                  const PrefilterNoiseGain& gain) noexcept {
@@ -12,17 +28,7 @@ AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double c
   const int x0 = std::clamp(static_cast<int>(std::lround(cx - (p - 1) / 2.0)), 0, w - p);
   const int y0 = std::clamp(static_cast<int>(std::lround(cy - (p - 1) / 2.0)), 0, h - p);
   std::int64_t sum = 0, sum2 = 0;  // exact: p² · 65535² < 2^63 for any pattern side that fits a frame
-  for (int y = 0; y < p; ++y) {
-    const std::uint16_t* row = px + static_cast<std::size_t>(y0 + y) * w + x0;
-    std::int64_t s = 0, s2 = 0;
-    for (int x = 0; x < p; ++x) {
-      const std::int64_t v = row[x];
-      s += v;
-      s2 += v * v;
-    }
-    sum += s;
-    sum2 += s2;
-  }
+  for (int y = 0; y < p; ++y) row_moments(px + static_cast<std::size_t>(y0 + y) * w + x0, p, sum, sum2);
   const double n = static_cast<double>(p) * p;
   const double mean = static_cast<double>(sum) / n;
   a.window_var = std::max(0.0, static_cast<double>(sum2) / n - mean * mean);

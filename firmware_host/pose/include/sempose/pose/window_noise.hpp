@@ -59,39 +59,7 @@ struct WindowNoise {
 };
 
 // RT: one pass over the p×p window at (x0, y0) of px (row stride `stride`), integer sums
-// (exact, order-independent), no allocation. p ≥ 4.
-inline WindowNoise line_correlated_noise(const std::uint16_t* px, std::ptrdiff_t stride, int x0, int y0, int p) noexcept {
-  WindowNoise out;
-  if (p < 4) return out;
-  std::int64_t abs_d1 = 0, abs_d2 = 0;  // |d| ≤ 16·65535: exact for any window that fits a frame
-  for (int y = 1; y + 1 < p; ++y) {
-    const std::uint16_t* r0 = px + static_cast<std::ptrdiff_t>(y0 + y - 1) * stride + x0;
-    const std::uint16_t* r1 = r0 + stride;
-    const std::uint16_t* r2 = r1 + stride;
-    std::int64_t s1 = 0, s2 = 0;
-    std::int32_t u_prev = r0[0] - 2 * r1[0] + r2[0];
-    std::int32_t u = r0[1] - 2 * r1[1] + r2[1];
-    for (int x = 1; x + 1 < p; ++x) {
-      const std::int32_t u_next = r0[x + 1] - 2 * r1[x + 1] + r2[x + 1];  // |u| ≤ 4·65535
-      const std::int32_t d1 = u_next - u;
-      const std::int32_t d2 = u_next - 2 * u + u_prev;
-      s1 += d1 < 0 ? -d1 : d1;
-      s2 += d2 < 0 ? -d2 : d2;
-      u_prev = u;
-      u = u_next;
-    }
-    abs_d1 += s1;
-    abs_d2 += s2;
-  }
-  if (abs_d1 <= 0) return out;
-  const double n = static_cast<double>(p - 2) * (p - 2);
-  const double mean_abs_d2 = static_cast<double>(abs_d2) / n;
-  const double ratio = static_cast<double>(abs_d2) / static_cast<double>(abs_d1);  // sd D2 / sd D1 = √(3 − ρ)
-  double rho = 3.0 - ratio * ratio;
-  rho = rho < 0.0 ? 0.0 : rho > WindowNoise::kMaxRho ? WindowNoise::kMaxRho : rho;
-  out.rho = rho;
-  out.var = M_PI / 2.0 * mean_abs_d2 * mean_abs_d2 / (12.0 * (1.0 - rho) * (3.0 - rho));  // Var D2 = (π/2)(E|D2|)²
-  return out;
-}
+// (exact, order-independent), no allocation. 4 ≤ p ≤ 512 (window_noise.cpp).
+WindowNoise line_correlated_noise(const std::uint16_t* px, std::ptrdiff_t stride, int x0, int y0, int p) noexcept;
 
 }  // namespace sempose::pose
