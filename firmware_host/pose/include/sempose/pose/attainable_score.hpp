@@ -7,8 +7,8 @@
 // (line_correlated_noise: the detector's low-pass), through the prefilter's gain on that
 // coloured noise; a white-noise model (Immerkær × Σk²) reads 0.5–0.8× the noise on a
 // low-passed frame and keeps too little of it through the prefilter, so it promised the
-// procedural lamella under charging + defocus 0.92 where it reaches ~0.7, and every right pose
-// was refused. S' is taken as the raw signal variance (var − noise): the prefilter's loss of
+// procedural lamella under charging + defocus at 2.5 e⁻/px 0.92 where it reaches 0.53–0.6,
+// and every right pose was refused. S' is taken as the raw signal variance (var − noise): the prefilter's loss of
 // fine signal detail is not modelled (README: Known limitations).
 #pragma once
 

@@ -1,9 +1,9 @@
-// The detector noise in a square window of raw pixels. window_noise_var: Immerkær's estimator: the
-// Laplacian-difference kernel cancels linear structure (edges, gradients), so what is left
-// is noise: σ = √(π/2)·Σ|I∗L| / (6·rows·(p−2)); the appearance observer reads one row in eight
-// (first_row, row_step). RT: one pass, integer
-// arithmetic (exact, so the sum does not depend on the order), no allocation. It assumes white
-// noise; line_correlated_noise (below) also reads the detector's low-pass along the line.
+// The detector noise in a square window of raw pixels. window_noise_var is Immerkær's
+// estimator: the Laplacian-difference kernel cancels linear structure (edges, gradients), so
+// what is left is noise: σ = √(π/2)·Σ|I∗L| / (6·rows·(p−2)); the appearance observer reads one
+// row in eight (first_row, row_step). RT: one pass, integer arithmetic (exact, so the sum does
+// not depend on the order), no allocation. It assumes white noise; line_correlated_noise
+// (below, the attainable score's) also reads the detector's low-pass along the line.
 #pragma once
 
 #include <cmath>
