@@ -237,6 +237,7 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     }
   }
   set_top_left(m, x_raw - c_p, y_raw - c_p);
+  m.flip_score = best.m.flip_score;  // the tracker's flip check (measured at the winner's place)
   return m;
 }
 
@@ -290,8 +291,14 @@ StartSearch::Fine StartSearch::measure_place(const PatternBank& bank, const std:
     const Peak pk = find_peak(maps_.work(), half_.valid_w(), half_.valid_h(), around);
     Measurement f = walk_.measure(bank, jf, pk, max_moves);
     f.steps += m.steps + 1;
-    if (f.valid && prefer_opposite(m, f, prior)) m = f;
-    else m.steps = f.steps;
+    if (f.valid && prefer_opposite(m, f, prior)) {
+      const float other = m.score;
+      m = f;
+      m.flip_score = other;
+    } else {
+      m.steps = f.steps;
+      if (f.valid) m.flip_score = f.score;
+    }
   }
   out.m = m;
   out.rx = rx;

@@ -143,6 +143,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     for (double v : k) g += v * v;
     t.prefilter_noise_gain = g * g;
   }
+  t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;
   if (cfg.appearance.enabled) {
     // The learner's references: each set's recorded pattern, prefiltered like the frames; its
     // priors: the shape masks (the learned support never leaves them).
