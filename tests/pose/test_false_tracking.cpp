@@ -78,18 +78,18 @@ TEST_P(NotInField, NeverTracking) {
   h.run();
   const pt::RunStats r = h.stats();
   print_case(("not in field " + s.target + " dose " + std::to_string(s.dose_e).substr(0, 4)).c_str(), r);
-  if (s.dose_e >= 2.5) {
-    EXPECT_EQ(r.tracked, 0) << "TRACKING on the background of a field without the target";
-  } else {
-    // Below the paper's noise the attainable-score test cannot separate background from the
-    // target when noise dominates both: README, Known limitations (measured 1 frame in 40).
-    EXPECT_LE(r.tracked_share(), 0.05) << "TRACKING on the background of a field without the target";
-  }
+  // At 1 e-/px too (it was 1 frame in 40 before the UNCERTAIN state: a background match that
+  // passed the search's tests, whose 180° alternative scored as well and whose poses then
+  // wandered): whatever the search finds on background is never reported TRACKING.
+  EXPECT_EQ(r.tracked, 0) << "TRACKING on the background of a field without the target";
+  int uncertain = 0;
+  for (const auto& e : h.poses()) uncertain += e.state == TrackState::kUncertain;
+  std::printf("  UNCERTAIN %d of %d\n", uncertain, r.frames);
 }
 
 INSTANTIATE_TEST_SUITE_P(TargetsDoses, NotInField,
                          ::testing::Combine(::testing::Values("needle_tip", "lamella_post"),
-                                            ::testing::Values(20.0, 6.0, 1.0)));
+                                            ::testing::Values(20.0, 6.0, 2.5, 1.0)));
 
 // Pure noise (flat background, no target) at several doses, and blank and saturated frames.
 TEST(NoFalseTracking, PureNoiseNeverTracking) {
