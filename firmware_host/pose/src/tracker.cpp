@@ -57,6 +57,7 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
 void Tracker::Impl::forget_everything() noexcept {
   go_lost();
   flip_open = false;
+  search_n = 0;
   loss.forget_target();
   scale = expected_scale.load(std::memory_order_relaxed);
   motion = MotionModel(cfg.predict_velocity);  // also the last angle a search's tie-break uses
@@ -181,6 +182,14 @@ double Tracker::Impl::significance_z() const noexcept {
   return hi;
 }
 
+// Student's t quantile from the normal one z for nu degrees of freedom (Cornish–Fisher
+// expansion; within 2 % of the table for nu ≥ 3, the only ones used).
+double Tracker::Impl::student_t(double z, int nu) noexcept {
+  const double n = std::max(1, nu), z3 = z * z * z, z5 = z3 * z * z;
+  return z + (z3 + z) / (4 * n) + (5 * z5 + 16 * z3 + 3 * z) / (96 * n * n) +
+         (3 * z5 * z * z + 19 * z5 + 17 * z3 - 15 * z) / (384 * n * n * n);
+}
+
 // After a search: the chosen hypothesis must lead the one 180° away by more than the score
 // noise allows (significance_z SDs of one difference), else the check stays open. A trusted
 // angle prior (the last tracked angle: a target does not turn 180° while lost) already chose,
@@ -195,6 +204,28 @@ void Tracker::Impl::open_flip_check(const Measurement& m, bool prior_known) noex
   flip_sum = d;
   flip_sum2 = d * d;
   flip_n = 1;
+}
+
+bool Tracker::Impl::search_settled(const Measurement& m, const PoseEstimate& e) noexcept {
+  if (!(cfg.max_false_probability > 0) || m.runner_up_score < -1.0f) {
+    search_n = 0;
+    return true;
+  }
+  // The same place: within a quarter pattern and 20° of the last unsettled search's result
+  // (the target moves while the field is scanned); elsewhere the evidence starts anew.
+  const bool same = search_n > 0 && std::hypot(e.x_px - search_x, e.y_px - search_y) <= sizes.pattern_px / 4.0 &&
+                    std::fabs(rt::wrap_deg(e.phi_deg - search_phi)) <= 20.0;
+  if (!same) search_n = 0, search_sum = 0;
+  search_sum += static_cast<double>(m.score) - m.runner_up_score;
+  ++search_n;
+  search_x = e.x_px;
+  search_y = e.y_px;
+  search_phi = e.phi_deg;
+  if (search_sum >= significance_z() * flip_sd(m.score) * std::sqrt(static_cast<double>(search_n))) {
+    search_n = 0;
+    return true;
+  }
+  return false;
 }
 
 // One more frame of the flip check: the opposite hypothesis measured as the search measures it
@@ -215,10 +246,15 @@ bool Tracker::Impl::settle_flip(const PatternBank& bank, Measurement& m, PoseEst
   flip_sum += d;
   flip_sum2 += d * d;
   ++flip_n;
+  if (flip_n < 4) return false;  // a spread needs a few differences (t below is good from 3 dof)
+  // The two hypotheses are scored on the same pixels, so their noise is largely shared (the
+  // more alike they are, the more): the differences' own spread is the SD that counts, not
+  // flip_sd's independent-score one (which would need ~80 frames at 2.5 e-/px); Student's t
+  // with n − 1 degrees of freedom for the few frames it is measured on.
   const double mean = flip_sum / flip_n;
-  const double spread = flip_n >= 3 ? std::sqrt(std::max(0.0, (flip_sum2 - flip_n * mean * mean) / (flip_n - 1))) : 0.0;
-  const double sd = std::max(flip_sd(m.score), spread) / std::sqrt(static_cast<double>(flip_n));
-  const double z = significance_z();
+  const double spread = std::sqrt(std::max(0.0, (flip_sum2 - flip_n * mean * mean) / (flip_n - 1)));
+  const double sd = std::max(spread, 1e-6) / std::sqrt(static_cast<double>(flip_n));
+  const double z = student_t(significance_z(), flip_n - 1);
   if (mean >= z * sd) {
     flip_open = false;
   } else if (mean <= -z * sd) {
@@ -296,6 +332,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
     go_lost();
     flip_open = false;
+    search_n = 0;
     // Commanded, or a new magnification: the target's look may have changed; the new
     // pattern set has its own noise floors and is matched at its own size first.
     loss.forget_target();
@@ -333,7 +370,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;
     if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
-    if (loss.found(m, attainable)) {
+    if (loss.found(m, attainable) && !search_settled(m, e)) {
+      // Found, but not told from a look-alike elsewhere yet: reported UNCERTAIN, searched again.
+      e.state = TrackState::kUncertain;
+      go_lost();
+    } else if (loss.found(m, attainable)) {
       accept(e, frame, true);
       scale = e.scale;  // tracking starts at the scale the search found
       scale_tracked = true;

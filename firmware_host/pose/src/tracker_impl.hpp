@@ -203,7 +203,17 @@ struct Tracker::Impl {
   // The one-sided normal quantile of tracker.max_false_probability: how many SD make a
   // difference significant at the rate a false pose is allowed.
   double significance_z() const noexcept;
+  static double student_t(double z, int nu) noexcept;
   void open_flip_check(const Measurement& m, bool prior_known) noexcept;
+
+  // Search check (a real micrograph has look-alikes: the warped lamella-on-post crop at
+  // 1 e-/px has one ~200 px away, turned −90°, scoring as the target does): a search's result
+  // must lead the best candidate at another place by a significant margin, summed over the
+  // searches that agree on the place; until then it is UNCERTAIN and the field is searched
+  // again on the next frame.
+  int search_n = 0;
+  double search_sum = 0, search_x = 0, search_y = 0, search_phi = 0;
+  bool search_settled(const Measurement& m, const PoseEstimate& e) noexcept;
   template <class Place>
   bool settle_flip(const PatternBank& bank, Measurement& m, PoseEstimate& e, const Place& place) noexcept;
   void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;

@@ -24,6 +24,10 @@ struct Measurement {
   // opposite angle's own position search), −2: none. How far the chosen one leads it says
   // whether this dose told a near-symmetric target's two ends apart (Tracker: flip check).
   float flip_score = -2.0f;
+  // A start search's result: the best exact score of a candidate at another place (more than
+  // a quarter pattern away), −2: none. How far the result leads it says whether this dose told
+  // the target from its best look-alike (Tracker: search check).
+  float runner_up_score = -2.0f;
 };
 
 }  // namespace sempose::pose
