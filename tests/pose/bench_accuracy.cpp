@@ -594,7 +594,7 @@ int main(int argc, char** argv) {
   const bool low_dose_broken =
       require_low_dose >= 0 && low_dose_frames && low_dose_false > require_low_dose * low_dose_frames;
   if (low_dose_broken)
-    std::printf("FAIL: %d of %d TRACKING poses below 2.5 e-/px are false (> %.2f %%)\n", low_dose_false, low_dose_frames,
+    std::printf("FAIL: %d of the %d poses below 2.5 e-/px are false TRACKING (> %.2f %%)\n", low_dose_false, low_dose_frames,
                 100.0 * require_low_dose);
   if (require_low_dose >= 0 && !low_dose_frames) {
     std::printf("FAIL: --require-low-dose-false without a row below 2.5 e-/px (use --dose 1)\n");

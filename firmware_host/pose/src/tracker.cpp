@@ -207,7 +207,7 @@ void Tracker::Impl::open_flip_check(const Measurement& m, bool prior_known) noex
 }
 
 bool Tracker::Impl::search_settled(const Measurement& m, const PoseEstimate& e) noexcept {
-  if (!(cfg.max_false_probability > 0) || m.runner_up_score < -1.0f) {
+  if (!(cfg.max_false_probability > 0) || m.runner_up_rank < -3.0f) {
     search_n = 0;
     return true;
   }
@@ -216,12 +216,17 @@ bool Tracker::Impl::search_settled(const Measurement& m, const PoseEstimate& e) 
   const bool same = search_n > 0 && std::hypot(e.x_px - search_x, e.y_px - search_y) <= sizes.pattern_px / 4.0 &&
                     std::fabs(rt::wrap_deg(e.phi_deg - search_phi)) <= 20.0;
   if (!same) search_n = 0, search_sum = 0;
-  search_sum += static_cast<double>(m.score) - m.runner_up_score;
+  // The lead in the search's own rank (exact + coarse score); its SD from both levels'
+  // sampling noise, two candidates at different places being independent.
+  search_sum += static_cast<double>(m.score) + m.coarse_score - m.runner_up_rank;
   ++search_n;
   search_x = e.x_px;
   search_y = e.y_px;
   search_phi = e.phi_deg;
-  if (search_sum >= significance_z() * flip_sd(m.score) * std::sqrt(static_cast<double>(search_n))) {
+  const double c2 = std::min(1.0, static_cast<double>(m.coarse_score) * m.coarse_score);
+  const double sd_coarse = (1.0 - c2) / std::sqrt(std::max(1.0, static_cast<double>(coarse_mask.count())));
+  const double sd = std::hypot(flip_sd(m.score), std::sqrt(2.0) * sd_coarse);
+  if (search_sum >= significance_z() * sd * std::sqrt(static_cast<double>(search_n))) {
     search_n = 0;
     return true;
   }
