@@ -236,7 +236,7 @@ TEST(LossPolicy, TrustedOnlyWhenAFalsePoseIsUnlikely) {
 }
 
 // The pose noise the innovations show: white pose noise of SD s per axis on a target moving at
-// constant velocity comes out as s (E|d|² = 12 s²); an exactly predicted target as 0; an
+// constant velocity comes out as about s (E|d|² = 12 s²); an exactly predicted target as 0; an
 // accelerating one as more than its noise (a bound, never less careful).
 TEST(MotionModel, PoseNoiseFromTheInnovations) {
   std::uint64_t st = 12345;
@@ -263,8 +263,12 @@ TEST(MotionModel, PoseNoiseFromTheInnovations) {
       }
     }
     ASSERT_GT(n, 3900);
-    EXPECT_NEAR(std::sqrt(sum2 / n), s, 0.05 * s) << "per-axis pose noise";
-    EXPECT_NEAR(std::sqrt(sum2_deg / n), 3 * s, 0.15 * s) << "angle noise";
+    // The larger of a short and a long memory: a little above s on average (measured +6-8 %),
+    // never below it.
+    EXPECT_GE(std::sqrt(sum2 / n), 0.97 * s) << "per-axis pose noise";
+    EXPECT_LE(std::sqrt(sum2 / n), 1.15 * s) << "per-axis pose noise";
+    EXPECT_GE(std::sqrt(sum2_deg / n), 0.97 * 3 * s) << "angle noise";
+    EXPECT_LE(std::sqrt(sum2_deg / n), 1.15 * 3 * s) << "angle noise";
   }
   MotionModel exact(true);
   exact.accept(0, 0, 0, true);

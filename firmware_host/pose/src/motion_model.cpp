@@ -21,6 +21,8 @@ void MotionModel::accept(double x, double y, double phi, bool fresh) noexcept {
     if (innovations_since_fresh_ >= 2) {
       noise_px2_ = have_noise_ ? 0.8 * noise_px2_ + 0.2 * px2 : px2;
       noise_deg2_ = have_noise_ ? 0.8 * noise_deg2_ + 0.2 * dphi * dphi : dphi * dphi;
+      level_px2_ = have_noise_ ? (1 - kLevelShare) * level_px2_ + kLevelShare * px2 : px2;
+      level_deg2_ = have_noise_ ? (1 - kLevelShare) * level_deg2_ + kLevelShare * dphi * dphi : dphi * dphi;
       have_noise_ = true;
     }
   }

@@ -62,9 +62,17 @@ class MotionModel {
   // acceleration only raises it (no pose is trusted more for it). Taking out the acceleration
   // by the lag-1 product of the innovations was tried: a wander over several frames is
   // correlated like an acceleration and cancelled too. Known after two such innovations.
+  // Two memories, the larger counts: ~5 frames (a wander now) and ~20 frames (the level of
+  // this target at this dose: a single-frame excursion of 3-4 px at 1 e-/px starts like a
+  // smooth move, so the short memory alone sees it only once it is over).
   bool pose_noise_known() const noexcept { return have_noise_ && innovations_since_fresh_ >= 3; }
-  double pose_noise_px() const noexcept { return std::sqrt(noise_px2_ / (predict_velocity_ ? 12.0 : 4.0)); }
-  double pose_noise_deg() const noexcept { return std::sqrt(noise_deg2_ / (predict_velocity_ ? 6.0 : 2.0)); }
+  double pose_noise_px() const noexcept {
+    return std::sqrt(std::max(noise_px2_, level_px2_) / (predict_velocity_ ? 12.0 : 4.0));
+  }
+  double pose_noise_deg() const noexcept {
+    return std::sqrt(std::max(noise_deg2_, level_deg2_) / (predict_velocity_ ? 6.0 : 2.0));
+  }
+  static constexpr double kLevelShare = 0.05;
 
   static constexpr double kSurpriseSigmas = 4.0;
   // Floors: an innovation this small is never a surprise (measurement noise at 1 e⁻/px is
@@ -89,7 +97,7 @@ class MotionModel {
   int innovations_since_fresh_ = 0;
   // Running mean squares of the innovations of predictions made from two ROI poses (the
   // pose-noise bound); kept across a loss like the ones above.
-  double noise_px2_ = 0, noise_deg2_ = 0;
+  double noise_px2_ = 0, noise_deg2_ = 0, level_px2_ = 0, level_deg2_ = 0;
   bool have_noise_ = false;
   double x_ = 0, y_ = 0, phi_ = 0;
   double vx_ = 0, vy_ = 0, vphi_ = 0;
