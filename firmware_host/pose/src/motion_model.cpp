@@ -16,33 +16,15 @@ void MotionModel::accept(double x, double y, double phi, bool fresh) noexcept {
     innov_deg2_ = have_innov_ ? 0.8 * innov_deg2_ + 0.2 * dphi * dphi : dphi * dphi;
     have_innov_ = true;
     ++innovations_since_fresh_;
-  }
-  // The pose noise: third differences of four consecutive ROI poses (the search's pose, from a
-  // long full-field scan, is not one of them).
-  if (fresh) {
-    run_ = 0;
-  } else {
-    // Angles unwrapped along the run, so the differences never straddle ±180°.
-    const double phi_u = run_ > 0 ? hphi_[0] + rt::wrap_deg(phi - hphi_[0]) : phi;
-    if (run_ >= 3) {
-      const double dx = x - 3 * hx_[0] + 3 * hx_[1] - hx_[2], dy = y - 3 * hy_[0] + 3 * hy_[1] - hy_[2];
-      const double dp = phi_u - 3 * hphi_[0] + 3 * hphi_[1] - hphi_[2];
-      const double d2 = dx * dx + dy * dy;
-      noise_px2_ = have_noise_ ? 0.8 * noise_px2_ + 0.2 * d2 : d2;
-      noise_deg2_ = have_noise_ ? 0.8 * noise_deg2_ + 0.2 * dp * dp : dp * dp;
-      level_px2_ = have_noise_ ? (1 - kLevelShare) * level_px2_ + kLevelShare * d2 : d2;
-      level_deg2_ = have_noise_ ? (1 - kLevelShare) * level_deg2_ + kLevelShare * dp * dp : dp * dp;
+    // The pose noise learns only from predictions made from two ROI poses: the first velocity
+    // after a search spans the long full-field scan and overshoots once.
+    if (innovations_since_fresh_ >= 2) {
+      noise_px2_ = have_noise_ ? 0.8 * noise_px2_ + 0.2 * px2 : px2;
+      noise_deg2_ = have_noise_ ? 0.8 * noise_deg2_ + 0.2 * dphi * dphi : dphi * dphi;
+      level_px2_ = have_noise_ ? (1 - kLevelShare) * level_px2_ + kLevelShare * px2 : px2;
+      level_deg2_ = have_noise_ ? (1 - kLevelShare) * level_deg2_ + kLevelShare * dphi * dphi : dphi * dphi;
       have_noise_ = true;
     }
-    for (int i = 2; i > 0; --i) {
-      hx_[i] = hx_[i - 1];
-      hy_[i] = hy_[i - 1];
-      hphi_[i] = hphi_[i - 1];
-    }
-    hphi_[0] = phi_u;
-    hx_[0] = x;
-    hy_[0] = y;
-    ++run_;
   }
   if (fresh) innovations_since_fresh_ = 0;
   // The next prediction is the model's full one: with a velocity from two poses in a row (or,
@@ -64,7 +46,6 @@ void MotionModel::accept(double x, double y, double phi, bool fresh) noexcept {
 }
 
 void MotionModel::coast() noexcept {
-  run_ = 0;  // a gap in the poses
   x_ = pred_x_;
   y_ = pred_y_;
   phi_ = pred_phi_;
@@ -72,14 +53,12 @@ void MotionModel::coast() noexcept {
 }
 
 void MotionModel::hold() noexcept {
-  run_ = 0;
   vx_ = vy_ = vphi_ = 0;
   have_velocity_ = !predict_velocity_;
   predict();
 }
 
 void MotionModel::reset() noexcept {
-  run_ = 0;
   innovations_since_fresh_ = 0;
   have_prev_ = false;
   have_velocity_ = false;

@@ -165,10 +165,11 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
 // (at 1 e-/px: σ 0.5 px at poses 4-8 px off); the stream's noise sees those jumps.
 //
 // The stream's noise only below the explained check's upper bound (0.7): a pose the pattern
-// explains that well is judged by its own σ. The poses' third differences cannot tell pose
-// noise from motion a cubic does not follow (replay_matches_run: a 40 px sine of 3 s at
-// 0.2 s per tracked frame, scores 0.8-0.9, read as 1.6 px of "noise"), and the poses that
-// wander to a neighbouring maximum score low (dose 1: 0.37-0.62 in pose_accuracy_bench).
+// explains that well is judged by its own σ. The innovations cannot tell pose noise from the
+// target's acceleration (replay_matches_run: a 40 px sine of 3 s at 0.2 s per tracked frame,
+// 7 px/frame², scores 0.8-0.9, read as ~2 px of "noise"; third differences, which cancel a
+// constant acceleration, still read 1.6 px there and caught fewer wanderings at 1 e-/px), and
+// the poses that wander to a neighbouring maximum score low (1 e-/px: 0.37-0.62).
 bool Tracker::Impl::trusted_pose(const PoseEstimate& e) const noexcept {
   double s_px = std::max(e.sigma_x_px, e.sigma_y_px), s_deg = e.sigma_phi_deg;
   if (motion.pose_noise_known() && e.score < loss.explained_bound()) {

@@ -52,20 +52,26 @@ class MotionModel {
   // full-field scan and overshoots once).
   bool motion_known() const noexcept { return have_velocity_ && innovations_since_fresh_ >= 2; }
 
-  // The accepted poses' error SD per axis (px) and in angle (deg) as the stream itself shows
-  // it: the third difference of four consecutive ROI poses, d = p_k − 3p_{k−1} + 3p_{k−2} −
-  // p_{k−3}, is the pose errors' (E|d|² = 20σ² per axis) plus the target's jerk: a constant
-  // acceleration cancels (a stage that speeds up or slows down is not pose noise; with the
-  // constant-velocity innovations, a sine of 40 px at 0.2 s per frame made every pose of
-  // replay_matches_run "noisy" at 7 px/frame² of true acceleration), an excursion of 3-8 px
-  // for 1-4 frames at 1 e-/px (a neighbouring maximum at the target's own score, with its own
-  // σ of 0.4-0.5 px) does not. Taking the acceleration out with the lag-1 product of the
-  // innovations was tried: a wander over several frames is correlated like an acceleration and
-  // was cancelled with it. Two memories, the larger counts: ~5 frames (a wander now) and ~20
-  // frames (this target's level at this dose). Known after the first such difference.
-  bool pose_noise_known() const noexcept { return have_noise_ && run_ >= 4; }
-  double pose_noise_px() const noexcept { return std::sqrt(std::max(noise_px2_, level_px2_) / 40.0); }
-  double pose_noise_deg() const noexcept { return std::sqrt(std::max(noise_deg2_, level_deg2_) / 20.0); }
+  // An upper bound of the accepted poses' error SD per axis (px) and in angle (deg), as the
+  // stream itself shows it: for a constant-velocity prediction the innovation is
+  // e_k − 2e_{k−1} + e_{k−2} + the target's acceleration, so with pose errors of SD σ per
+  // axis E[|d|²] = 12σ² + |a|² (two axes; angle 6σ² + a²; without velocity prediction a
+  // first difference: 4σ², 2σ²). Unlike a pose's own σ (the fit's local curvature), this sees
+  // poses that wander to a neighbouring maximum for a frame or several (at 1 e-/px the
+  // lamellae's poses leave the truth by 3-8 px for 1-4 frames at the target's score). An
+  // acceleration only raises it (no pose is trusted more for it). Taking out the acceleration
+  // by the lag-1 product of the innovations was tried: a wander over several frames is
+  // correlated like an acceleration and cancelled too. Known after two such innovations.
+  // Two memories, the larger counts: ~5 frames (a wander now) and ~20 frames (the level of
+  // this target at this dose: a single-frame excursion of 3-4 px at 1 e-/px starts like a
+  // smooth move, so the short memory alone sees it only once it is over).
+  bool pose_noise_known() const noexcept { return have_noise_ && innovations_since_fresh_ >= 3; }
+  double pose_noise_px() const noexcept {
+    return std::sqrt(std::max(noise_px2_, level_px2_) / (predict_velocity_ ? 12.0 : 4.0));
+  }
+  double pose_noise_deg() const noexcept {
+    return std::sqrt(std::max(noise_deg2_, level_deg2_) / (predict_velocity_ ? 6.0 : 2.0));
+  }
   static constexpr double kLevelShare = 0.05;
 
   static constexpr double kSurpriseSigmas = 4.0;
@@ -89,11 +95,9 @@ class MotionModel {
   double innov_px2_ = 0, innov_deg2_ = 0;
   bool have_innov_ = false;
   int innovations_since_fresh_ = 0;
-  // Running mean squares of the poses' third differences (the pose noise, short and long
-  // memory); kept across a loss like the ones above.
+  // Running mean squares of the innovations of predictions made from two ROI poses (the
+  // pose-noise bound); kept across a loss like the ones above.
   double noise_px2_ = 0, noise_deg2_ = 0, level_px2_ = 0, level_deg2_ = 0;
-  double hx_[3] = {}, hy_[3] = {}, hphi_[3] = {};  // the last three ROI poses, newest first
-  int run_ = 0;                                     // consecutive ROI poses (no gap, no search)
   bool have_noise_ = false;
   double x_ = 0, y_ = 0, phi_ = 0;
   double vx_ = 0, vy_ = 0, vphi_ = 0;
