@@ -47,6 +47,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("relative_score_threshold", c.relative_score_threshold, 0.0, 1.0);
   s.opt("explained_threshold", c.explained_threshold, 0.0, 1.0);
   s.opt("lost_after_frames", c.lost_after_frames, 1, 1000);
+  s.opt("max_false_probability", c.max_false_probability, 0.0, 0.5);
   s.opt("search_downsample", c.search_downsample, 1, 32);
   s.opt("search_angle_step_deg", c.search_angle_step_deg, 0.25, 90.0);
   s.opt("search_candidates", c.search_candidates, 1, 64);

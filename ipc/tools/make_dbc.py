@@ -22,7 +22,7 @@ POSE_XY = [
 POSE_ATTR = [
     ("phi", 0, 19, True, 0.001, 0, -180, 180, "deg", "Orientation, counter-clockwise positive, (-180, 180]"),
     ("score", 19, 11, True, 0.001, 0, -1, 1, "", "ZNCC peak score"),
-    ("state", 30, 2, False, 1, 0, 0, 2, "", "0 TRACKING, 1 ACQUIRING, 2 LOST"),
+    ("state", 30, 2, False, 1, 0, 0, 3, "", "0 TRACKING, 1 ACQUIRING, 2 LOST, 3 UNCERTAIN (followed, pose not trusted)"),
     ("reason", 32, 8, False, 1, 0, 0, 255,  "",
      "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded, 64 angle unsettled, "
      "128 unexplained (the pattern does not explain the window up to noise)"),
@@ -34,7 +34,7 @@ POSE_FD = [
     ("y", 32, 32, True, 1, 0, -2147483648, 2147483647, "nm", "Pattern centre y (saturating)"),
     ("phi", 64, 32, True, 0.001, 0, -180, 180, "deg", "Orientation"),
     ("score", 96, 16, True, 0.0001, 0, -1, 1, "", "ZNCC peak score"),
-    ("state", 112, 8, False, 1, 0, 0, 2, "", "0 TRACKING, 1 ACQUIRING, 2 LOST"),
+    ("state", 112, 8, False, 1, 0, 0, 3, "", "0 TRACKING, 1 ACQUIRING, 2 LOST, 3 UNCERTAIN (followed, pose not trusted)"),
     ("reason", 120, 8, False, 1, 0, 0, 255, "", "Lost reason bits (see POSE_ATTR)"),
     ("seq", 128, 32, False, 1, 0, 0, 4294967295, "", "Pose sequence counter"),
     ("age", 160, 32, False, 1, 0, 0, 4294967295, "us", "Scan end to send"),
@@ -59,7 +59,7 @@ POSE_UNC = [
     ("seq", 56, 8, False, 1, 0, 0, 255, "", "Pose sequence counter (low 8 bits), same in POSE_XY"),
 ]
 HEARTBEAT = [
-    ("state", 0, 2, False, 1, 0, 0, 2, "", "0 TRACKING, 1 ACQUIRING, 2 LOST (worst over targets)"),
+    ("state", 0, 2, False, 1, 0, 0, 3, "", "0 TRACKING, 1 ACQUIRING, 2 LOST, 3 UNCERTAIN (worst over targets: LOST, ACQUIRING, UNCERTAIN, TRACKING)"),
     ("running", 2, 1, False, 1, 0, 0, 1, "", "0 after a STOP command"),
     ("bus_state", 3, 2, False, 1, 0, 0, 2, "", "0 error active, 1 error passive, 2 bus off"),
     ("fd", 5, 1, False, 1, 0, 0, 1, "", "1 when poses go out as CAN FD POSE_FD frames"),
@@ -82,7 +82,7 @@ COMMAND = [
     ("scale", 32, 32, False, 0.001, 0, 0, 100000, "nm/px", "SELECT only: nm per pixel of the set (0 = keep configured); else 0"),
 ]
 VALUES = {
-    "state": '0 "TRACKING" 1 "ACQUIRING" 2 "LOST"',
+    "state": '0 "TRACKING" 1 "ACQUIRING" 2 "LOST" 3 "UNCERTAIN"',
     "bus_state": '0 "ERROR_ACTIVE" 1 "ERROR_PASSIVE" 2 "BUS_OFF"',
     "opcode": '1 "SELECT_PATTERN_SET" 2 "START" 3 "STOP" 4 "REACQUIRE"',
 }

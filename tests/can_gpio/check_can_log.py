@@ -18,7 +18,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 sys.path.insert(0, os.path.join(REPO, "ipc", "tools"))
 from sempose_dbc import Dbc  # noqa: E402
 
-STATES = {0: "TRACKING", 1: "ACQUIRING", 2: "LOST"}
+STATES = {0: "TRACKING", 1: "ACQUIRING", 2: "LOST", 3: "UNCERTAIN"}
 SIM_NM_PER_PX = 40.0  # the scale of simulator-recorded patterns (firmware_host/pipeline tracker_setup.cpp)
 
 

@@ -238,5 +238,21 @@ TEST(ConfigFaults, ScheduleMayNameTheSimulatorsOwnTargets) {
   EXPECT_NE(e.find("pipeline.schedule: 2 is not a target index (targets: 2"), std::string::npos) << e;
 }
 
+// The false-pose probability the state decision allows (README: States, UNCERTAIN): a clear
+// error naming file, key, value and the allowed range.
+TEST(ConfigFaults, MaxFalseProbabilityIsRangeChecked) {
+  const std::string dir = temp_dir();
+  AppConfig c;
+  std::string e;
+  EXPECT_TRUE(parse_app_config(with(base_yaml(dir), "tracker.max_false_probability", "0.001"), dir + "/c.yaml", c, e)) << e;
+  EXPECT_DOUBLE_EQ(c.tracker.max_false_probability, 0.001);
+  for (const char* bad : {"0.7", "-0.01"}) {
+    e.clear();
+    EXPECT_FALSE(parse_app_config(with(base_yaml(dir), "tracker.max_false_probability", bad), dir + "/c.yaml", c, e));
+    EXPECT_NE(e.find("c.yaml:"), std::string::npos) << e;
+    EXPECT_NE(e.find(std::string("tracker.max_false_probability: ") + bad + " is outside the allowed range [0, 0.5]"), std::string::npos) << e;
+  }
+}
+
 }  // namespace
 }  // namespace sempose::config

@@ -118,11 +118,12 @@ TEST(Pipeline, TenThousandFramesInVirtualTimeWithoutHeapCallsOnRtThreads) {
   EXPECT_GT(rig.sink->services(), 0u);
 
   // End to end: the real tracker follows the simulated needle.
-  std::size_t tracked = 0;
+  std::size_t tracked = 0, uncertain = 0;
   std::vector<double> errors_px;
   for (std::size_t i = 0; i < rig.sink->count(); ++i) {
     const PoseRecord& p = (*rig.sink)[i];
     EXPECT_EQ(p.pose_seq, static_cast<std::uint32_t>(i));
+    uncertain += p.state == pose::TrackState::kUncertain && p.truth_present;
     if (p.state != pose::TrackState::kTracking || !p.truth_present) continue;
     ++tracked;
     errors_px.push_back(std::hypot(p.x_px - p.truth_x_px, p.y_px - p.truth_y_px));
@@ -137,7 +138,12 @@ TEST(Pipeline, TenThousandFramesInVirtualTimeWithoutHeapCallsOnRtThreads) {
               "p99.9 %.2f px, max %.2f px\n",
               100.0 * static_cast<double>(tracked) / kFrames, static_cast<unsigned long long>(searches), median_px,
               p90_px, p999_px, errors_px.back());
-  EXPECT_GE(tracked, kFrames * 999 / 1000) << "tracked share";
+  // Followed (TRACKING, or UNCERTAIN: the target held but a pose whose σ or the stream's
+  // noise allows > 3 px / 10° more often than tracker.max_false_probability) on 99.9 % of the
+  // frames as before the UNCERTAIN state; reported TRACKING on 99 % (measured 99.57 %).
+  std::printf("UNCERTAIN %zu of %zu frames\n", uncertain, static_cast<std::size_t>(kFrames));
+  EXPECT_GE(tracked + uncertain, kFrames * 999 / 1000) << "followed share";
+  EXPECT_GE(tracked, kFrames * 99 / 100) << "tracked share";
   EXPECT_LE(searches, 2u) << "the target is found once and held: no repeated start searches";
   EXPECT_LT(median_px, 0.5) << "position error against the simulator's truth";
   EXPECT_LT(p90_px, 1.0) << "position error against the simulator's truth";

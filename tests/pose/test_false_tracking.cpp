@@ -42,16 +42,20 @@ TEST_P(Vanish, GoesLostAndStaysLost) {
   ASSERT_TRUE(h.status().ok) << h.status().message;
   h.run();
   const auto& poses = h.poses();
+  // Followed while it is there: TRACKING, or UNCERTAIN (a near-symmetric target such as the
+  // lamella on post at <= 2.5 e-/px is UNCERTAIN until its flip check settles, README: States).
   int tracked_before = 0;
-  for (int f = 0; f < s.vanish_after; ++f) tracked_before += poses[f].state == TrackState::kTracking;
-  EXPECT_GE(tracked_before, s.vanish_after - 1) << "the target must be tracked while it is there";
+  for (int f = 0; f < s.vanish_after; ++f)
+    tracked_before += poses[f].state == TrackState::kTracking || poses[f].state == TrackState::kUncertain;
+  EXPECT_GE(tracked_before, s.vanish_after - 1) << "the target must be followed while it is there";
   int first_not_tracking = -1, tracking_later = 0;
   for (int f = s.vanish_after; f < s.frames; ++f) {
     const bool tr = poses[static_cast<std::size_t>(f)].state == TrackState::kTracking;
-    if (!tr && first_not_tracking < 0) first_not_tracking = f - s.vanish_after;
+    const bool followed = tr || poses[static_cast<std::size_t>(f)].state == TrackState::kUncertain;
+    if (!followed && first_not_tracking < 0) first_not_tracking = f - s.vanish_after;
     if (tr && first_not_tracking >= 0) ++tracking_later;
   }
-  std::printf("vanish %-12s dose %4.1f: tracked before %d/%d, frames to LOST %d, TRACKING after that %d/%d\n",
+  std::printf("vanish %-12s dose %4.1f: followed before %d/%d, frames to LOST %d, TRACKING after that %d/%d\n",
               s.target.c_str(), s.dose_e, tracked_before, s.vanish_after, first_not_tracking, tracking_later,
               s.frames - s.vanish_after);
   ASSERT_GE(first_not_tracking, 0) << "never went LOST after the target vanished";
@@ -78,18 +82,18 @@ TEST_P(NotInField, NeverTracking) {
   h.run();
   const pt::RunStats r = h.stats();
   print_case(("not in field " + s.target + " dose " + std::to_string(s.dose_e).substr(0, 4)).c_str(), r);
-  if (s.dose_e >= 2.5) {
-    EXPECT_EQ(r.tracked, 0) << "TRACKING on the background of a field without the target";
-  } else {
-    // Below the paper's noise the attainable-score test cannot separate background from the
-    // target when noise dominates both: README, Known limitations (measured 1 frame in 40).
-    EXPECT_LE(r.tracked_share(), 0.05) << "TRACKING on the background of a field without the target";
-  }
+  // At 1 e-/px too (it was 1 frame in 40 before the UNCERTAIN state: a background match that
+  // passed the search's tests, whose 180° alternative scored as well and whose poses then
+  // wandered): whatever the search finds on background is never reported TRACKING.
+  EXPECT_EQ(r.tracked, 0) << "TRACKING on the background of a field without the target";
+  int uncertain = 0;
+  for (const auto& e : h.poses()) uncertain += e.state == TrackState::kUncertain;
+  std::printf("  UNCERTAIN %d of %d\n", uncertain, r.frames);
 }
 
 INSTANTIATE_TEST_SUITE_P(TargetsDoses, NotInField,
                          ::testing::Combine(::testing::Values("needle_tip", "lamella_post"),
-                                            ::testing::Values(20.0, 6.0, 1.0)));
+                                            ::testing::Values(20.0, 6.0, 2.5, 1.0)));
 
 // Pure noise (flat background, no target) at several doses, and blank and saturated frames.
 TEST(NoFalseTracking, PureNoiseNeverTracking) {
@@ -168,6 +172,10 @@ TEST_P(ScaleRamp, TrackedWithoutFalsePoses) {
   for (std::size_t f = 0; f < h.poses().size(); ++f) {
     const auto& e = h.poses()[f];
     const auto& t = h.records()[f].truth;
+    // The first third counts followed frames: a near-symmetric target (lamellae) is UNCERTAIN
+    // for a few frames after its first search until the flip check settles (README: States);
+    // that is not scale being rejected.
+    if (3 * f < h.poses().size() && e.state == TrackState::kUncertain) ++tracked_first_third;
     if (e.state != TrackState::kTracking) continue;
     ++tracked;
     if (3 * f < h.poses().size()) ++tracked_first_third;

@@ -2,6 +2,9 @@
 #pragma GCC diagnostic ignored "-Wnull-dereference"  // GCC 12 false positive inside gtest.h
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdint>
+
 #include "sempose/pose/loss_policy.hpp"
 #include "sempose/pose/motion_model.hpp"
 #include "sempose/pose/track_state.hpp"
@@ -213,4 +216,76 @@ TEST(LossPolicy, DoubtfulExplanationNeedsTheTargetsLevel) {
   Measurement odd = dragged;
   odd.implausible = true;
   EXPECT_FALSE(loss.only_unexplained(odd));
+}
+
+// Issue 13 item 6 at low dose: a followed pose is TRACKING only when a pose > 3 px or > 10° off
+// is unlikely enough for its error SD (LossPolicy::trusted; Tracker reports UNCERTAIN otherwise).
+TEST(LossPolicy, TrustedOnlyWhenAFalsePoseIsUnlikely) {
+  EXPECT_NEAR(LossPolicy::false_probability(1.0, 0.0), std::exp(-4.5), 1e-12);       // Rayleigh tail at 3 px
+  EXPECT_NEAR(LossPolicy::false_probability(0.0, 10.0 / 2.5758293), 0.01, 1e-5);    // two-sided normal at 10°
+  EXPECT_EQ(LossPolicy::false_probability(0.0, 0.0), 0.0);                          // nothing known, no objection
+  config::TrackerConfig c;
+  c.max_false_probability = 0.01;
+  LossPolicy loss(c);
+  EXPECT_TRUE(loss.trusted(0.5, 1.0));
+  EXPECT_FALSE(loss.trusted(1.2, 1.0)) << "P(r > 3 px) = exp(-9/2.88) = 4.4 %";
+  EXPECT_FALSE(loss.trusted(0.5, 4.5)) << "P(|phi| > 10 deg) = 2.6 %";
+  EXPECT_TRUE(loss.trusted(0.98, 3.8)) << "just inside 1 %";
+  c.max_false_probability = 0.0;  // off
+  EXPECT_TRUE(loss.trusted(5.0, 50.0));
+}
+
+// The pose noise the innovations show: white pose noise of SD s per axis on a target moving at
+// constant velocity comes out as about s (E|d|² = 12 s²); an exactly predicted target as 0; an
+// accelerating one as more than its noise (a bound, never less careful).
+TEST(MotionModel, PoseNoiseFromTheInnovations) {
+  std::uint64_t st = 12345;
+  auto gauss = [&st]() {  // Box–Muller on a 64-bit LCG: deterministic, no <random> distribution differences
+    auto u = [&st]() {
+      st = st * 6364136223846793005ull + 1442695040888963407ull;
+      return ((st >> 11) + 0.5) / 9007199254740992.0;
+    };
+    const double a = u(), b = u();
+    return std::sqrt(-2.0 * std::log(a)) * std::cos(6.283185307179586 * b);
+  };
+  for (double s : {0.3, 1.0}) {
+    MotionModel mm(true);
+    double sum2 = 0, sum2_deg = 0;
+    int n = 0;
+    mm.accept(100, 100, 0, true);
+    EXPECT_FALSE(mm.pose_noise_known());
+    for (int k = 1; k < 4000; ++k) {
+      mm.accept(100 + 0.7 * k + s * gauss(), 100 - 0.3 * k + s * gauss(), 0.5 * k + 3 * s * gauss(), false);
+      if (mm.pose_noise_known()) {
+        sum2 += mm.pose_noise_px() * mm.pose_noise_px();
+        sum2_deg += mm.pose_noise_deg() * mm.pose_noise_deg();
+        ++n;
+      }
+    }
+    ASSERT_GT(n, 3900);
+    // The larger of a short and a long memory: a little above s on average (measured +6-8 %),
+    // never below it.
+    EXPECT_GE(std::sqrt(sum2 / n), 0.97 * s) << "per-axis pose noise";
+    EXPECT_LE(std::sqrt(sum2 / n), 1.15 * s) << "per-axis pose noise";
+    EXPECT_GE(std::sqrt(sum2_deg / n), 0.97 * 3 * s) << "angle noise";
+    EXPECT_LE(std::sqrt(sum2_deg / n), 1.15 * 3 * s) << "angle noise";
+  }
+  MotionModel exact(true);
+  exact.accept(0, 0, 0, true);
+  for (int k = 1; k < 20; ++k) exact.accept(2.0 * k, -1.0 * k, 0.5 * k, false);
+  ASSERT_TRUE(exact.pose_noise_known());
+  EXPECT_NEAR(exact.pose_noise_px(), 0.0, 1e-9);
+  MotionModel accel(true);
+  accel.accept(0, 0, 0, true);
+  for (int k = 1; k < 20; ++k) accel.accept(0.5 * k * k, 0, 0, false);  // 1 px/frame² acceleration
+  EXPECT_NEAR(accel.pose_noise_px(), 1.0 / std::sqrt(12.0), 1e-9) << "|a|²/12: the bound includes the acceleration";
+  // The first innovation after a search (a velocity across the full-field scan) is not pose noise.
+  MotionModel after(true);
+  after.accept(0, 0, 0, true);
+  after.accept(50, 0, 0, false);   // velocity 50 px/frame from the search frame: overshoot
+  after.accept(51, 0, 0, false);   // innovation −49: not learnt as noise
+  after.accept(52, 0, 0, false);
+  after.accept(53, 0, 0, false);
+  ASSERT_TRUE(after.pose_noise_known());
+  EXPECT_LT(after.pose_noise_px(), 0.5);
 }

@@ -72,19 +72,23 @@ TEST_P(Acquire, FindsTargetOnFullField) {
   s.start_phi_deg = std::get<1>(GetParam());
   s.start_x_px = 250;
   s.start_y_px = 300;
-  s.frames = 3;
+  s.frames = 10;
   SimHarness h(s, small_config());
   ASSERT_TRUE(h.status().ok) << h.status().message;
   h.run();
   const PoseEstimate& e = h.poses()[0];
   EXPECT_TRUE(e.searched);
-  ASSERT_EQ(e.state, TrackState::kTracking) << "score " << e.score;
+  // Found; at 2.5 e-/px the lamella on post's 180° alternative scores too close for one frame
+  // (flip check: UNCERTAIN until the tracked frames settle it, README: States).
+  ASSERT_TRUE(e.state == TrackState::kTracking || (s.dose_e < 6 && e.state == TrackState::kUncertain))
+      << "score " << e.score << " state " << to_string(e.state);
   const auto& tr = h.truth()[0];
   EXPECT_LT(std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), 1.0);
   EXPECT_LT(angle_error(e.phi_deg, tr.phi_deg), 2.0);
-  // The following ROI frames keep it.
+  // The following ROI frames keep it (and settle the flip check within 10 frames).
   const PoseEstimate& last = h.poses().back();
-  EXPECT_EQ(last.state, TrackState::kTracking);
+  EXPECT_EQ(last.state, TrackState::kTracking) << to_string(last.state);
+  EXPECT_LT(std::hypot(last.x_px - h.truth().back().x_px, last.y_px - h.truth().back().y_px), 1.5);
   EXPECT_FALSE(last.searched);
 }
 INSTANTIATE_TEST_SUITE_P(DosesAngles, Acquire,
@@ -249,7 +253,7 @@ TEST_P(AcquireScaled, FirstPoseHasTheTargetsScale) {
   s.start_phi_deg = 37;
   s.start_x_px = 300;
   s.start_y_px = 230;
-  s.frames = 4;
+  s.frames = 10;
   SimHarness h(s, small_config());
   ASSERT_TRUE(h.status().ok) << h.status().message;
   h.run();
@@ -257,7 +261,11 @@ TEST_P(AcquireScaled, FirstPoseHasTheTargetsScale) {
     const PoseEstimate& e = h.poses()[f];
     const auto& tr = h.truth()[f];
     EXPECT_EQ(e.searched, f == 0) << "frame " << f;
-    ASSERT_EQ(e.state, TrackState::kTracking) << "frame " << f << " score " << e.score;
+    // The procedural lamella is nearly 180°-symmetric: UNCERTAIN until the flip check settles
+    // (README: States), the pose right all the same; TRACKING by the last frame.
+    const bool flip_check = std::string(s.target) == "lamella" && f + 1 < h.poses().size();
+    ASSERT_TRUE(e.state == TrackState::kTracking || (flip_check && e.state == TrackState::kUncertain))
+        << "frame " << f << " score " << e.score << " " << to_string(e.state);
     EXPECT_NEAR(e.scale, tr.scale, 0.04) << "frame " << f;
     EXPECT_LT(std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), 1.5) << "frame " << f;
     EXPECT_LT(angle_error(e.phi_deg, tr.phi_deg), 2.0) << "frame " << f;

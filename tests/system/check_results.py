@@ -277,7 +277,7 @@ def check_values_vs_csv(ctx):
         return FAIL, f"{len(rows)} CSV rows vs {len(xy)} XY / {len(attr)} ATTR frames (can_dropped={ctx.summary.get('can_dropped')})"
     t_select = ctx.command_time("select")
     bad, scales = [], []
-    states = {0: "TRACKING", 1: "ACQUIRING", 2: "LOST"}
+    states = {0: "TRACKING", 1: "ACQUIRING", 2: "LOST", 3: "UNCERTAIN"}
     for k, (row, (t, sxy), (_, sat)) in enumerate(zip(rows, xy, attr)):
         px, py = float(row["x_px"]), float(row["y_px"])
         fit = [s for s in SCALES_NM_PER_PX

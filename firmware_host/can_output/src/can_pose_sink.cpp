@@ -11,6 +11,7 @@ ipc::WireState to_wire(pose::TrackState s) noexcept {
     case pose::TrackState::kTracking: return ipc::WireState::kTracking;
     case pose::TrackState::kAcquiring: return ipc::WireState::kAcquiring;
     case pose::TrackState::kLost: return ipc::WireState::kLost;
+    case pose::TrackState::kUncertain: return ipc::WireState::kUncertain;
   }
   return ipc::WireState::kLost;
 }

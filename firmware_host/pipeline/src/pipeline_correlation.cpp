@@ -80,9 +80,11 @@ void Pipeline::correlate(hal::FramePool::Index slot) noexcept {
   last_state_[target] = est.state;
   {
     StatusWords st = status_.read();  // keeps the command acknowledgement fields
+    // Worst first: LOST, ACQUIRING, UNCERTAIN (followed, pose not trusted), TRACKING.
+    auto rank = [](pose::TrackState ts) { return ts == pose::TrackState::kUncertain ? 1 : 2 * static_cast<int>(ts); };
     pose::TrackState worst = pose::TrackState::kTracking;
     for (std::size_t t = 0; t < trackers_.size(); ++t) {
-      if (static_cast<int>(last_state_[t]) > static_cast<int>(worst)) worst = last_state_[t];
+      if (rank(last_state_[t]) > rank(worst)) worst = last_state_[t];
     }
     st.state = static_cast<std::uint8_t>(worst);
     st.pattern_set = est.pattern_set;

@@ -60,6 +60,17 @@ bool LossPolicy::confirmed(float score) const noexcept {
   return score >= score_mean_ - margin;
 }
 
+double LossPolicy::false_probability(double sigma_px, double sigma_deg) noexcept {
+  const double p_pos = sigma_px > 0 ? std::exp(-kFalsePx * kFalsePx / (2.0 * sigma_px * sigma_px)) : 0.0;
+  const double p_phi = sigma_deg > 0 ? std::erfc(kFalseDeg / (sigma_deg * std::sqrt(2.0))) : 0.0;
+  return std::max(p_pos, p_phi);
+}
+
+bool LossPolicy::trusted(double sigma_px, double sigma_deg) const noexcept {
+  if (calibrating_ || !(cfg_.max_false_probability > 0)) return true;
+  return false_probability(sigma_px, sigma_deg) <= cfg_.max_false_probability;
+}
+
 void LossPolicy::accepted(float score) noexcept {
   if (have_score_mean_ && !calibrating_) {
     const double d = score - score_mean_;

@@ -16,6 +16,15 @@ void MotionModel::accept(double x, double y, double phi, bool fresh) noexcept {
     innov_deg2_ = have_innov_ ? 0.8 * innov_deg2_ + 0.2 * dphi * dphi : dphi * dphi;
     have_innov_ = true;
     ++innovations_since_fresh_;
+    // The pose noise learns only from predictions made from two ROI poses: the first velocity
+    // after a search spans the long full-field scan and overshoots once.
+    if (innovations_since_fresh_ >= 2) {
+      noise_px2_ = have_noise_ ? 0.8 * noise_px2_ + 0.2 * px2 : px2;
+      noise_deg2_ = have_noise_ ? 0.8 * noise_deg2_ + 0.2 * dphi * dphi : dphi * dphi;
+      level_px2_ = have_noise_ ? (1 - kLevelShare) * level_px2_ + kLevelShare * px2 : px2;
+      level_deg2_ = have_noise_ ? (1 - kLevelShare) * level_deg2_ + kLevelShare * dphi * dphi : dphi * dphi;
+      have_noise_ = true;
+    }
   }
   if (fresh) innovations_since_fresh_ = 0;
   // The next prediction is the model's full one: with a velocity from two poses in a row (or,

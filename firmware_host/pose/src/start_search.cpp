@@ -180,14 +180,23 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
       t.rank = static_cast<float>(scanned - kScaleTiePerLevel * levels_away) + t.coarse_score;
     }
   }
+  // The runner-up at another place (more than a quarter pattern away: a look-alike), for the
+  // tracker's search check.
+  float runner_rank = -4.0f, best_coarse = 0.0f;
+  const double far_px = pattern_px / 4.0;
   for (int i = 0; i < tried; ++i) {
     const Tried& t = tried_[static_cast<std::size_t>(i)];
+    const bool apart = best.m.valid && std::hypot(t.cx - best_cx, t.cy - best_cy) > far_px;
     if (t.rank > best_rank) {
+      if (apart) runner_rank = std::max(runner_rank, best_rank);
       best_rank = t.rank;
       best = t.fine;
       best_cx = t.cx;
       best_cy = t.cy;
       best_k = t.k;
+      best_coarse = t.coarse_score;
+    } else if (apart) {
+      runner_rank = std::max(runner_rank, t.rank);
     }
   }
   if (!best.m.valid) return none;
@@ -237,6 +246,9 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     }
   }
   set_top_left(m, x_raw - c_p, y_raw - c_p);
+  m.flip_score = best.m.flip_score;  // the tracker's flip check (measured at the winner's place)
+  m.coarse_score = best_coarse;       // and its search check
+  m.runner_up_rank = runner_rank;
   return m;
 }
 
@@ -290,8 +302,14 @@ StartSearch::Fine StartSearch::measure_place(const PatternBank& bank, const std:
     const Peak pk = find_peak(maps_.work(), half_.valid_w(), half_.valid_h(), around);
     Measurement f = walk_.measure(bank, jf, pk, max_moves);
     f.steps += m.steps + 1;
-    if (f.valid && prefer_opposite(m, f, prior)) m = f;
-    else m.steps = f.steps;
+    if (f.valid && prefer_opposite(m, f, prior)) {
+      const float other = m.score;
+      m = f;
+      m.flip_score = other;
+    } else {
+      m.steps = f.steps;
+      if (f.valid) m.flip_score = f.score;
+    }
   }
   out.m = m;
   out.rx = rx;

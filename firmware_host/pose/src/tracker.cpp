@@ -35,6 +35,8 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
 
 void Tracker::Impl::forget_everything() noexcept {
   go_lost();
+  flip_open = false;
+  search_n = 0;
   loss.forget_target();
   scale = expected_scale.load(std::memory_order_relaxed);
   motion = MotionModel(cfg.predict_velocity);  // also the last angle a search's tie-break uses
@@ -135,6 +137,128 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
   e.sigma_scale = s.scale * used_scale;
 }
 
+// The pose is trusted when its error SD — the larger of its own σ (the fit's covariance) and
+// the pose noise the accepted poses show frame to frame (the motion model's innovations with
+// the target's acceleration taken out) — makes a pose beyond the false-pose rule unlikely
+// enough (LossPolicy::trusted). Its own σ misses a pose that jumped to a neighbouring maximum
+// (at 1 e-/px: σ 0.5 px at poses 4-8 px off); the stream's noise sees those jumps.
+//
+// The stream's noise only below the explained check's upper bound (0.7): a pose the pattern
+// explains that well is judged by its own σ. The innovations cannot tell pose noise from the
+// target's acceleration (replay_matches_run: a 40 px sine of 3 s at 0.2 s per tracked frame,
+// 7 px/frame², scores 0.8-0.9, read as ~2 px of "noise"; third differences, which cancel a
+// constant acceleration, still read 1.6 px there and caught fewer wanderings at 1 e-/px), and
+// the poses that wander to a neighbouring maximum score low (1 e-/px: 0.37-0.62).
+bool Tracker::Impl::trusted_pose(const PoseEstimate& e) const noexcept {
+  double s_px = std::max(e.sigma_x_px, e.sigma_y_px), s_deg = e.sigma_phi_deg;
+  if (motion.pose_noise_known() && e.score < loss.explained_bound()) {
+    s_px = std::max(s_px, motion.pose_noise_px());
+    s_deg = std::max(s_deg, motion.pose_noise_deg());
+  }
+  return loss.trusted(s_px, s_deg);
+}
+
+double Tracker::Impl::significance_z() const noexcept {
+  const double p = std::clamp(cfg.max_false_probability, 1e-12, 0.5);
+  double lo = 0, hi = 10;  // 0.5·erfc(z/√2) = p, decreasing in z
+  for (int i = 0; i < 50; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (0.5 * std::erfc(mid / std::sqrt(2.0)) > p ? lo : hi) = mid;
+  }
+  return hi;
+}
+
+// Student's t quantile from the normal one z for nu degrees of freedom (Cornish–Fisher
+// expansion; within 2 % of the table for nu ≥ 3, the only ones used).
+double Tracker::Impl::student_t(double z, int nu) noexcept {
+  const double n = std::max(1, nu), z3 = z * z * z, z5 = z3 * z * z;
+  return z + (z3 + z) / (4 * n) + (5 * z5 + 16 * z3 + 3 * z) / (96 * n * n) +
+         (3 * z5 * z * z + 19 * z5 + 17 * z3 - 15 * z) / (384 * n * n * n);
+}
+
+// After a search: the chosen hypothesis must lead the one 180° away by more than the score
+// noise allows (significance_z SDs of one difference), else the check stays open. A trusted
+// angle prior (the last tracked angle: a target does not turn 180° while lost) already chose,
+// unless the check was still open when the target was lost.
+void Tracker::Impl::open_flip_check(const Measurement& m, bool prior_known) noexcept {
+  const bool was_open = flip_open;
+  flip_open = false;
+  if (!(cfg.max_false_probability > 0) || m.flip_score < -1.0f || (prior_known && !was_open)) return;
+  const double d = static_cast<double>(m.score) - m.flip_score;
+  if (d >= significance_z() * flip_sd(m.score)) return;
+  flip_open = true;
+  flip_sum = d;
+  flip_sum2 = d * d;
+  flip_n = 1;
+}
+
+bool Tracker::Impl::search_settled(const Measurement& m, const PoseEstimate& e) noexcept {
+  if (!(cfg.max_false_probability > 0) || m.runner_up_rank < -3.0f) {
+    search_n = 0;
+    return true;
+  }
+  // The same place: within a quarter pattern and 20° of the last unsettled search's result
+  // (the target moves while the field is scanned); elsewhere the evidence starts anew.
+  const bool same = search_n > 0 && std::hypot(e.x_px - search_x, e.y_px - search_y) <= sizes.pattern_px / 4.0 &&
+                    std::fabs(rt::wrap_deg(e.phi_deg - search_phi)) <= 20.0;
+  if (!same) search_n = 0, search_sum = 0;
+  // The lead in the search's own rank (exact + coarse score); its SD from both levels'
+  // sampling noise, two candidates at different places being independent.
+  search_sum += static_cast<double>(m.score) + m.coarse_score - m.runner_up_rank;
+  ++search_n;
+  search_x = e.x_px;
+  search_y = e.y_px;
+  search_phi = e.phi_deg;
+  const double c2 = std::min(1.0, static_cast<double>(m.coarse_score) * m.coarse_score);
+  const double sd_coarse = (1.0 - c2) / std::sqrt(std::max(1.0, static_cast<double>(coarse_mask.count())));
+  const double sd = std::hypot(flip_sd(m.score), std::sqrt(2.0) * sd_coarse);
+  if (search_sum >= significance_z() * sd * std::sqrt(static_cast<double>(search_n))) {
+    search_n = 0;
+    return true;
+  }
+  return false;
+}
+
+// One more frame of the flip check: the opposite hypothesis measured as the search measures it
+// (binned FFT at φ+180° around the pose, the climb, walk and fit), its score difference added.
+// Settled when the mean difference is significant: by the larger of the noise model's SD and
+// the differences' own spread. Returns true when the opposite one won (m and e are then its).
+template <class Place>
+bool Tracker::Impl::settle_flip(const PatternBank& bank, Measurement& m, PoseEstimate& e, const Place& place) noexcept {
+  const int jf = angles.wrap(m.j + angles.count / 2);
+  half.correlate(bank.spectrum(jf), maps.work());
+  const int reach = sizes.pattern_px / 8;  // binned px: a quarter pattern, as the search
+  const SearchWindow around{m.ux / 2 - reach, m.uy / 2 - reach, m.ux / 2 + reach, m.uy / 2 + reach};
+  Measurement f = walk.measure(bank, jf, find_peak(maps.work(), half.valid_w(), half.valid_h(), around),
+                               cfg.max_angle_steps_per_frame);
+  e.angle_steps += f.steps + 1;
+  if (!f.valid) return false;
+  const double d = static_cast<double>(m.score) - f.score;
+  flip_sum += d;
+  flip_sum2 += d * d;
+  ++flip_n;
+  if (flip_n < 4) return false;  // a spread needs a few differences (t below is good from 3 dof)
+  // The two hypotheses are scored on the same pixels, so their noise is largely shared (the
+  // more alike they are, the more): the differences' own spread is the SD that counts, not
+  // flip_sd's independent-score one (which would need ~80 frames at 2.5 e-/px); Student's t
+  // with n − 1 degrees of freedom for the few frames it is measured on.
+  const double mean = flip_sum / flip_n;
+  const double spread = std::sqrt(std::max(0.0, (flip_sum2 - flip_n * mean * mean) / (flip_n - 1)));
+  const double sd = std::max(spread, 1e-6) / std::sqrt(static_cast<double>(flip_n));
+  const double z = student_t(significance_z(), flip_n - 1);
+  if (mean >= z * sd) {
+    flip_open = false;
+  } else if (mean <= -z * sd) {
+    flip_open = false;
+    const int steps = e.angle_steps;
+    m = f;
+    place(m, e);
+    e.angle_steps = steps;
+    return true;
+  }
+  return false;
+}
+
 void Tracker::Impl::hold() noexcept {
   if (observer) observer->discard();
   filter.reset();
@@ -198,6 +322,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
     go_lost();
+    flip_open = false;
+    search_n = 0;
     // Commanded, or a new magnification: the target's look may have changed; the new
     // pattern set has its own noise floors and is matched at its own size first.
     loss.forget_target();
@@ -223,6 +349,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   if (!on_target || scored.w > sizes.roi_fft_px || scored.h > sizes.roi_fft_px) {
     int rx = 0, ry = 0;
     e.searched = true;
+    const bool prior_known = motion.last_angle().known;
     double found_scale = scale;
     // The expected scale is a prior: the SELECT's (else 1) for a new target, the last tracked
     // one after a loss (a loss during a magnification ramp: narrow, centred on it).
@@ -234,10 +361,16 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;
     if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
-    if (loss.found(m, attainable)) {
+    if (loss.found(m, attainable) && !search_settled(m, e)) {
+      // Found, but not told from a look-alike elsewhere yet: reported UNCERTAIN, searched again.
+      e.state = TrackState::kUncertain;
+      go_lost();
+    } else if (loss.found(m, attainable)) {
       accept(e, frame, true);
       scale = e.scale;  // tracking starts at the scale the search found
       scale_tracked = true;
+      open_flip_check(m, prior_known);
+      if (flip_open) e.state = TrackState::kUncertain;
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable
@@ -286,6 +419,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   const int loaded_w = std::min(scored.w, sizes.roi_fft_px), loaded_h = std::min(scored.h, sizes.roi_fft_px);
   check_motion(bank, m, e, swept, scored.x + (rescaled ? 0.5 * (loaded_w - 1) * (1.0 - used_scale) : 0.0),
                scored.y + (rescaled ? 0.5 * (loaded_h - 1) * (1.0 - used_scale) : 0.0), used_scale, place);
+  // The flip check before the scale probe and σ, which read the hypothesis kept.
+  const bool flipped = flip_open && settle_flip(bank, m, e, place);
   const ScaleReading reading = scale_probe.read(bank, m);
   set_sigma(uncertainty.estimate(bank, m, reading.valid ? reading.factor : 1.0), used_scale, e);
   e.scale = reading.valid ? used_scale * reading.factor : scale;
@@ -299,11 +434,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
   switch (loss.judge(m)) {
     case FrameVerdict::kAccept:
-      accept(e, frame, false);
+      accept(e, frame, flipped);  // the motion so far was the other hypothesis's
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
+      // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
+      // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
+      if (flip_open || !trusted_pose(e)) e.state = TrackState::kUncertain;
       // A good frame teaches the appearance model (RT: sums into a preallocated batch). It reads
       // the pixels the walk was scored on (the ROI resampled to the pattern's size if rescaled).
-      if (learning && e.reason_bits == 0 && m.score >= cfg.appearance.min_score) {
+      if (learning && e.reason_bits == 0 && e.state == TrackState::kTracking && m.score >= cfg.appearance.min_score) {
         const double c = (pattern_px - 1) / 2.0;
         observer->observe(set, scorer.roi(), scorer.roi_w(), scorer.roi_h(), load_px, load_stride, load_bits, m.ux + m.dx + c,
                           m.uy + m.dy + c, (m.j + m.dj) * angles.step_deg);
@@ -316,9 +454,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       else go_lost();
       break;
     case FrameVerdict::kCoast:
-      // Not yet lost: report the measurement with its reasons, coast on the motion model.
+      // Not yet lost: report the measurement with its reasons, coast on the motion model. A
+      // weak measurement is not a pose to drive with: UNCERTAIN (it was TRACKING with reasons).
       e.reason_bits |= loss.weak_reasons(m);
-      e.state = TrackState::kTracking;
+      e.state = TrackState::kUncertain;
       motion.coast();
       break;
   }

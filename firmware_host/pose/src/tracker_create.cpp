@@ -134,6 +134,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.prefilter_noise = PrefilterNoiseGain(cfg.prefilter_passes);
     t.prefilter_noise_gain = t.prefilter_noise.white();
   }
+  t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;
   if (cfg.appearance.enabled) {
     // The learner's references: each set's recorded pattern, prefiltered like the frames; its
     // priors: the shape masks (the learned support never leaves them).

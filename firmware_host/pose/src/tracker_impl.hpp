@@ -184,6 +184,39 @@ struct Tracker::Impl {
   static void set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept;
   void go_lost() noexcept;
   void hold() noexcept;
+  bool trusted_pose(const PoseEstimate& e) const noexcept;
+
+  // Flip check (a near-symmetric target, e.g. a lamella, scores almost alike turned by 180°):
+  // after a search without a trusted angle prior whose choice does not lead the opposite
+  // hypothesis by a significant margin, every tracked frame also measures the opposite one
+  // (one binned FFT and a walk, ~50 µs) and sums the score differences; the poses are
+  // UNCERTAIN until the sum is significant either way (then the winner is tracked).
+  bool flip_open = false;
+  double flip_sum = 0;    // Σ (score of the tracked hypothesis − score of the opposite one)
+  double flip_sum2 = 0;
+  int flip_n = 0;
+  double score_samples = 1.0;  // independent noise samples under the mask (mask pixels × Σk²)
+  // SD of one frame's difference of two ZNCC scores near s under detector noise alone:
+  // √2·(1 − s²)/√N_eff (the ZNCC's sampling SD, two nearly independent measurements).
+  double flip_sd(double s) const noexcept {
+    return std::sqrt(2.0) * (1.0 - std::min(1.0, s * s)) / std::sqrt(std::max(1.0, score_samples));
+  }
+  // The one-sided normal quantile of tracker.max_false_probability: how many SD make a
+  // difference significant at the rate a false pose is allowed.
+  double significance_z() const noexcept;
+  static double student_t(double z, int nu) noexcept;
+  void open_flip_check(const Measurement& m, bool prior_known) noexcept;
+
+  // Search check (a real micrograph has look-alikes: the warped lamella-on-post crop at
+  // 1 e-/px has one ~200 px away, turned −90°, scoring as the target does): a search's result
+  // must lead the best candidate at another place by a significant margin, summed over the
+  // searches that agree on the place; until then it is UNCERTAIN and the field is searched
+  // again on the next frame.
+  int search_n = 0;
+  double search_sum = 0, search_x = 0, search_y = 0, search_phi = 0;
+  bool search_settled(const Measurement& m, const PoseEstimate& e) noexcept;
+  template <class Place>
+  bool settle_flip(const PatternBank& bank, Measurement& m, PoseEstimate& e, const Place& place) noexcept;
   void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;
 };
 

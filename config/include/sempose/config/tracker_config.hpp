@@ -46,6 +46,11 @@ struct TrackerConfig {
   // at 2.5 e-/px (pose_accuracy_bench); 0.6 keeps it and leaves 1-3 per jaws row.
   double explained_threshold = 0.6;
   std::int32_t lost_after_frames = 1;  // K consecutive weak frames -> LOST, full-field search
+  // A followed pose is reported TRACKING only when the chance that it is more than 3 px or 10°
+  // off (issue 13's false-pose rule), from its own σ and from the pose noise the stream shows
+  // (MotionModel::pose_noise_*), is at most this; otherwise UNCERTAIN (0 = off). 0.01: the
+  // rule's own bound at 1 e-/px.
+  double max_false_probability = 0.01;
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
   double search_angle_step_deg = 20.0;

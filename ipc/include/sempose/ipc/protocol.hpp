@@ -55,7 +55,7 @@ inline constexpr unsigned kSigmaScaleBits = 7;
 inline constexpr double kSigmaScaleStep = 0.0005;
 
 // Wire values of the tracker state (the same numbers as pose::TrackState).
-enum class WireState : std::uint8_t { kTracking = 0, kAcquiring = 1, kLost = 2 };
+enum class WireState : std::uint8_t { kTracking = 0, kAcquiring = 1, kLost = 2, kUncertain = 3 };
 enum class BusState : std::uint8_t { kActive = 0, kPassive = 1, kBusOff = 2 };
 
 enum class Opcode : std::uint8_t {

@@ -94,6 +94,16 @@ class LossPolicy {
     return cfg_.explained_threshold > 0 ? cfg_.explained_threshold + kExplainedDoubt : 0.0;
   }
 
+  // An accepted pose is trusted (TRACKING, not UNCERTAIN) when the chance that it lies more
+  // than kFalsePx or kFalseDeg from the truth is at most tracker.max_false_probability, for a
+  // Gaussian pose error of per-axis SD sigma_px (isotropic: P(r > R) = exp(−R²/2σ²)) and angle
+  // SD sigma_deg (two-sided: erfc(Φ/(σ√2))). The caller passes the larger of the pose's own σ
+  // and the pose noise the stream shows. σ ≤ 0: not known, no objection.
+  bool trusted(double sigma_px, double sigma_deg) const noexcept;
+  // The chance of a pose more than kFalsePx / kFalseDeg off (the larger of the two).
+  static double false_probability(double sigma_px, double sigma_deg) noexcept;
+  static constexpr double kFalsePx = 3.0, kFalseDeg = 10.0;  // issue 13's false-pose rule
+
   // The reported score of an accepted pose (the recent mean the relative threshold uses).
   void accepted(float score) noexcept;
   // The target is lost: forget the recent scores and the weak-frame count.

@@ -20,6 +20,16 @@ struct Measurement {
   // The pose lands where the motion seen so far does not put it and its score does not vouch
   // for it (Tracker: motion check): not the target, however well the pattern fits there.
   bool implausible = false;
+  // A start search's result: the best exact score of the other hypothesis 180° away (the
+  // opposite angle's own position search), −2: none. How far the chosen one leads it says
+  // whether this dose told a near-symmetric target's two ends apart (Tracker: flip check).
+  float flip_score = -2.0f;
+  // A start search's result: its coarse (×8) score, and the rank (exact + coarse score, what
+  // the search chooses by) of the best candidate at another place (more than a quarter
+  // pattern away), −4: none. How far the result's rank leads it says whether this dose told
+  // the target from its best look-alike (Tracker: search check).
+  float coarse_score = 0.0f;
+  float runner_up_rank = -4.0f;
 };
 
 }  // namespace sempose::pose

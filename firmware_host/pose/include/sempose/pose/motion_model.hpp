@@ -6,6 +6,7 @@
 // told apart (surprising()). RT, no allocation.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 #include "sempose/pose/pose_frame.hpp"
@@ -51,6 +52,28 @@ class MotionModel {
   // full-field scan and overshoots once).
   bool motion_known() const noexcept { return have_velocity_ && innovations_since_fresh_ >= 2; }
 
+  // An upper bound of the accepted poses' error SD per axis (px) and in angle (deg), as the
+  // stream itself shows it: for a constant-velocity prediction the innovation is
+  // e_k − 2e_{k−1} + e_{k−2} + the target's acceleration, so with pose errors of SD σ per
+  // axis E[|d|²] = 12σ² + |a|² (two axes; angle 6σ² + a²; without velocity prediction a
+  // first difference: 4σ², 2σ²). Unlike a pose's own σ (the fit's local curvature), this sees
+  // poses that wander to a neighbouring maximum for a frame or several (at 1 e-/px the
+  // lamellae's poses leave the truth by 3-8 px for 1-4 frames at the target's score). An
+  // acceleration only raises it (no pose is trusted more for it). Taking out the acceleration
+  // by the lag-1 product of the innovations was tried: a wander over several frames is
+  // correlated like an acceleration and cancelled too. Known after two such innovations.
+  // Two memories, the larger counts: ~5 frames (a wander now) and ~20 frames (the level of
+  // this target at this dose: a single-frame excursion of 3-4 px at 1 e-/px starts like a
+  // smooth move, so the short memory alone sees it only once it is over).
+  bool pose_noise_known() const noexcept { return have_noise_ && innovations_since_fresh_ >= 3; }
+  double pose_noise_px() const noexcept {
+    return std::sqrt(std::max(noise_px2_, level_px2_) / (predict_velocity_ ? 12.0 : 4.0));
+  }
+  double pose_noise_deg() const noexcept {
+    return std::sqrt(std::max(noise_deg2_, level_deg2_) / (predict_velocity_ ? 6.0 : 2.0));
+  }
+  static constexpr double kLevelShare = 0.05;
+
   static constexpr double kSurpriseSigmas = 4.0;
   // Floors: an innovation this small is never a surprise (measurement noise at 1 e⁻/px is
   // ~0.5 px / 1° per frame, a constant-velocity prediction from two of them ~2.5× that).
@@ -72,6 +95,10 @@ class MotionModel {
   double innov_px2_ = 0, innov_deg2_ = 0;
   bool have_innov_ = false;
   int innovations_since_fresh_ = 0;
+  // Running mean squares of the innovations of predictions made from two ROI poses (the
+  // pose-noise bound); kept across a loss like the ones above.
+  double noise_px2_ = 0, noise_deg2_ = 0, level_px2_ = 0, level_deg2_ = 0;
+  bool have_noise_ = false;
   double x_ = 0, y_ = 0, phi_ = 0;
   double vx_ = 0, vy_ = 0, vphi_ = 0;
   double pred_x_ = 0, pred_y_ = 0, pred_phi_ = 0;

@@ -10,6 +10,11 @@ enum class TrackState : std::uint8_t {
   kTracking = 0,
   kAcquiring = 1,  // full-field search running / not found yet
   kLost = 2,       // was tracking, lost it this frame; a full-field search follows
+  // Followed (the ROI stays on it) but this pose is not to be trusted: the pose noise the
+  // stream itself shows, or the pose's own σ, make it more than 3 px / 10° off with a
+  // probability above tracker.max_false_probability, or the target is one of two peaks 180°
+  // apart that this dose cannot yet tell apart. Never a pose to drive a robot with.
+  kUncertain = 3,
 };
 
 // Bit set of why a pose is not trusted (0 while TRACKING normally).
@@ -31,6 +36,7 @@ constexpr const char* to_string(TrackState s) noexcept {
     case TrackState::kTracking: return "TRACKING";
     case TrackState::kAcquiring: return "ACQUIRING";
     case TrackState::kLost: return "LOST";
+    case TrackState::kUncertain: return "UNCERTAIN";
   }
   return "?";
 }
