@@ -1,7 +1,8 @@
 // `sempose pattern --frames DIR --center X,Y [--size 128] [--average 10] --out P.pgm`: a
 // pattern as the paper made it: the mean of the first N recorded frames, cropped so that the
 // pattern's centre pixel ((size-1)/2, (size-1)/2) lies at (X, Y) (README: Conventions). A crop that
-// falls between pixels is bilinearly interpolated.
+// falls between pixels is bilinearly interpolated. Only the leading frames in which the window
+// stands still are averaged (pattern_stillness.hpp): a moving target would be smeared.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "pattern_stillness.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
 
@@ -18,7 +20,8 @@ namespace {
 int usage(std::FILE* out) {
   std::fprintf(out,
                "usage: sempose pattern --frames DIR --center X,Y [--size 128] [--average 10] --out P.pgm\n"
-               "  averages the first N frames of DIR (sorted *.pgm) and crops size x size around (X, Y)\n");
+               "  averages the first N frames of DIR (sorted *.pgm) and crops size x size around (X, Y);\n"
+               "  stops at the first frame in which the window moved or changed beyond its noise\n");
   return out == stdout ? 0 : 2;
 }
 
@@ -95,17 +98,42 @@ int sempose::cli::pattern(int argc, char** argv) {
                    cx, cy, w, h, size, half, w - 1 - half, half, h - 1 - half);
       return 2;
     }
+    // The whole-pixel window the stillness check compares (the crop's pixels and their
+    // bilinear neighbours).
+    const int wx = static_cast<int>(std::floor(x0)), wy = static_cast<int>(std::floor(y0));
+    const int wsize = static_cast<int>(std::min<long>(size + 1, std::min(w - wx, h - wy)));
     std::vector<double> mean(static_cast<std::size_t>(w) * h, 0.0);
+    std::vector<double> window_mean(static_cast<std::size_t>(wsize) * wsize, 0.0);
+    const double first_noise = cli::scan_noise_var(first, wx, wy, wsize);
+    std::size_t used = 0;
     for (std::size_t f = 0; f < n; ++f) {
       const hal::Image img = f == 0 ? first : hal::read_pgm(names[f]);
       if (img.width != w || img.height != h) {
         std::fprintf(stderr, "sempose pattern: %s: size %dx%d differs from the first frame's %dx%d\n",
                      names[f].c_str(), img.width, img.height, w, h);
-        return 1;
+        return 2;
+      }
+      if (f > 0) {
+        const cli::StillnessCheck c = cli::check_stillness(window_mean, used, first_noise, img, wx, wy, wsize);
+        if (!c.still) {
+          std::fprintf(stderr,
+                       "sempose pattern: warning: %s: the window around (%g, %g) changed against the %zu frame(s) "
+                       "before it beyond their noise (ZNCC %.3f, a standing target: %.3f, at least %.3f): the target "
+                       "moves or turns; averaging those %zu (record the pattern while it stands still)\n",
+                       names[f].c_str(), cx, cy, used, c.zncc, c.expected, c.lowest, used);
+          break;
+        }
       }
       for (std::size_t i = 0; i < mean.size(); ++i) mean[i] += img.pixels[i];
+      ++used;
+      for (int y = 0; y < wsize; ++y) {
+        for (int x = 0; x < wsize; ++x) {
+          window_mean[static_cast<std::size_t>(y) * wsize + x] =
+              mean[static_cast<std::size_t>(wy + y) * w + wx + x] / static_cast<double>(used);
+        }
+      }
     }
-    for (auto& m : mean) m /= static_cast<double>(n);
+    for (auto& m : mean) m /= static_cast<double>(used);
     hal::Image pat;
     pat.width = pat.height = static_cast<std::int32_t>(size);
     pat.bits = first.bits;
@@ -124,7 +152,7 @@ int sempose::cli::pattern(int argc, char** argv) {
     }
     hal::write_pgm(out, pat);
     std::printf("sempose pattern: %s: %ldx%ld around (%g, %g), mean of %zu frames\n", out.c_str(), size, size, cx,
-                cy, n);
+                cy, used);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sempose pattern: %s\n", e.what());
     return 1;
