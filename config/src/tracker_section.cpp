@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -76,6 +77,17 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
     TargetConfig tc;
     tc.name = "target" + std::to_string(out.size());
     t.opt("name", tc.name);
+    // The name labels the target in the status lines, the summary and the logs, which are
+    // read by scripts as whitespace-separated fields: one word, and one target per name.
+    const bool word = !tc.name.empty() && tc.name.size() <= 64 &&
+                      std::none_of(tc.name.begin(), tc.name.end(), [](unsigned char ch) { return ch <= ' ' || ch == 0x7f; });
+    if (!word) {
+      t.error("name", "'" + tc.name + "' is not a target name (1..64 characters, no spaces or control characters)");
+    } else {
+      for (std::size_t k = 0; k < out.size(); ++k) {
+        if (out[k].name == tc.name) t.error("name", "'" + tc.name + "' is already targets[" + std::to_string(k) + "]'s name");
+      }
+    }
     for (auto& ps : t.children("pattern_sets")) {
       PatternSetConfig p;
       ps.req("file", p.file);

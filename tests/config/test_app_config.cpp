@@ -102,6 +102,24 @@ TEST(AppConfig, MissingRequiredKey) {
   EXPECT_NE(e.find(path + ":4:"), std::string::npos) << e;
 }
 
+TEST(AppConfig, TargetNamesAreOneWordAndUnique) {
+  // The status lines, the summary and the logs name targets as whitespace-separated fields.
+  const auto path = write_yaml("names.yaml",
+                               "targets:\n"
+                               "  - {name: a, pattern_sets: [{file: p.pgm}]}\n"
+                               "  - {name: a, pattern_sets: [{file: p.pgm}]}\n"
+                               "  - {name: '', pattern_sets: [{file: p.pgm}]}\n"
+                               "  - {name: 'left jaw', pattern_sets: [{file: p.pgm}]}\n"
+                               "  - {name: needle_2.tip-x, pattern_sets: [{file: p.pgm}]}\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find("targets[1].name: 'a' is already targets[0]'s name"), std::string::npos) << e;
+  EXPECT_NE(e.find("targets[2].name: '' is not a target name"), std::string::npos) << e;
+  EXPECT_NE(e.find("targets[3].name: 'left jaw' is not a target name"), std::string::npos) << e;
+  EXPECT_EQ(e.find("targets[4].name"), std::string::npos) << e;
+}
+
 TEST(AppConfig, CrossSectionChecks) {
   const auto path = write_yaml("cross.yaml", "pipeline:\n  schedule: [0, 1]\n  frame_ring: 8\n  frame_pool_slots: 9\n");
   AppConfig c;
