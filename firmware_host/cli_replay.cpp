@@ -127,7 +127,15 @@ int run_replay(int argc, char** argv) {
     app.targets.clear();
     for (std::size_t i = 0; i < patterns.size(); ++i) {
       config::TargetConfig t;
-      t.name = std::filesystem::path(patterns[i]).stem().string();
+      // Named after the file, made one word and unique as a config's names must be.
+      t.name = std::filesystem::path(patterns[i]).stem().string().substr(0, 60);
+      for (char& ch : t.name) {
+        if (static_cast<unsigned char>(ch) <= ' ' || ch == 0x7f) ch = '_';
+      }
+      if (t.name.empty()) t.name = "target" + std::to_string(i);
+      for (const auto& other : app.targets) {
+        if (other.name == t.name) t.name += "_" + std::to_string(i);
+      }
       t.pattern_sets.push_back({patterns[i], 1.0, masks[i]});
       app.targets.push_back(t);
     }
