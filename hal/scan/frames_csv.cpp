@@ -85,6 +85,15 @@ std::vector<std::int64_t> parse_frames_csv(const std::string& text, std::size_t 
   for (std::size_t i = 0; i < frame_count; ++i) {
     if (line_of[i] == 0) throw std::runtime_error(where + ": frame " + std::to_string(i) + " has no t_ns row");
   }
+  // A frame is scanned after the one before it: time going back (or standing) would give the
+  // governor and the motion model a negative or zero frame time.
+  for (std::size_t i = 1; i < frame_count; ++i) {
+    if (t_ns[i] <= t_ns[i - 1]) {
+      throw std::runtime_error(where + ":" + std::to_string(line_of[i]) + ": frame " + std::to_string(i) + "'s t_ns " +
+                               std::to_string(t_ns[i]) + " is not after frame " + std::to_string(i - 1) + "'s " +
+                               std::to_string(t_ns[i - 1]) + " (time stamps must increase with the frame index)");
+    }
+  }
   return t_ns;
 }
 

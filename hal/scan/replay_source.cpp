@@ -53,6 +53,11 @@ ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig&
       throw std::runtime_error(names[i] + ": size " + std::to_string(frames_.back().width) + "x" +
                                std::to_string(frames_.back().height) + " differs from the first frame's");
     }
+    // One detector, one digitiser: a frame of another depth is from another recording.
+    if (frames_.back().bits != frames_[0].bits) {
+      throw std::runtime_error(names[i] + ": " + std::to_string(frames_.back().bits) + "-bit samples where the first frame has " +
+                               std::to_string(frames_[0].bits) + "-bit ones");
+    }
   }
   limits_.field_w = frames_[0].width;
   limits_.field_h = frames_[0].height;

@@ -254,7 +254,7 @@ TEST(CliFaults, NegativeOrHugeFrameInFramesCsvIsANamedError) {
   pat.width = pat.height = 32;
   pat.pixels.resize(32 * 32);
   sempose::hal::write_pgm(dir + "/../pat.pgm", pat);
-  for (const char* row : {"-1,0", "1e300,5", "0,nan", "0,1\n0,2", "99999999999999999999,1"}) {
+  for (const char* row : {"-1,0", "1e300,5", "0,nan", "0,1\n0,2", "99999999999999999999,1", "0,1000", "0,2000"}) {
     std::ofstream(dir + "/frames.csv") << "frame,t_ns\n" << row << "\n1,1000\n";
     const Outcome r = run({"replay", "--frames", dir, "--pattern", dir + "/../pat.pgm", "--out", dir + "/../o.csv"}, 60);
     ASSERT_FALSE(r.hung) << row;

@@ -127,6 +127,19 @@ TEST(Replay, SetupErrorsNameTheProblem) {
   rc.frames_dir = mixed.string();
   EXPECT_EQ(make_scan_source("replay", limits(), {}, rc, st), nullptr);
   EXPECT_NE(st.message.find("differs"), std::string::npos) << st.message;
+  // Same size, other depth: an 8-bit frame after 16-bit ones.
+  const auto depth = test::temp_dir("replay_depth");
+  write_sequence(depth, 1, false, false);
+  Image eight;
+  eight.width = 80;
+  eight.height = 60;
+  eight.bits = 8;
+  eight.pixels.assign(80 * 60, 7);
+  write_pgm((depth / "frame_000001.pgm").string(), eight);
+  rc.frames_dir = depth.string();
+  EXPECT_EQ(make_scan_source("replay", limits(), {}, rc, st), nullptr);
+  EXPECT_NE(st.message.find("frame_000001.pgm: 8-bit samples where the first frame has 16-bit ones"), std::string::npos)
+      << st.message;
 }
 
 }  // namespace
