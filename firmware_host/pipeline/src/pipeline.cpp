@@ -72,6 +72,10 @@ void Pipeline::idle_wait(std::int64_t until_ns) const noexcept {
   rt::sleep_until_ns(std::clamp(until_ns, earliest, latest));
 }
 
+std::int64_t Pipeline::whole_idle_sleep() const noexcept {
+  return rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs;
+}
+
 void Pipeline::publish_plan(std::uint8_t target, bool enabled) noexcept {
   const hal::ScanRequest next = step_.next_scan(target);
   ScanPlan plan{};

@@ -92,10 +92,12 @@ void Pipeline::acquisition_loop() noexcept {
     if (stop) break;
 
     // Lock step (virtual time): start the next scan only once correlation took every frame,
-    // so a test run is the same sequence of frames on any machine.
+    // so a test run is the same sequence of frames on any machine. The whole idle sleep, not
+    // the shortest: with both stages on one core (the default placement) this thread, the
+    // higher priority, waking every few µs left correlation ~1 % of the core — one pose in 5 s.
     if (clock_.lock_step() && (waiting != kNone || frames_taken_.load(std::memory_order_acquire) !=
                                                   frames_handed_.load(std::memory_order_relaxed))) {
-      idle_wait(0);
+      idle_wait(whole_idle_sleep());
       continue;
     }
 
@@ -115,7 +117,7 @@ void Pipeline::acquisition_loop() noexcept {
       if (found && full_field) full_field_version_[target] = version;
     }
     if (!found) {
-      idle_wait(rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs);
+      idle_wait(whole_idle_sleep());
       continue;
     }
     hal::FramePool::Index slot = kNone;
@@ -127,7 +129,7 @@ void Pipeline::acquisition_loop() noexcept {
       counters_.dropped_acquisition.add();
       counters_.no_free_slot.add();
     } else {
-      idle_wait(0);
+      idle_wait(whole_idle_sleep());  // correlation holds every slot: let it run
       continue;
     }
     hal::ScanRequest req;
@@ -151,11 +153,11 @@ void Pipeline::acquisition_loop() noexcept {
         break;
       }
       counters_.scan_errors.add();
-      idle_wait(0);
+      idle_wait(whole_idle_sleep());  // a failing source is retried, not spun on
     }
   }
   // Drain: the last finished frame still goes to correlation.
-  while (waiting != kNone && !hand_on(waiting)) idle_wait(0);
+  while (waiting != kNone && !hand_on(waiting)) idle_wait(whole_idle_sleep());
   counters_.acquisition_allocs.set(rt::alloc::this_thread_allocations() - allocs_at_start);
   acquisition_done_.store(true, std::memory_order_release);
 }
