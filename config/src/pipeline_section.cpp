@@ -39,6 +39,25 @@ void read_pipeline(Section& s, PipelineConfig& c) {
   if (!power_of_two(c.pose_ring)) {
     s.error("pose_ring", std::to_string(c.pose_ring) + " is not a power of two in [2, 256]");
   }
+  // A spinning stage never gives its core away: a lower-priority stage pinned to the same core
+  // would only run in the kernel's RT-throttling slack (if any). Sleep polling shares a core.
+  if (c.polling == "spin") {
+    struct Named {
+      const char* name;
+      const StageThreadConfig* t;
+    };
+    const Named stages[] = {{"acquisition", &c.acquisition}, {"correlation", &c.correlation}, {"output", &c.output}};
+    const int n = c.output_on_correlation_thread ? 2 : 3;  // output on correlation's thread has no core of its own
+    for (int a = 0; a < n; ++a) {
+      for (int b = a + 1; b < n; ++b) {
+        if (stages[a].t->cpu >= 0 && stages[a].t->cpu == stages[b].t->cpu) {
+          s.error("polling", "spin needs a core per stage, but " + std::string(stages[a].name) + " and " +
+                                 stages[b].name + " are both on cpu " + std::to_string(stages[a].t->cpu) +
+                                 " (the spinning one starves the other): give each its own cpu or use polling: sleep");
+        }
+      }
+    }
+  }
   if (c.frame_pool_slots < c.frame_ring + 3) {
     s.error("frame_pool_slots", std::to_string(c.frame_pool_slots) + " is below frame_ring + 3 = " +
                                     std::to_string(c.frame_ring + 3) +

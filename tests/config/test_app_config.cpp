@@ -120,6 +120,23 @@ TEST(AppConfig, TargetNamesAreOneWordAndUnique) {
   EXPECT_EQ(e.find("targets[4].name"), std::string::npos) << e;
 }
 
+TEST(AppConfig, SpinPollingNeedsACorePerStage) {
+  const auto shared = write_yaml("spin_shared.yaml", "pipeline:\n  polling: spin\n  acquisition: {cpu: 2}\n  correlation: {cpu: 2}\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(shared, c, e));
+  EXPECT_NE(e.find("pipeline.polling: spin needs a core per stage, but acquisition and correlation are both on cpu 2"),
+            std::string::npos)
+      << e;
+  // Sleep polling may share a core (the default placement); spin with a core each is fine.
+  const auto own = write_yaml("spin_own.yaml", "pipeline:\n  polling: spin\n  acquisition: {cpu: 2}\n  correlation: {cpu: 3}\n");
+  e.clear();
+  EXPECT_TRUE(load_app_config(own, c, e)) << e;
+  const auto sleep = write_yaml("sleep_shared.yaml", "pipeline:\n  acquisition: {cpu: 1}\n  correlation: {cpu: 1}\n");
+  e.clear();
+  EXPECT_TRUE(load_app_config(sleep, c, e)) << e;
+}
+
 TEST(AppConfig, CrossSectionChecks) {
   const auto path = write_yaml("cross.yaml", "pipeline:\n  schedule: [0, 1]\n  frame_ring: 8\n  frame_pool_slots: 9\n");
   AppConfig c;
