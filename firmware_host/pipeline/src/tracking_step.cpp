@@ -21,7 +21,13 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
   o.prev_pose_done_ns = prev_pose_done_ns_;
   o.t_start_ns = clock_.pose_start_ns(m.t_seen_ns, prev_pose_done_ns_);
   const std::int64_t wall0 = rt::now_ns();
-  o.est = trackers_[o.target]->update(to_pose_frame(m, pixels));
+  pose::PoseFrame frame = to_pose_frame(m, pixels);
+  frame.held_by_others = held_by_others(o.target);
+  o.est = trackers_[o.target]->update(frame);
+  // A target holds its object while it is followed (TRACKING, or UNCERTAIN at a measured pose).
+  held_[o.target] = {o.est.state == pose::TrackState::kTracking ||
+                         (o.est.state == pose::TrackState::kUncertain && !o.est.searched),
+                     o.est.x_px, o.est.y_px};
   const std::int64_t wall1 = rt::now_ns();
   o.compute_ns = clock_.compute_ns(wall1 - wall0);
   m.t_pose_done_ns = clock_.pose_done_ns(o.t_start_ns, o.compute_ns, wall1);
@@ -29,6 +35,17 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
   const bool tracking = o.est.state == pose::TrackState::kTracking;
   governor_.observe(o.target, o.compute_ns, o.est.score, o.est.psr, tracking && !o.est.searched);
   return o;
+}
+
+pose::HeldPlaces TrackingStep::held_by_others(std::uint8_t target) const noexcept {
+  pose::HeldPlaces h;
+  for (std::size_t t = 0; t < trackers_.size() && t < held_.size(); ++t) {
+    if (t == target || !held_[t].held || h.count >= pose::kMaxHeldPlaces) continue;
+    h.x_px[h.count] = held_[t].x_px;
+    h.y_px[h.count] = held_[t].y_px;
+    ++h.count;
+  }
+  return h;
 }
 
 hal::ScanRequest TrackingStep::next_scan(std::uint8_t target) noexcept {

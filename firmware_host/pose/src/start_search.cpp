@@ -7,7 +7,17 @@
 #include "sempose/rt/angle.hpp"
 
 namespace sempose::pose {
+namespace {
 
+// Within `radius` of a place another target holds: that object is taken.
+bool held_by_another(const HeldPlaces& held, double x, double y, double radius) noexcept {
+  for (int i = 0; i < held.count && i < kMaxHeldPlaces; ++i) {
+    if (std::hypot(x - held.x_px[i], y - held.y_px[i]) < radius) return true;
+  }
+  return false;
+}
+
+}  // namespace
 
 StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& sizes, const AngleGrid& angles,
                          FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
@@ -91,7 +101,7 @@ bool StartSearch::prefer_opposite(const Measurement& m, const Measurement& f, co
 
 Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px, int w, int h, int bits,
                                 const AnglePrior& prior, const ScalePrior& scale_prior, int& roi_x, int& roi_y,
-                                double& found_scale) noexcept {
+                                double& found_scale, const HeldPlaces& held) noexcept {
   Measurement none;
   const int d = sizes_.search_factor, pattern_px = sizes_.pattern_px, cp = sizes_.coarse_pattern_px;
   const int cw = std::min(w / d, sizes_.coarse_max_w), ch = std::min(h / d, sizes_.coarse_max_h);
@@ -147,6 +157,7 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     Tried& t = tried_[static_cast<std::size_t>(tried)];
     t.cx = cd.ux * d - sizes_.coarse_offset_px + c_p;
     t.cy = cd.uy * d - sizes_.coarse_offset_px + c_p;
+    if (held_by_another(held, t.cx, t.cy, pattern_px / 4.0)) continue;
     t.k = cd.k;
     t.level = cd.level;
     t.coarse_score = cd.score;

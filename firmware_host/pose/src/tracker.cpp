@@ -355,8 +355,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // one after a loss (a loss during a magnification ramp: narrow, centred on it).
     const ScalePrior scale_prior{scale_tracked ? scale : expected_scale.load(std::memory_order_relaxed),
                                  scale_tracked || scale_told.load(std::memory_order_relaxed)};
+    // The other targets' objects, in this frame's coordinates: not to be taken by this one.
+    HeldPlaces held = frame.held_by_others;
+    for (int i = 0; i < held.count && i < kMaxHeldPlaces; ++i) {
+      held.x_px[i] -= roi.x;
+      held.y_px[i] -= roi.y;
+    }
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), scale_prior, rx, ry,
-                                        found_scale);
+                                        found_scale, held);
     if (m.valid) to_estimate(m, roi.x + rx, roi.y + ry, e);
     e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;

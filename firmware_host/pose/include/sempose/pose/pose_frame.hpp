@@ -11,6 +11,16 @@ namespace sempose::pose {
 // A rectangle of the scan field, in full-field pixels (the scan vocabulary's one ROI type).
 using Roi = config::Roi;
 
+// Where the other targets of the same run are followed (their last followed poses, full-field
+// pixels). Several targets may share a pattern (two identical tips, two lamellae): a start
+// search must not hand a target the object another target already holds.
+inline constexpr int kMaxHeldPlaces = 7;
+struct HeldPlaces {
+  int count = 0;
+  double x_px[kMaxHeldPlaces]{};
+  double y_px[kMaxHeldPlaces]{};
+};
+
 struct PoseFrame {
   const std::uint16_t* pixels = nullptr;  // roi.w × roi.h, row-major, row stride roi.w
   Roi roi;                                // where it was scanned
@@ -18,6 +28,7 @@ struct PoseFrame {
   std::uint8_t bits = 8;                  // significant bits per pixel
   bool bad = false;                       // the source flagged the frame (overrun, torn, missed sync)
   std::int64_t t_scan_start_ns = 0, t_scan_end_ns = 0;  // the pose is timed at mid-scan
+  HeldPlaces held_by_others;              // the run's other targets (none: a single target)
 };
 
 }  // namespace sempose::pose

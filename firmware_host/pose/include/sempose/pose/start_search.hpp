@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "sempose/config/tracker_config.hpp"
+#include "sempose/pose/pose_frame.hpp"
 #include "sempose/pose/angle_sweep.hpp"
 #include "sempose/pose/candidate_list.hpp"
 #include "sempose/pose/engine_sizes.hpp"
@@ -55,10 +56,12 @@ class StartSearch {
 
   // RT: searches a w×h frame (row stride w). The result is in the scanned (not resampled)
   // coordinates of the ROI at (roi_x, roi_y) of the frame; found_scale is the target's size
-  // over the pattern's there. The loader holds some candidate's ROI afterwards.
+  // over the pattern's there. The loader holds some candidate's ROI afterwards. A candidate
+  // within a quarter pattern of a place in `held` (this frame's coordinates: other targets'
+  // objects) is not taken, nor counted as a look-alike.
   Measurement search(const PatternBank& bank, const std::uint16_t* pixels, int w, int h, int bits,
                      const AnglePrior& prior, const ScalePrior& scale_prior, int& roi_x, int& roi_y,
-                     double& found_scale) noexcept;
+                     double& found_scale, const HeldPlaces& held = {}) noexcept;
 
   // The scale levels searched when the scale is unknown (search_scale_levels.hpp; first 1).
   const std::vector<double>& scale_levels() const noexcept { return levels_; }
