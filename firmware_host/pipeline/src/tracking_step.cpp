@@ -13,7 +13,13 @@ TrackingStep::TrackingStep(const config::GovernorConfig& governor, const hal::Sc
     : clock_(clock),
       limits_(limits),
       trackers_(std::move(trackers)),
-      governor_(governor, limits, std::max<int>(1, static_cast<int>(trackers_.size()))) {}
+      governor_(governor, limits, std::max<int>(1, static_cast<int>(trackers_.size()))) {
+  for (std::size_t t = 0; t < trackers_.size() && t < alike_.size(); ++t) {
+    for (std::size_t u = 0; u < trackers_.size() && u < alike_.size(); ++u) {
+      alike_[t][u] = t != u && trackers_[t]->likeness(*trackers_[u]) >= pose::Tracker::kAlike;
+    }
+  }
+}
 
 TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* pixels) noexcept {
   Outcome o;
@@ -40,7 +46,7 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
 pose::HeldPlaces TrackingStep::held_by_others(std::uint8_t target) const noexcept {
   pose::HeldPlaces h;
   for (std::size_t t = 0; t < trackers_.size() && t < held_.size(); ++t) {
-    if (t == target || !held_[t].held || h.count >= pose::kMaxHeldPlaces) continue;
+    if (!alike_[target][t] || !held_[t].held || h.count >= pose::kMaxHeldPlaces) continue;
     h.x_px[h.count] = held_[t].x_px;
     h.y_px[h.count] = held_[t].y_px;
     ++h.count;

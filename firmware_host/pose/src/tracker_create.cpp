@@ -169,4 +169,32 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   return std::unique_ptr<Tracker>(new Tracker(std::move(impl)));
 }
 
+double Tracker::likeness(const Tracker& other) const {
+  constexpr int kMaxShift = 4, kShiftStep = 2, kAngleStride = 2;
+  double best = -1.0;
+  for (const auto& mine : impl_->banks) {
+    for (const auto& theirs : other.impl_->banks) {
+      const int n = mine->size_px();
+      if (theirs->size_px() != n) continue;
+      const float* b = theirs->pattern(0);  // as recorded (angle 0)
+      const int stride = std::max(1, static_cast<int>(std::lround(kAngleStride * mine->angles() / 360.0)));
+      for (int j = 0; j < mine->angles(); j += stride) {
+        const float* a = mine->pattern(j);
+        for (int dy = -kMaxShift; dy <= kMaxShift; dy += kShiftStep) {
+          for (int dx = -kMaxShift; dx <= kMaxShift; dx += kShiftStep) {
+            double dot = 0;
+            for (int y = std::max(0, -dy); y < n - std::max(0, dy); ++y) {
+              const float* ra = a + static_cast<std::size_t>(y + dy) * n;
+              const float* rb = b + static_cast<std::size_t>(y) * n;
+              for (int x = std::max(0, -dx); x < n - std::max(0, dx); ++x) dot += static_cast<double>(ra[x + dx]) * rb[x];
+            }
+            best = std::max(best, dot);  // both zero-mean, unit norm over their supports: ≈ ZNCC
+          }
+        }
+      }
+    }
+  }
+  return best;
+}
+
 }  // namespace sempose::pose

@@ -48,13 +48,15 @@ class TrackingStep {
   ScanSpeedGovernor governor_;
   std::int64_t prev_pose_done_ns_ = 0;
   std::array<std::uint32_t, hal::kMaxTargets> pose_seq_{};
-  // Where each target is followed: a start search of another target does not take that
+  // Where each target is followed: a start search of a look-alike target does not take that
   // object (several targets may share a pattern).
   struct Held {
     bool held = false;
     double x_px = 0, y_px = 0;
   };
   std::array<Held, hal::kMaxTargets> held_{};
+  // alike_[t][u]: u's patterns look like t's (pose::Tracker::likeness ≥ kAlike, setup).
+  std::array<std::array<bool, hal::kMaxTargets>, hal::kMaxTargets> alike_{};
   pose::HeldPlaces held_by_others(std::uint8_t target) const noexcept;
 };
 
