@@ -14,9 +14,10 @@ TrackingStep::TrackingStep(const config::GovernorConfig& governor, const hal::Sc
       limits_(limits),
       trackers_(std::move(trackers)),
       governor_(governor, limits, std::max<int>(1, static_cast<int>(trackers_.size()))) {
+  // Once per pair (~0.1 s at 128²): one's turned copies already cover the other's turns.
   for (std::size_t t = 0; t < trackers_.size() && t < alike_.size(); ++t) {
-    for (std::size_t u = 0; u < trackers_.size() && u < alike_.size(); ++u) {
-      alike_[t][u] = t != u && trackers_[t]->likeness(*trackers_[u]) >= pose::Tracker::kAlike;
+    for (std::size_t u = t + 1; u < trackers_.size() && u < alike_.size(); ++u) {
+      alike_[t][u] = alike_[u][t] = trackers_[t]->likeness(*trackers_[u]) >= pose::Tracker::kAlike;
     }
   }
 }
