@@ -3,6 +3,7 @@
 // 0 all pass, 1 warnings only, 3 a failure, 2 usage or config errors. `--root DIR` reads
 // DIR/proc, DIR/sys and DIR/dev instead of the live ones (tests, or a copied tree).
 #include <cstdio>
+#include <filesystem>
 #include <cstring>
 #include <string>
 
@@ -50,6 +51,12 @@ int sempose::cli::check_rt(int argc, char** argv) {
       std::fprintf(stderr, "sempose check-rt: unknown or incomplete option '%s'\n", a.c_str());
       return usage(stderr);
     }
+  }
+  std::error_code ec;
+  if (!std::filesystem::is_directory(root, ec)) {
+    std::fprintf(stderr, "sempose check-rt: --root '%s' is not a directory (a system tree with proc/, sys/, dev/)\n",
+                 root.c_str());
+    return 2;
   }
   config::AppConfig cfg;
   if (!config_path.empty()) {

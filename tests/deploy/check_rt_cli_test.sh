@@ -32,6 +32,11 @@ mkdir -p "$work/empty"
 rc=0; "$bin" check-rt --root "$work/empty" >"$work/empty.txt" 2>&1 || rc=$?
 [ "$rc" -eq 3 ] && grep -q '^FAIL  kernel' "$work/empty.txt" && ok "empty tree: exit 3" || bad "empty tree: rc $rc"
 
+# A --root that is no directory: named error, exit 2 (not a report on a tree that is not there).
+rc=0; "$bin" check-rt --root "$work/nowhere" >"$work/nowhere.txt" 2>&1 || rc=$?
+[ "$rc" -eq 2 ] && grep -q "root '$work/nowhere' is not a directory" "$work/nowhere.txt" && ok "missing --root: exit 2" \
+  || { cat "$work/nowhere.txt"; bad "missing --root: rc $rc"; }
+
 # A bad config: named error, exit 2.
 printf 'pipeline:\n  acquisition: {cpu: 2000, priority: 60}\n' >"$work/bad.yaml"
 rc=0; "$bin" check-rt --config "$work/bad.yaml" >"$work/bad.txt" 2>&1 || rc=$?

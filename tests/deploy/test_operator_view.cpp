@@ -56,6 +56,13 @@ TEST(PoseCsv, ErrorsNameFileLineAndCell) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find(p + ":3: 'zwei' is not a number"), std::string::npos) << e.what();
   }
+  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,nan,2,3,0.5,TRACKING\n";
+  try {
+    read_pose_csv(p);
+    FAIL() << "no error for nan";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(p + ":2: 'nan' is not a finite number"), std::string::npos) << e.what();
+  }
   std::ofstream(p) << "x,y\n1,2\n";
   EXPECT_THROW(read_pose_csv(p), std::runtime_error);
   fs::remove(p);

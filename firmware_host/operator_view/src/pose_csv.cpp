@@ -1,6 +1,7 @@
 #include "sempose/operator_view/pose_csv.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -13,6 +14,8 @@ double number(const std::string& cell, const std::string& where) {
   char* end = nullptr;
   const double v = std::strtod(cell.c_str(), &end);
   if (cell.empty() || end != cell.c_str() + cell.size()) throw std::runtime_error(where + ": '" + cell + "' is not a number");
+  // A pose sempose writes is always finite; nan/inf would only reach the plot as a gap.
+  if (!std::isfinite(v)) throw std::runtime_error(where + ": '" + cell + "' is not a finite number");
   return v;
 }
 
