@@ -150,12 +150,17 @@ int sempose::cli::pattern(int argc, char** argv) {
         pat.pixels[static_cast<std::size_t>(y) * size + x] = static_cast<std::uint16_t>(std::lround(std::min(maxv, v)));
       }
     }
-    hal::write_pgm(out, pat);
+    try {
+      hal::write_pgm(out, pat);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "sempose pattern: %s\n", e.what());
+      return 1;  // the output, not the input
+    }
     std::printf("sempose pattern: %s: %ldx%ld around (%g, %g), mean of %zu frames\n", out.c_str(), size, size, cx,
                 cy, used);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sempose pattern: %s\n", e.what());
-    return 1;
+    return 2;  // the frames: missing, unreadable, not PGM
   }
   return 0;
 }

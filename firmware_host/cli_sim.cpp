@@ -8,6 +8,7 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -114,9 +115,25 @@ int sempose::cli::sim(int argc, char** argv) {
   }
   if (seed_given) sim_cfg.seed = seed;
   sim_cfg.clock = "virtual";
+  // The scene first (textures, crops): bad input is named before the output folder is made.
+  std::unique_ptr<hal::SimSource> scene;
   try {
-    std::filesystem::create_directories(out_dir);
-    hal::SimSource source(scan, sim_cfg);
+    scene = std::make_unique<hal::SimSource>(scan, sim_cfg);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sempose sim: %s\n", e.what());
+    return 2;
+  }
+  {
+    std::error_code ec;
+    std::filesystem::create_directories(out_dir, ec);
+    if (ec || !std::filesystem::is_directory(out_dir)) {
+      std::fprintf(stderr, "sempose sim: --out '%s': cannot make it a folder of frames (%s)\n", out_dir.c_str(),
+                   ec ? ec.message().c_str() : "it exists and is not a directory");
+      return 1;
+    }
+  }
+  try {
+    hal::SimSource& source = *scene;
     const hal::Roi field{0, 0, scan.field_w, scan.field_h};
     hal::FramePool pool(1, static_cast<std::size_t>(scan.field_w) * scan.field_h);
     hal::FrameSlot& slot = pool[0];

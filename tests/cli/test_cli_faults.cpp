@@ -264,3 +264,24 @@ TEST(CliFaults, NegativeOrHugeFrameInFramesCsvIsANamedError) {
 }
 
 }  // namespace
+
+// Bad input to `sempose sim` and `sempose pattern` is exit 2 and creates nothing; an output
+// that cannot be made is exit 1.
+TEST(CliFaults, SimAndPatternNameBadInputBeforeMakingOutputs) {
+  const std::string dir = work_dir() + "/simpat";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/dir_texture.yaml")
+      << "scan: {field_w: 256, field_h: 192}\nsim:\n  targets:\n    - {texture: {path: " << dir
+      << ", crop: [0, 0, 10, 10]}, size: [40, 30], start: [100, 100, 0]}\n";
+  Outcome r = run({"sim", "--out", dir + "/made", "--frames", "2", "--config", dir + "/dir_texture.yaml"}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("is a directory, not a file"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/made")) << "the output folder was made before the input was checked";
+  std::ofstream(dir + "/a_file") << "x";
+  r = run({"sim", "--out", dir + "/a_file", "--frames", "2"}, 60);
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("cannot make it a folder of frames"), std::string::npos) << r.err;
+  r = run({"pattern", "--frames", dir + "/nowhere", "--center", "100,100", "--size", "32", "--out", dir + "/p.pgm"}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/p.pgm"));
+}
