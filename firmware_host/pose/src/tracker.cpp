@@ -149,8 +149,16 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
 // 7 px/frame², scores 0.8-0.9, read as ~2 px of "noise"; third differences, which cancel a
 // constant acceleration, still read 1.6 px there and caught fewer wanderings at 1 e-/px), and
 // the poses that wander to a neighbouring maximum score low (1 e-/px: 0.37-0.62).
+//
+// Below that bound the stream's noise is required, not only used when known: on a search frame
+// (σ not measured) and the three ROI frames after it (the noise is known from the third
+// innovation of predictions made from ROI poses) a pose's own σ is all there is, and it does
+// not see a neighbouring maximum. At 1 e-/px 10 of the 14 false poses of all dose-1 rows were
+// there (the warped crop's re-searches landing on a maximum 9-12 px off, kept by the walk at
+// the target's score with σ 0.9 px; a search 4 px off on the needle tip); now UNCERTAIN.
 bool Tracker::Impl::trusted_pose(const PoseEstimate& e) const noexcept {
   double s_px = std::max(e.sigma_x_px, e.sigma_y_px), s_deg = e.sigma_phi_deg;
+  if (e.score < loss.explained_bound() && !motion.pose_noise_known() && !loss.calibrating()) return false;
   if (motion.pose_noise_known() && e.score < loss.explained_bound()) {
     s_px = std::max(s_px, motion.pose_noise_px());
     s_deg = std::max(s_deg, motion.pose_noise_deg());
@@ -376,7 +384,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       scale = e.scale;  // tracking starts at the scale the search found
       scale_tracked = true;
       open_flip_check(m, prior_known);
-      if (flip_open) e.state = TrackState::kUncertain;
+      // The search frame's pose is judged like a tracked one (trusted_pose: below the explained
+      // bound it waits for the stream's pose noise; above it σ = 0, not measured, passes as before).
+      if (flip_open || !trusted_pose(e)) e.state = TrackState::kUncertain;
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable

@@ -59,6 +59,7 @@ class LossPolicy {
   }
   // Setup's noise trials: no own level is learnt from them.
   void set_calibrating(bool on) noexcept { calibrating_ = on; }
+  bool calibrating() const noexcept { return calibrating_; }
   // The target's look may have changed (commanded re-acquisition, new magnification).
   void forget_target() noexcept {
     have_ref_ = false;
