@@ -169,7 +169,10 @@ TEST_P(ScaleRamp, TrackedWithoutFalsePoses) {
   pt::SimHarness h(s, default_tracker());
   ASSERT_TRUE(h.status().ok) << h.status().message;
   h.run();
-  int tracked = 0, false_n = 0, tracked_first_third = 0;
+  // The start search's frame and the three after it: a pose scoring below the explained
+  // bound is UNCERTAIN there until the stream's pose noise is known (README: States).
+  constexpr std::size_t kStartFrames = 4;
+  int tracked = 0, false_n = 0, tracked_first_third = 0, tracked_after_start = 0;
   for (std::size_t f = 0; f < h.poses().size(); ++f) {
     const auto& e = h.poses()[f];
     const auto& t = h.records()[f].truth;
@@ -179,6 +182,7 @@ TEST_P(ScaleRamp, TrackedWithoutFalsePoses) {
     if (3 * f < h.poses().size() && e.state == TrackState::kUncertain) ++tracked_first_third;
     if (e.state != TrackState::kTracking) continue;
     ++tracked;
+    if (f >= kStartFrames) ++tracked_after_start;
     if (3 * f < h.poses().size()) ++tracked_first_third;
     const double dphi = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
     if (!(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && dphi <= 10.0)) ++false_n;
@@ -186,8 +190,8 @@ TEST_P(ScaleRamp, TrackedWithoutFalsePoses) {
   std::printf("%-12s scale -> %.2f dose %4.1f: TRACKING %d/%d, false %d\n", s.target.c_str(), s.scale_to, s.dose_e,
               tracked, s.frames, false_n);
   EXPECT_EQ(false_n, 0) << "TRACKING while > 3 px or > 10 deg off";
-  // Scale is tracked, not merely rejected: the whole ramp stays TRACKING.
-  EXPECT_GE(tracked, s.frames - 3);
+  // Scale is tracked, not merely rejected: the whole ramp after the start stays TRACKING.
+  EXPECT_GE(tracked_after_start, s.frames - static_cast<int>(kStartFrames) - 3);
   EXPECT_GE(tracked_first_third, s.frames / 3 - 1);
 }
 
