@@ -44,6 +44,7 @@ SEMPOSE_CLONES double masked_dot(const float* t, int size,
 
 ExactScorer::ExactScorer(const PatternMask& fine_mask, int max_roi_px)
     : pattern_px_(fine_mask.size_px()),
+      max_roi_px_(max_roi_px),
       chunk_bands_(widen_to_chunks(fine_mask, kChunkPx)),
       roi_(static_cast<std::size_t>(max_roi_px) * max_roi_px, 0.0f),
       tables_(max_roi_px, max_roi_px) {}

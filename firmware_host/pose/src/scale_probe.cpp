@@ -25,6 +25,16 @@ double ScaleProbe::score(const PatternBank& bank, const Measurement& m, double f
   const int y_lo = static_cast<int>(std::ceil(cy - half)), y_hi = static_cast<int>(std::floor(cy + half));
   if (x_lo < 0 || y_lo < 0 || x_hi > w - 1 || y_hi > h - 1) return -2.0;
   const double inv = 1.0 / factor, inv_window = 1.0 / window;
+  // The columns read, worked out once (the same arithmetic as per pixel: the same scores).
+  int n_cols = 0;
+  for (int x = x_lo; x <= x_hi && n_cols < static_cast<int>(columns_.size()); x += stride) {
+    const double pu = c + (x - cx) * inv;
+    Column& col = columns_[static_cast<std::size_t>(n_cols++)];
+    col.u0 = std::clamp(static_cast<int>(pu), 0, p - 2);
+    col.wu = pu - col.u0;
+    col.u_near = std::clamp(static_cast<int>(std::lround(c + (x - cx) * inv_window)), 0, p - 1);
+  }
+  const Column* cols = columns_.data();
   double st = 0, stt = 0, sf = 0, sff = 0, stf = 0, n = 0;
   // Every third row and column of the ROI: a ninth of the cost (the probe's three scores cost
   // less than the walk), the estimate's noise grows by ~3x per frame and the running scale
@@ -33,22 +43,22 @@ double ScaleProbe::score(const PatternBank& bank, const Measurement& m, double f
     const double pv = c + (y - cy) * inv;
     const int v0 = std::clamp(static_cast<int>(pv), 0, p - 2);
     const double wv = pv - v0;
-    const float* fr = f + static_cast<std::ptrdiff_t>(y) * w;
+    const float* fr = f + static_cast<std::ptrdiff_t>(y) * w + x_lo;
     const float* t0 = t + static_cast<std::ptrdiff_t>(v0) * p;
     const float* t1 = t0 + p;
     const int v_near = std::clamp(static_cast<int>(std::lround(c + (y - cy) * inv_window)), 0, p - 1);
-    for (int x = x_lo; x <= x_hi; x += stride) {
-      const double pu = c + (x - cx) * inv;
-      const int u0 = std::clamp(static_cast<int>(pu), 0, p - 2);
-      const double wu = pu - u0;
-      // Only the pattern's support (it is zero outside) stretched by `window`: judged at the
-      // nearest pattern pixel of that stretch.
-      const int u_near = std::clamp(static_cast<int>(std::lround(c + (x - cx) * inv_window)), 0, p - 1);
-      if (t[static_cast<std::ptrdiff_t>(v_near) * p + u_near] == 0.0f) continue;
+    // Only the pattern's support (it is zero outside) stretched by `window`: judged at the
+    // nearest pattern pixel of that stretch.
+    const float* support = t + static_cast<std::ptrdiff_t>(v_near) * p;
+    for (int k = 0; k < n_cols; ++k) {
+      const Column& col = cols[k];
+      if (support[col.u_near] == 0.0f) continue;
+      const int u0 = col.u0;
+      const double wu = col.wu;
       const double top = t0[u0] + wu * (t0[u0 + 1] - t0[u0]);
       const double bot = t1[u0] + wu * (t1[u0 + 1] - t1[u0]);
       const double tv = top + wv * (bot - top);
-      const double fv = fr[x];
+      const double fv = fr[static_cast<std::ptrdiff_t>(k) * stride];
       st += tv;
       stt += tv * tv;
       sf += fv;

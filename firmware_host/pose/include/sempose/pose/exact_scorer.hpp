@@ -31,6 +31,7 @@ class ExactScorer {
 
   // RT: keeps the prefiltered ROI (w×h, row stride w) minus its mean, and its tables.
   void load(const std::int32_t* filtered, int w, int h) noexcept;
+  int max_roi_px() const noexcept { return max_roi_px_; }
   int roi_w() const noexcept { return roi_w_; }
   int roi_h() const noexcept { return roi_h_; }
   // The loaded ROI, prefiltered, minus its mean (roi_w() × roi_h(), row stride roi_w()): what
@@ -48,6 +49,7 @@ class ExactScorer {
 
  private:
   int pattern_px_;
+  int max_roi_px_ = 0;
   std::vector<MaskBand> chunk_bands_;  // the circle widened to 16-float chunks
   int roi_w_ = 0, roi_h_ = 0;
   std::vector<float> roi_;             // prefiltered ROI minus its mean (row stride roi_w_)

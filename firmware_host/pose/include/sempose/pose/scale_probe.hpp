@@ -7,6 +7,8 @@
 // no allocation.
 #pragma once
 
+#include <vector>
+
 #include "sempose/pose/exact_scorer.hpp"
 #include "sempose/pose/measurement.hpp"
 #include "sempose/pose/pattern_bank.hpp"
@@ -23,7 +25,9 @@ class ScaleProbe {
   static constexpr double kStep = 0.03;
   static constexpr int kStride = 3;  // rows and columns of the ROI read  // δ: about the width of the score's peak in scale at ~100 px
 
-  explicit ScaleProbe(const ExactScorer& scorer) noexcept : scorer_(scorer) {}
+  // Setup (allocates the per-column scratch for the largest ROI the scorer loads).
+  explicit ScaleProbe(const ExactScorer& scorer)
+      : scorer_(scorer), columns_(static_cast<std::size_t>(scorer.max_roi_px())) {}
 
   ScaleReading read(const PatternBank& bank, const Measurement& m) const noexcept;
   // The ZNCC at the pose of m with the pattern grid stretched by `factor`, over the ROI pixels
@@ -34,7 +38,16 @@ class ScaleProbe {
                int stride = kStride) const noexcept;
 
  private:
+  // What a column of the window reads of the stretched pattern: the same for every row, so
+  // worked out once per score instead of once per pixel (the start search's refinement spent
+  // most of its time on these per-pixel products and roundings).
+  struct Column {
+    int u0 = 0;       // left neighbour in the pattern (bilinear)
+    int u_near = 0;   // nearest pattern column of the support stretched by `window`
+    double wu = 0;    // weight of the right neighbour
+  };
   const ExactScorer& scorer_;
+  mutable std::vector<Column> columns_;  // scratch, one per ROI column read (RT: no allocation)
 };
 
 }  // namespace sempose::pose
