@@ -45,10 +45,15 @@ int main(int argc, char** argv) {
   // --profile ROI [REPS]: only the tracker's per-pose loop at that ROI (for perf record).
   const int profile_roi = argc > 2 && std::string(argv[1]) == "--profile" ? std::atoi(argv[2]) : 0;
   const int profile_reps = argc > 3 ? std::atoi(argv[3]) : 20000;
+  // --profile-search W H one|levels|narrow [REPS]: only the start search at that field (perf).
+  const bool profile_search = argc > 4 && std::string(argv[1]) == "--profile-search";
+  const int ps_w = profile_search ? std::atoi(argv[2]) : 0, ps_h = profile_search ? std::atoi(argv[3]) : 0;
+  const std::string ps_cover = profile_search ? argv[4] : "";
+  const int ps_reps = profile_search && argc > 5 ? std::atoi(argv[5]) : 400;
   std::printf("per-pose compute with orientation, pattern 128², 3 angles (median / p99 over runs)\n");
   std::printf("%-6s | %12s %12s | %14s | %7s\n", "ROI", "sempose p50", "sempose p99", "matchTemplate", "ratio");
   for (int roi : {128, 160, 192}) {
-    if (profile_roi && roi != profile_roi) continue;
+    if ((profile_roi && roi != profile_roi) || profile_search) continue;
     config::TrackerConfig tc;
     tc.roi_size_px = roi;
     Scenario s;
@@ -148,6 +153,8 @@ int main(int argc, char** argv) {
   enum class Cover { kScaleOne, kLevels, kNarrow };
   for (auto [w, hgt] : {std::pair{640, 480}, std::pair{1024, 768}})
   for (const Cover cover : {Cover::kScaleOne, Cover::kLevels, Cover::kNarrow}) {
+    const char* cover_name = cover == Cover::kLevels ? "levels" : cover == Cover::kNarrow ? "narrow" : "one";
+    if (profile_search && (w != ps_w || hgt != ps_h || ps_cover != cover_name)) continue;
     config::TrackerConfig tc;
     if (cover == Cover::kScaleOne) tc.search_scale_min = tc.search_scale_max = 1.0;
     Scenario s;
@@ -175,13 +182,13 @@ int main(int argc, char** argv) {
     std::vector<hal::Pixel> px(static_cast<std::size_t>(w) * hgt);
     sim.render(meta.roi, 250, hal::SimSource::kVirtualEpochNs, 1, px.data(), meta.truth);
     int found = 0;
-    const Timing ts = time_it(15, [&] {
+    const Timing ts = time_it(profile_search ? ps_reps : 15, [&] {
       t.request_reacquire();  // a full-field frame while tracking is otherwise tracked in its crop
       const PoseEstimate e = t.update(pipeline::to_pose_frame(meta, px.data()));
       found += e.state == TrackState::kTracking && std::hypot(e.x_px - meta.truth[0].x_px, e.y_px - meta.truth[0].y_px) < 1.0;
     });
-    std::printf("%4dx%-4d  %-13s p50 %7.2f ms  max %7.2f ms  found %d/15   (bank + buffers %.1f MB)\n", w, hgt,
-                cover == Cover::kLevels ? "0.75-1.33" : cover == Cover::kNarrow ? "narrow" : "scale 1 only", ts.p50_us * 1e-3, ts.max_us * 1e-3, found, t.memory_bytes() / 1e6);
+    std::printf("%4dx%-4d  %-13s p50 %7.2f ms  max %7.2f ms  found %d/%d   (bank + buffers %.1f MB)\n", w, hgt,
+                cover == Cover::kLevels ? "0.75-1.33" : cover == Cover::kNarrow ? "narrow" : "scale 1 only", ts.p50_us * 1e-3, ts.max_us * 1e-3, found, profile_search ? ps_reps : 15, t.memory_bytes() / 1e6);
   }
   return 0;
 }
