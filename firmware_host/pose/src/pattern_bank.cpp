@@ -48,6 +48,8 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
   const int h = half_mask.size_px();
   std::vector<float> halved(static_cast<std::size_t>(h) * h);
   coarse_len_ = coarse.spectrum_len();
+  FftCorrelator* coarse_wide = levels.coarse_wide;
+  coarse_wide_len_ = coarse_wide ? coarse_wide->spectrum_len() : 0;
   const int m = coarse_mask.size_px();
 
   std::vector<float> src(static_cast<std::size_t>(n) * n), raw(src.size()), small(static_cast<std::size_t>(m) * m);
@@ -58,7 +60,10 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
   spatial_.assign(static_cast<std::size_t>(angles_) * n * n, 0.0f);
   spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len_ * angles_)), FftwFree{});
   coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)), FftwFree{});
-  if (!spectra_ || !coarse_spectra_) throw std::bad_alloc();
+  if (coarse_wide)
+    coarse_wide_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_wide_len_ * coarse_angles_)),
+                               FftwFree{});
+  if (!spectra_ || !coarse_spectra_ || (coarse_wide && !coarse_wide_spectra_)) throw std::bad_alloc();
 
   has_shape_ = !shape_image.empty();
   std::vector<float> shape(src.size(), 1.0f), shape_scratch(src.size());
@@ -109,6 +114,8 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
       return false;
     }
     coarse.make_spectrum(small.data(), coarse_spectra_.get() + static_cast<std::size_t>(k) * coarse_len_);
+    if (coarse_wide)
+      coarse_wide->make_spectrum(small.data(), coarse_wide_spectra_.get() + static_cast<std::size_t>(k) * coarse_wide_len_);
   }
   return true;
 }
@@ -128,8 +135,10 @@ std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& 
   b.coarse_step_deg_ = base.coarse_step_deg_;
   b.spectrum_len_ = base.spectrum_len_;
   b.coarse_len_ = base.coarse_len_;
+  b.coarse_wide_len_ = base.coarse_wide_len_;
   b.spectra_ = base.spectra_;
   b.coarse_spectra_ = base.coarse_spectra_;
+  b.coarse_wide_spectra_ = base.coarse_wide_spectra_;
   b.has_shape_ = true;
   b.spatial_ = base.spatial_;
   b.support_begin_.assign(1, 0);
@@ -174,7 +183,7 @@ double PatternBank::mean_support_count() const noexcept {
 }
 
 std::size_t PatternBank::memory_bytes() const noexcept {
-  return spatial_.size() * sizeof(float) + sizeof(Complex) * (spectrum_len_ * angles_ + coarse_len_ * coarse_angles_) +
+  return spatial_.size() * sizeof(float) + sizeof(Complex) * (spectrum_len_ * angles_ + (coarse_len_ + coarse_wide_len_) * coarse_angles_) +
          support_.size() * sizeof(MaskBand) + support_begin_.size() * sizeof(std::size_t) +
          support_count_.size() * sizeof(std::int64_t);
 }

@@ -20,13 +20,14 @@ bool held_by_another(const HeldPlaces& held, double x, double y, double radius) 
 }  // namespace
 
 StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& sizes, const AngleGrid& angles,
-                         FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
+                         FftCorrelator& coarse, FftCorrelator* coarse_wide, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
                          const ScaleProbe& probe, const ScaleEvidenceCheck& evidence, const OrientationWalk& walk,
                          AngleSweep& sweep, CorrelationMaps& maps)
     : cfg_(cfg),
       sizes_(sizes),
       angles_(angles),
       coarse_(coarse),
+      coarse_wide_(coarse_wide),
       half_(half),
       loader_(loader),
       rescaler_(rescaler),
@@ -43,9 +44,9 @@ StartSearch::StartSearch(const config::TrackerConfig& cfg, const EngineSizes& si
       tried_(static_cast<std::size_t>(std::max(1, cfg.search_candidates))),
       candidates_(cfg.search_candidates, std::max(2, sizes.coarse_pattern_px / 2)) {}
 
-void StartSearch::resample_coarse(int cw, int ch, double s, int& lw, int& lh) noexcept {
-  lw = std::min(coarse_.fft_w(), std::min(sizes_.coarse_max_w, static_cast<int>((cw - 1) / s) + 1));
-  lh = std::min(coarse_.fft_h(), std::min(sizes_.coarse_max_h, static_cast<int>((ch - 1) / s) + 1));
+void StartSearch::resample_coarse(int cw, int ch, double s, int max_w, int max_h, int& lw, int& lh) noexcept {
+  lw = std::min(max_w, std::min(sizes_.coarse_max_w, static_cast<int>((cw - 1) / s) + 1));
+  lh = std::min(max_h, std::min(sizes_.coarse_max_h, static_cast<int>((ch - 1) / s) + 1));
   const std::int32_t* in = coarse_frame_.data();
   for (int y = 0; y < lh; ++y) {
     const double v = std::min(y * s, ch - 1.0);
@@ -118,16 +119,24 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   candidates_.clear();
   for (int l = 0; l < n_levels; ++l) {
     const double s = active_[static_cast<std::size_t>(l)];
+    // The level's frame (the scanned one enlarged by 1/s) on the smaller correlator that holds
+    // it: a level ≥ 1 and the narrow search run at the scanned field's FFT size, not at the
+    // 0.8 level's (1.56× the points at 640×480; FFTW's plan for 100×75 is slower still).
+    const int want_w = std::min(sizes_.coarse_max_w, s == 1.0 ? cw : static_cast<int>((cw - 1) / s) + 1);
+    const int want_h = std::min(sizes_.coarse_max_h, s == 1.0 ? ch : static_cast<int>((ch - 1) / s) + 1);
+    const bool wide = coarse_wide_ != nullptr && bank.coarse_wide_spectrum(0) != nullptr &&
+                      (want_w > coarse_.fft_w() || want_h > coarse_.fft_h());
+    FftCorrelator& corr = wide ? *coarse_wide_ : coarse_;
     bool loaded = false;
     if (s == 1.0) {
-      loaded = coarse_.load(coarse_frame_.data(), cw, ch, cw);
+      loaded = corr.load(coarse_frame_.data(), cw, ch, cw);
     } else {
       int lw = 0, lh = 0;
-      resample_coarse(cw, ch, s, lw, lh);
-      loaded = lw >= cp && lh >= cp && coarse_.load(level_frame_.data(), lw, lh, lw);
+      resample_coarse(cw, ch, s, corr.fft_w(), corr.fft_h(), lw, lh);
+      loaded = lw >= cp && lh >= cp && corr.load(level_frame_.data(), lw, lh, lw);
     }
     if (!loaded) continue;
-    const int vw = coarse_.valid_w(), vh = coarse_.valid_h();
+    const int vw = corr.valid_w(), vh = corr.valid_h();
     // A resampled level is smoother than the scanned frame and its ZNCCs run higher: a
     // scale-1 target's place went to the 0.8 level (the real lamella scene at 2.5 e⁻/px).
     // Its scores give way by kCoarseTiePerLevel per level away from the expected scale.
@@ -136,7 +145,7 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
                                           std::log(kSearchLevelRatio))
                      : 0.0f;
     for (int k = 0; k < bank.coarse_angles(); ++k) {
-      coarse_.correlate(bank.coarse_spectrum(k), coarse_map_.data());
+      corr.correlate(wide ? bank.coarse_wide_spectrum(k) : bank.coarse_spectrum(k), coarse_map_.data());
       candidates_.add_local_maxima(coarse_map_.data(), vw, vh, k, l, s, (cp - 1) / 2.0, coarse_handicap);
     }
   }
@@ -161,7 +170,8 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     t.k = cd.k;
     t.level = cd.level;
     t.coarse_score = cd.score;
-    t.fine = measure_place(bank, px, w, h, bits, prior, t.cx, t.cy, cd.k, active_[static_cast<std::size_t>(cd.level)], span);
+    t.fine = measure_place(bank, px, w, h, bits, prior, t.cx, t.cy, cd.k, active_[static_cast<std::size_t>(cd.level)], span,
+                           n_levels > 1);
     // Rank by coarse + fine score: the ×8 level averages 64 pixels per sample and is the
     // more discriminative statistic at a few electrons per pixel; the fine level refines.
     t.rank = t.fine.m.score + cd.score;
@@ -221,7 +231,7 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
   const double won_scale = best.load_scale * best.factor;
   if (std::fabs(std::log(won_scale / expected)) > kPriorBand) {
     // At the expected scale exactly (no refinement span): that is the hypothesis kept.
-    const Fine at_prior = measure_place(bank, px, w, h, bits, prior, best_cx, best_cy, best_k, expected, 0.0);
+    const Fine at_prior = measure_place(bank, px, w, h, bits, prior, best_cx, best_cy, best_k, expected, 0.0, false);
     if (at_prior.m.valid && loader_.load(px + static_cast<std::size_t>(best.ry) * w + best.rx, rw, rh, w, bits)) {
       const ScaleEvidence ev = evidence_.compare(bank, in_scanned_roi(best), won_scale, in_scanned_roi(at_prior),
                                                  at_prior.load_scale * at_prior.factor);
@@ -280,7 +290,7 @@ Measurement StartSearch::in_scanned_roi(const Fine& f) const noexcept {
 
 StartSearch::Fine StartSearch::measure_place(const PatternBank& bank, const std::uint16_t* px, int w, int h, int bits,
                                              const AnglePrior& prior, double cx, double cy, int k, double level_scale,
-                                             double span) noexcept {
+                                             double span, bool common_score) noexcept {
   Fine out;
   const int d = sizes_.search_factor, pattern_px = sizes_.pattern_px;
   const double c_p = (pattern_px - 1) / 2.0;
@@ -330,8 +340,10 @@ StartSearch::Fine StartSearch::measure_place(const PatternBank& bank, const std:
   out.load_scale = s;
   if (m.valid) {
     out.factor = refine_factor(bank, m, span);  // while this ROI is loaded
-    // Loaded as scanned: the candidates' common score (search()) can be taken now.
-    if (s == 1.0) out.scanned_score = probe_.score(bank, m, out.factor, out.factor * (1.0 - ScaleProbe::kStep), 1);
+    // Loaded as scanned: the candidates' common score (search(), over several levels only) can
+    // be taken now. An every-pixel score costs nine of the refinement's: a one-level search,
+    // which never reads it, spent ~40 % of its time there (pose_speed_bench under perf).
+    if (common_score && s == 1.0) out.scanned_score = probe_.score(bank, m, out.factor, out.factor * (1.0 - ScaleProbe::kStep), 1);
   }
   return out;
 }

@@ -523,7 +523,7 @@ void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::m
 
 std::size_t Tracker::memory_bytes() const noexcept {
   const Impl& t = *impl_;
-  std::size_t b = t.half.buffer_bytes() + t.coarse.buffer_bytes();
+  std::size_t b = t.half.buffer_bytes() + t.coarse.buffer_bytes() + (t.coarse_wide ? t.coarse_wide->buffer_bytes() : 0);
   b += t.scorer.memory_bytes() + t.loader.memory_bytes() + t.rescaler.memory_bytes() + t.maps.memory_bytes() +
        t.search.memory_bytes();
   for (const auto& bank : t.banks) b += bank->memory_bytes();

@@ -123,7 +123,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     spec.coarse_step_deg = cfg.search_angle_step_deg;
     spec.coarse_factor = sizes.search_factor;
     std::string why;
-    auto bank = PatternBank::build(spec, {t.fine_mask, t.half_mask, t.half, t.coarse_mask, t.coarse}, why);
+    auto bank = PatternBank::build(spec, {t.fine_mask, t.half_mask, t.half, t.coarse_mask, t.coarse, t.coarse_wide.get()}, why);
     if (!bank) return fail("pattern set " + std::to_string(i) + ": " + why);
     t.banks.push_back(std::move(bank));
     t.nm_per_px.push_back(sets[i].nm_per_px);
@@ -162,7 +162,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   }
   t.calibrate_noise_floors(limits);
   status = rt::Status::success();
-  if (t.half.execute_allocates() || t.coarse.execute_allocates()) {
+  if (t.half.execute_allocates() || t.coarse.execute_allocates() || (t.coarse_wide && t.coarse_wide->execute_allocates())) {
     status.message = "tracker: warning: no allocation-free FFTW plan found for " + std::to_string(sizes.roi_fft_px) +
                      "x" + std::to_string(sizes.roi_fft_px) + " or the coarse size; the loop may call malloc";
   }

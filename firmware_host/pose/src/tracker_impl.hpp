@@ -48,7 +48,10 @@ struct Tracker::Impl {
   const EngineSizes sizes;
   const AngleGrid angles;
   const PatternMask fine_mask, half_mask, coarse_mask;
-  FftCorrelator half, coarse;  // the 2×2-binned ROI level; the coarse full-field level
+  FftCorrelator half, coarse;  // the 2×2-binned ROI level; the coarse full-field level (scanned size)
+  // The coarse level of the search's levels below 1 (their enlarged frame), when it needs a
+  // larger FFT than the scanned field's; null otherwise.
+  std::unique_ptr<FftCorrelator> coarse_wide;
   ExactScorer scorer;
   RoiLoader loader;
   RoiRescaler rescaler;
@@ -133,7 +136,10 @@ struct Tracker::Impl {
         half_mask(s.pattern_px / 2, c.circular_mask, 8, mask_inset_px(c) / 2),
         coarse_mask(s.coarse_pattern_px, c.circular_mask),
         half(s.half_fft_px, s.half_fft_px, half_mask),
-        coarse(good_fft_size(s.coarse_max_w), good_fft_size(s.coarse_max_h), coarse_mask),
+        coarse(good_fft_size(s.coarse_scan_w), good_fft_size(s.coarse_scan_h), coarse_mask),
+        coarse_wide(s.wide_coarse() ? std::make_unique<FftCorrelator>(good_fft_size(s.coarse_max_w),
+                                                                      good_fft_size(s.coarse_max_h), coarse_mask)
+                                    : nullptr),
         scorer(fine_mask, s.roi_fft_px),
         loader(c.prefilter_passes, s.roi_fft_px, scorer, half),
         rescaler(s.roi_fft_px),
@@ -143,7 +149,7 @@ struct Tracker::Impl {
         fit(c.subpixel == "gaussian", c.fit_noise_correction),
         walk(scorer, fit, angles),
         sweep(half, walk, angles, maps),
-        search(cfg, sizes, angles, coarse, half, loader, rescaler, scale_probe, scale_evidence, walk, sweep, maps),
+        search(cfg, sizes, angles, coarse, coarse_wide.get(), half, loader, rescaler, scale_probe, scale_evidence, walk, sweep, maps),
         refinement(scorer),
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
                     c.sigma_noise_factor, c.sigma_angle_factor, angles.count),

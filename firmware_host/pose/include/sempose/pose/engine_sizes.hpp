@@ -19,7 +19,8 @@ struct EngineSizes {
   int search_factor = 8;      // start-search downsample
   int coarse_pattern_px = 0;  // pattern side at the coarse level
   int coarse_offset_px = 0;   // the coarse pattern's top-left inside the full pattern
-  int coarse_max_w = 0, coarse_max_h = 0;  // largest coarse full-field frame
+  int coarse_max_w = 0, coarse_max_h = 0;  // largest coarse full-field frame (the smallest level's)
+  int coarse_scan_w = 0, coarse_scan_h = 0;  // the scanned field at the coarse level (levels ≥ 1)
 
   static EngineSizes of(const config::TrackerConfig& cfg, int pattern_px, int field_w, int field_h) noexcept {
     EngineSizes s;
@@ -35,7 +36,15 @@ struct EngineSizes {
     const double grow = 1.0 / *std::min_element(levels.begin(), levels.end());
     s.coarse_max_w = std::max(s.coarse_pattern_px, static_cast<int>(std::ceil(field_w / s.search_factor * grow)));
     s.coarse_max_h = std::max(s.coarse_pattern_px, static_cast<int>(std::ceil(field_h / s.search_factor * grow)));
+    s.coarse_scan_w = std::max(s.coarse_pattern_px, field_w / s.search_factor);
+    s.coarse_scan_h = std::max(s.coarse_pattern_px, field_h / s.search_factor);
     return s;
+  }
+  // A second coarse correlator for the levels below 1 when their enlarged frame needs a larger
+  // FFT than the scanned one: level 1 (and the narrow search) then runs at the scanned size.
+  bool wide_coarse() const noexcept {
+    return good_fft_size(coarse_max_w) > good_fft_size(coarse_scan_w) ||
+           good_fft_size(coarse_max_h) > good_fft_size(coarse_scan_h);
   }
 };
 

@@ -49,6 +49,7 @@ struct BankLevels {
   FftCorrelator& half;
   const PatternMask& coarse_mask;
   FftCorrelator& coarse;
+  FftCorrelator* coarse_wide = nullptr;  // the search's levels below 1, when sized apart
 };
 
 class PatternBank {
@@ -77,6 +78,10 @@ class PatternBank {
   const Complex* coarse_spectrum(int k) const noexcept {
     return coarse_spectra_.get() + static_cast<std::size_t>(k) * coarse_len_;
   }
+  // For BankLevels::coarse_wide's transform size (null when the bank was built without one).
+  const Complex* coarse_wide_spectrum(int k) const noexcept {
+    return coarse_wide_spectra_ ? coarse_wide_spectra_.get() + static_cast<std::size_t>(k) * coarse_wide_len_ : nullptr;
+  }
   double coarse_angle_deg(int k) const noexcept { return k * coarse_step_deg_; }
   // Angle j's support at full resolution (pattern(j) is zero outside it): its bands and pixel count.
   const MaskBand* support_bands(int j) const noexcept { return support_.data() + support_begin_[static_cast<std::size_t>(j)]; }
@@ -93,7 +98,7 @@ class PatternBank {
 
   int size_ = 0, angles_ = 0, coarse_angles_ = 0;
   double coarse_step_deg_ = 20;
-  std::size_t spectrum_len_ = 0, coarse_len_ = 0;
+  std::size_t spectrum_len_ = 0, coarse_len_ = 0, coarse_wide_len_ = 0;
   std::vector<float> spatial_;
   bool has_shape_ = false;
   std::vector<MaskBand> support_;            // every angle's support bands, one after another
@@ -102,6 +107,7 @@ class PatternBank {
   // Shared with banks made by with_support() (the spectra do not depend on the fine support).
   std::shared_ptr<Complex> spectra_;
   std::shared_ptr<Complex> coarse_spectra_;
+  std::shared_ptr<Complex> coarse_wide_spectra_;
 };
 
 }  // namespace sempose::pose

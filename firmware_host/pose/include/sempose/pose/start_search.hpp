@@ -50,7 +50,7 @@ struct ScalePrior {
 class StartSearch {
  public:
   StartSearch(const config::TrackerConfig& cfg, const EngineSizes& sizes, const AngleGrid& angles,
-              FftCorrelator& coarse, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
+              FftCorrelator& coarse, FftCorrelator* coarse_wide, FftCorrelator& half, RoiLoader& loader, RoiRescaler& rescaler,
               const ScaleProbe& probe, const ScaleEvidenceCheck& evidence, const OrientationWalk& walk, AngleSweep& sweep,
               CorrelationMaps& maps);
 
@@ -108,9 +108,10 @@ class StartSearch {
     float coarse_score = 0, rank = 0;
   };
   // The fine measurement of the place whose pattern centre is at (cx, cy) of the frame, coarse
-  // angle k, at scale level_scale: ROI loaded resampled, sweep, opposite angle, scale refined.
+  // angle k, at scale level_scale: ROI loaded resampled, sweep, opposite angle, scale refined;
+  // common_score: also the candidates' common score on the scanned ROI (a search over levels).
   Fine measure_place(const PatternBank& bank, const std::uint16_t* px, int w, int h, int bits, const AnglePrior& prior,
-                     double cx, double cy, int k, double level_scale, double span) noexcept;
+                     double cx, double cy, int k, double level_scale, double span, bool common_score) noexcept;
   // f's measurement with its position in the scanned ROI's coordinates.
   Measurement in_scanned_roi(const Fine& f) const noexcept;
   static void set_top_left(Measurement& m, double x, double y) noexcept;
@@ -120,13 +121,14 @@ class StartSearch {
   // The scale factor of the loaded ROI's target at m: the probe's score over ± span, the best
   // of them and a parabola through its neighbours.
   double refine_factor(const PatternBank& bank, const Measurement& m, double span) const noexcept;
-  // Bilinear: level(x', y') = coarse(s·x', s·y'), up to the correlator's size.
-  void resample_coarse(int cw, int ch, double s, int& lw, int& lh) noexcept;
+  // Bilinear: level(x', y') = coarse(s·x', s·y'), up to max_w × max_h (the correlator's size).
+  void resample_coarse(int cw, int ch, double s, int max_w, int max_h, int& lw, int& lh) noexcept;
 
   const config::TrackerConfig& cfg_;
   const EngineSizes& sizes_;
   const AngleGrid& angles_;
-  FftCorrelator& coarse_;
+  FftCorrelator& coarse_;       // the scanned field's size
+  FftCorrelator* coarse_wide_;  // the levels below 1's enlarged frame, when larger (else null)
   FftCorrelator& half_;
   RoiLoader& loader_;
   RoiRescaler& rescaler_;
