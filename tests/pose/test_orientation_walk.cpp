@@ -66,7 +66,7 @@ struct Stages {
     maps = std::make_unique<CorrelationMaps>(static_cast<std::size_t>(sizes.half_fft_px) * sizes.half_fft_px);
     walk = std::make_unique<OrientationWalk>(*scorer, fit, angles);
     sweep = std::make_unique<AngleSweep>(*half, *walk, angles, *maps);
-    search = std::make_unique<StartSearch>(cfg, sizes, angles, *coarse, *half, *loader, *rescaler, *probe, *evidence, *walk, *sweep, *maps);
+    search = std::make_unique<StartSearch>(cfg, sizes, angles, *coarse, nullptr, *half, *loader, *rescaler, *probe, *evidence, *walk, *sweep, *maps);
     PatternBankSpec spec;
     const std::vector<std::uint16_t> pattern = render(kPattern, kPattern, (kPattern - 1) / 2.0, (kPattern - 1) / 2.0, 0);
     spec.pattern = {kPattern, kPattern, pattern};
