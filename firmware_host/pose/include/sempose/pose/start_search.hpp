@@ -1,7 +1,8 @@
 // The full-field start search (at start and after a loss): the frame box-downsampled by
 // search_downsample, resampled by 1/s for each scale level s (search_scale_levels.hpp, over
 // search_scale_min…max times the expected scale, or only the expected scale after a loss or
-// when a SELECT gave the microscope's nm/px: ScalePrior), and correlated at every coarse angle (one FFT each); the strongest
+// when a SELECT gave the microscope's nm/px: ScalePrior), and correlated at every coarse angle (one FFT each, at the
+// scanned field's FFT size; the levels below 1, whose frame is enlarged, on a second and larger correlator); the strongest
 // separated local maxima over every level become candidates; each candidate's ROI is loaded
 // at full resolution, resampled by 1/s, and refined by an angle sweep around the coarse angle
 // (its peak looked for only near the coarse position), and by its own position search at the
