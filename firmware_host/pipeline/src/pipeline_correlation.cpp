@@ -138,14 +138,17 @@ void Pipeline::correlation_loop() noexcept {
     }
     if (run_output && output_step()) continue;
     if (acquisition_done_.load(std::memory_order_acquire) && frames_.empty()) break;
-    // Wait for the frame due next. While the non-RT watchdog reports a stall, poll every
-    // idle_sleep_us instead of every 5 us, so this FIFO thread does not starve the non-RT
-    // thread on its core, which must still answer SIGTERM. (Backing off on lateness alone,
-    // > 1 ms or > 50 ms overdue, changed which frame a REACQUIRE met in the VM test.)
+    // Wait for the frame due next. While the non-RT watchdog reports a stall, or once the
+    // frame is kOverdueBackoffNs late (the acquisition is starved: the watchdog is about to
+    // say so), poll every idle_sleep_us instead of every 5 us, so this FIFO thread does not
+    // starve the non-RT thread on its core, which must declare the stall and answer SIGTERM
+    // (polling every 5 us delayed the stall report by 1-1.6 s). (Backing off on lateness of
+    // > 1 ms or > 50 ms changed which frame a REACQUIRE met in the VM test.)
     const std::int64_t due = next_frame_expected_ns_.load(std::memory_order_relaxed) + slack_ns;
-    idle_wait((faults_.load(std::memory_order_relaxed) & kFaultStageStalled) != 0
-                  ? rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs
-                  : due);
+    const std::int64_t now = rt::now_ns();
+    const bool backoff = (faults_.load(std::memory_order_relaxed) & kFaultStageStalled) != 0 ||
+                         (due > 0 && now - due > kOverdueBackoffNs);
+    idle_wait(backoff ? now + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs : due);
   }
   if (run_output) {
     while (output_step()) {

@@ -142,6 +142,9 @@ class Pipeline {
   // The deadline of a whole idle sleep (pipeline.idle_sleep_us from now): what a stage that
   // waits on another stage sleeps, so that on a shared core the other stage gets to run.
   std::int64_t whole_idle_sleep() const noexcept;
+  // A frame this late means a starved acquisition rather than a slow scan: correlation stops
+  // polling every 5 us for it (see correlation_loop).
+  static constexpr std::int64_t kOverdueBackoffNs = 250'000'000;
 
   config::PipelineConfig config_;
   const StageClock& clock_;
