@@ -22,6 +22,7 @@
 
 #include "cli.hpp"
 #include "sempose/config/app_config.hpp"
+#include "sempose/config/target_name.hpp"
 #include "sempose/hal/frames_csv.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/offline_runner.hpp"
@@ -127,15 +128,10 @@ int run_replay(int argc, char** argv) {
     app.targets.clear();
     for (std::size_t i = 0; i < patterns.size(); ++i) {
       config::TargetConfig t;
-      // Named after the file, made one word and unique as a config's names must be.
-      t.name = std::filesystem::path(patterns[i]).stem().string().substr(0, 60);
-      for (char& ch : t.name) {
-        if (static_cast<unsigned char>(ch) <= ' ' || ch == 0x7f) ch = '_';
-      }
-      if (t.name.empty()) t.name = "target" + std::to_string(i);
-      for (const auto& other : app.targets) {
-        if (other.name == t.name) t.name += "_" + std::to_string(i);
-      }
+      // Named after the file, kept to the rule a config's names must follow.
+      std::vector<std::string> taken;
+      for (const auto& other : app.targets) taken.push_back(other.name);
+      t.name = config::make_target_name(std::filesystem::path(patterns[i]).stem().string(), i, taken);
       t.pattern_sets.push_back({patterns[i], 1.0, masks[i]});
       app.targets.push_back(t);
     }

@@ -3,6 +3,7 @@
 #include <string>
 
 #include "sempose/config/reader.hpp"
+#include "sempose/config/target_name.hpp"
 #include "sempose/config/tracker_config.hpp"
 
 namespace sempose::config {
@@ -77,11 +78,7 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
     TargetConfig tc;
     tc.name = "target" + std::to_string(out.size());
     t.opt("name", tc.name);
-    // The name labels the target in the status lines, the summary and the logs, which are
-    // read by scripts as whitespace-separated fields: one word, and one target per name.
-    const bool word = !tc.name.empty() && tc.name.size() <= 64 &&
-                      std::none_of(tc.name.begin(), tc.name.end(), [](unsigned char ch) { return ch <= ' ' || ch == 0x7f; });
-    if (!word) {
+    if (!is_target_name(tc.name)) {
       t.error("name", "'" + tc.name + "' is not a target name (1..64 characters, no spaces or control characters)");
     } else {
       for (std::size_t k = 0; k < out.size(); ++k) {

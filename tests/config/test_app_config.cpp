@@ -8,6 +8,7 @@
 #include <string>
 
 #include "sempose/config/app_config.hpp"
+#include "sempose/config/target_name.hpp"
 
 namespace sempose::config {
 namespace {
@@ -118,6 +119,20 @@ TEST(AppConfig, TargetNamesAreOneWordAndUnique) {
   EXPECT_NE(e.find("targets[2].name: '' is not a target name"), std::string::npos) << e;
   EXPECT_NE(e.find("targets[3].name: 'left jaw' is not a target name"), std::string::npos) << e;
   EXPECT_EQ(e.find("targets[4].name"), std::string::npos) << e;
+}
+
+TEST(AppConfig, NamesMadeFromFilesKeepTheRule) {
+  // `sempose replay` names targets after pattern files: what it makes, the reader accepts.
+  EXPECT_EQ(make_target_name("needle tip", 0, {}), "needle_tip");
+  EXPECT_EQ(make_target_name("", 3, {}), "target3");
+  EXPECT_EQ(make_target_name("a", 1, {"a"}), "a_1");
+  EXPECT_EQ(make_target_name("a", 1, {"a", "a_1"}), "a_2");
+  EXPECT_EQ(make_target_name(std::string("x\ty\x7f"), 0, {}), "x_y_");
+  const std::string made = make_target_name(std::string(200, 'n'), 7, {std::string(52, 'n')});
+  EXPECT_TRUE(is_target_name(made)) << made;
+  EXPECT_NE(made, std::string(52, 'n'));
+  EXPECT_FALSE(is_target_name(std::string(65, 'n')));
+  EXPECT_TRUE(is_target_name(std::string(64, 'n')));
 }
 
 TEST(AppConfig, SpinPollingNeedsACorePerStage) {

@@ -67,14 +67,16 @@ void Pipeline::idle_wait(std::int64_t until_ns) const noexcept {
     return;
   }
   const std::int64_t t = rt::now_ns();
-  const std::int64_t latest = t + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs;
+  const std::int64_t latest = t + idle_sleep_ns();
   const std::int64_t earliest = t + 5 * rt::kNsPerUs;
   rt::sleep_until_ns(std::clamp(until_ns, earliest, latest));
 }
 
-std::int64_t Pipeline::whole_idle_sleep() const noexcept {
-  return rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs;
+std::int64_t Pipeline::idle_sleep_ns() const noexcept {
+  return static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs;
 }
+
+std::int64_t Pipeline::whole_idle_sleep() const noexcept { return rt::now_ns() + idle_sleep_ns(); }
 
 void Pipeline::publish_plan(std::uint8_t target, bool enabled) noexcept {
   const hal::ScanRequest next = step_.next_scan(target);

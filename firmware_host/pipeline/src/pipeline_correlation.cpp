@@ -148,7 +148,7 @@ void Pipeline::correlation_loop() noexcept {
     const std::int64_t now = rt::now_ns();
     const bool backoff = (faults_.load(std::memory_order_relaxed) & kFaultStageStalled) != 0 ||
                          (due > 0 && now - due > kOverdueBackoffNs);
-    idle_wait(backoff ? now + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs : due);
+    idle_wait(backoff ? whole_idle_sleep() : due);
   }
   if (run_output) {
     while (output_step()) {

@@ -52,7 +52,7 @@ void Pipeline::output_loop() noexcept {
   for (;;) {
     if (output_step()) continue;
     if (correlation_done_.load(std::memory_order_acquire) && poses_.empty()) break;
-    idle_wait(rt::now_ns() + static_cast<std::int64_t>(config_.idle_sleep_us) * rt::kNsPerUs);
+    idle_wait(whole_idle_sleep());
   }
   counters_.output_allocs.set(rt::alloc::this_thread_allocations() - allocs_at_start);
   output_done_.store(true, std::memory_order_release);

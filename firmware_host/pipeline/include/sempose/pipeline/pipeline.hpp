@@ -139,6 +139,7 @@ class Pipeline {
   bool apply_command(const Command& c) noexcept;
   void publish_plan(std::uint8_t target, bool enabled) noexcept;
   void idle_wait(std::int64_t until_ns) const noexcept;
+  std::int64_t idle_sleep_ns() const noexcept;  // pipeline.idle_sleep_us in ns
   // The deadline of a whole idle sleep (pipeline.idle_sleep_us from now): what a stage that
   // waits on another stage sleeps, so that on a shared core the other stage gets to run.
   std::int64_t whole_idle_sleep() const noexcept;

@@ -1,0 +1,31 @@
+#include "sempose/config/target_name.hpp"
+
+#include <algorithm>
+
+namespace sempose::config {
+namespace {
+
+bool breaks_word(unsigned char ch) { return ch <= ' ' || ch == 0x7f; }
+
+bool is_taken(const std::string& name, const std::vector<std::string>& taken) {
+  return std::find(taken.begin(), taken.end(), name) != taken.end();
+}
+
+}  // namespace
+
+bool is_target_name(const std::string& name) {
+  return !name.empty() && name.size() <= kMaxTargetNameLength &&
+         std::none_of(name.begin(), name.end(), [](unsigned char ch) { return breaks_word(ch); });
+}
+
+std::string make_target_name(const std::string& raw, std::size_t index, const std::vector<std::string>& taken) {
+  // Room for a "_N" suffix when the name is taken.
+  std::string base = raw.substr(0, kMaxTargetNameLength - 12);
+  std::replace_if(base.begin(), base.end(), [](unsigned char ch) { return breaks_word(ch); }, '_');
+  if (base.empty()) base = "target" + std::to_string(index);
+  std::string name = base;
+  for (std::size_t n = index; is_taken(name, taken); ++n) name = base + "_" + std::to_string(n);
+  return name;
+}
+
+}  // namespace sempose::config
