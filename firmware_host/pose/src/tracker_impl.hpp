@@ -78,6 +78,7 @@ struct Tracker::Impl {
   // TRACKING until a frame passes every check again.
   int held_frames = 0;
   static constexpr double kImplausibleWider = 1.5;  // motion check: implausible beyond 1.5 × the surprise limits
+  static constexpr double kLookAlikeShare = 0.1;  // search check: the least lead worth a look-alike's rank (share of the room)
   static constexpr int kMaxHeldFrames = 25;  // ~0.25 s of 192² ROIs, then the field is searched
   // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
   // Learnt from the accepted frames' scale readings, kept across a loss (the magnification
@@ -219,6 +220,8 @@ struct Tracker::Impl {
   // searches that agree on the place; until then it is UNCERTAIN and the field is searched
   // again on the next frame.
   int search_n = 0;
+  int search_episode = 0;  // searches that found something since the target was last settled
+  int search_place_n = 0;  // of them, the last ones won at the last winner's place (any angle)
   double search_sum = 0, search_x = 0, search_y = 0, search_phi = 0;
   bool search_settled(const Measurement& m, const PoseEstimate& e) noexcept;
   template <class Place>
