@@ -289,3 +289,96 @@ TEST(MotionModel, PoseNoiseFromTheInnovations) {
   ASSERT_TRUE(after.pose_noise_known());
   EXPECT_LT(after.pose_noise_px(), 0.5);
 }
+
+// After a loss of the same target the pose noise learnt before it is carried over (a re-acquired
+// pose is judged from its first frame); on a first start, and after the target was forgotten
+// (REACQUIRE, another pattern set), it is not known until the new stream's third innovation.
+TEST(MotionModel, PoseNoiseIsCarriedAcrossALossNotAcrossForgetting) {
+  MotionModel mm(true);
+  mm.accept(0, 0, 0, true, 250, 0.7);
+  // Frame 1 gives the velocity, 2 the first innovation (from the search frame: not noise), 3 and
+  // 4 the two learnt ones.
+  for (int k = 1; k <= 5; ++k) {
+    EXPECT_EQ(mm.pose_noise_known(), k >= 5) << "first start: known after the third innovation, frame " << k;
+    mm.accept(k + (k % 2 ? 0.4 : -0.4), 0, 0, false, 250, 0.7);
+  }
+  ASSERT_TRUE(mm.pose_noise_known());
+  EXPECT_FALSE(mm.pose_noise_carried());
+  const double before = mm.pose_noise_px();
+  EXPECT_GT(before, 0.1);
+  mm.reset();  // lost (a jump)
+  EXPECT_TRUE(mm.pose_noise_known()) << "the same target's noise, known before the re-acquired pose";
+  EXPECT_TRUE(mm.pose_noise_carried());
+  EXPECT_DOUBLE_EQ(mm.pose_noise_px(), before);
+  EXPECT_DOUBLE_EQ(mm.pose_noise_dwell_ns(), 250.0);
+  EXPECT_NEAR(mm.pose_noise_score(), 0.7, 1e-12);
+  mm.accept(200, 100, 90, true, 250, 0.6);  // re-acquired by the search
+  EXPECT_TRUE(mm.pose_noise_carried());
+  for (int k = 1; k <= 4; ++k) mm.accept(200 + k, 100, 90, false, 250, 0.6);
+  EXPECT_TRUE(mm.pose_noise_known());
+  EXPECT_FALSE(mm.pose_noise_carried()) << "the new stream knows its own noise from its third innovation";
+  mm.forget_noise();
+  EXPECT_FALSE(mm.pose_noise_known());
+  mm.accept(0, 0, 0, true);
+  EXPECT_FALSE(mm.pose_noise_known()) << "a forgotten target's next stream starts without a noise";
+  // A stream lost before its noise was known carries nothing.
+  MotionModel young(true);
+  young.accept(0, 0, 0, true);
+  young.accept(1, 0, 0, false);
+  young.accept(2, 0, 0, false);
+  young.reset();
+  EXPECT_FALSE(young.pose_noise_known());
+}
+
+// The error of a measured pose given its innovation (Gaussian fusion of prediction and
+// measurement) and its chance of being beyond the false-pose rule.
+TEST(MotionModel, ErrorGivenInnovationIsTheKalmanPosterior) {
+  MotionModel mm(true);
+  mm.accept(0, 0, 0, true);
+  for (int k = 1; k < 40; ++k) mm.accept(k + (k % 2 ? 0.5 : -0.5), 0, 0, false);  // pose noise ~0.5 px
+  const double s = mm.pose_noise_px();
+  ASSERT_GT(s, 0.3);
+  // Measurement as noisy as the stream: σm² = s², σp² = 5 s² → mean d/6, variance 5/6 s².
+  const MotionModel::ErrorGivenInnovation g = mm.error_given_innovation(6.0, 0.0, s, mm.pose_noise_deg());
+  EXPECT_NEAR(g.offset_px, 1.0, 1e-9);
+  EXPECT_NEAR(g.sd_px, s * std::sqrt(5.0 / 6.0), 1e-9);
+  // A much better measurement than the prediction: the innovation is almost all prediction error.
+  const MotionModel::ErrorGivenInnovation sharp = mm.error_given_innovation(6.0, 0.0, 0.01, 0.01);
+  EXPECT_LT(sharp.offset_px, 0.01);
+}
+
+TEST(LossPolicy, FalseProbabilityOfAnOffsetError) {
+  // Centred: the Rayleigh tail and the two-sided normal tail of false_probability.
+  for (double sd : {0.5, 0.8, 1.2})
+    EXPECT_NEAR(LossPolicy::false_probability_offset(0.0, sd, 0.0, 0.0), LossPolicy::false_probability(sd, 0.0), 1e-6);
+  EXPECT_NEAR(LossPolicy::false_probability_offset(0.0, 0.0, 0.0, 4.0), LossPolicy::false_probability(0.0, 4.0), 1e-12);
+  // Offset by the rule's radius: about half the mass beyond it (a little more: the circle curves away).
+  const double half = LossPolicy::false_probability_offset(3.0, 0.3, 0.0, 0.0);
+  EXPECT_GT(half, 0.5);
+  EXPECT_LT(half, 0.6);
+  // Monte Carlo check of the Rice tail at offset 1.2 px, SD 0.7 px (deterministic LCG).
+  std::uint64_t st = 99;
+  auto u = [&st]() {
+    st = st * 6364136223846793005ull + 1442695040888963407ull;
+    return ((st >> 11) + 0.5) / 9007199254740992.0;
+  };
+  int beyond = 0;
+  const int n = 400000;
+  for (int i = 0; i < n; ++i) {
+    const double r = std::sqrt(-2.0 * std::log(u())), a = 6.283185307179586 * u();
+    const double x = 1.2 + 0.7 * r * std::cos(a), y = 0.7 * r * std::sin(a);
+    beyond += std::hypot(x, y) > LossPolicy::kFalsePx;
+  }
+  EXPECT_NEAR(LossPolicy::false_probability_offset(1.2, 0.7, 0.0, 0.0), static_cast<double>(beyond) / n, 0.0015);
+  // The offset raises it monotonically; the angle counts on its own.
+  EXPECT_LT(LossPolicy::false_probability_offset(0.5, 0.8, 0.0, 0.0), LossPolicy::false_probability_offset(1.0, 0.8, 0.0, 0.0));
+  EXPECT_NEAR(LossPolicy::false_probability_offset(0.0, 0.1, 10.0, 2.0), 0.5, 1e-6);
+  config::TrackerConfig c;
+  c.max_false_probability = 0.01;
+  LossPolicy loss(c);
+  // The first frame of a wander at 1 e-/px: stream noise 0.9 px, 6.2 px from the prediction
+  // (error given that: offset ~1 px, SD 0.82 px) is not trusted; the same pose with no
+  // innovation is.
+  EXPECT_TRUE(loss.trusted_offset(0.0, 0.82, 0.0, 1.0));
+  EXPECT_FALSE(loss.trusted_offset(1.03, 0.82, 0.0, 1.0));
+}

@@ -400,3 +400,28 @@ TEST(Tracker, PoseFilterSmoothsTheReportedPoseOnly) {
   EXPECT_NEAR(on_meas, off_meas, 1e-9);  // the measurements themselves do not change
   EXPECT_LT(on, 0.8 * on_meas) << "filtered " << on << " px vs raw " << on_meas << " px";
 }
+
+// Issue 13: recovery after a jump at least as before the dose-1 rule. The procedural lamella at
+// 6 e-/px scores ~0.70 before its jumps and 0.57-0.61 after (other background): below the
+// explained bound, where the stream's pose noise is required. With the noise known from before
+// the loss (same target, same dwell) the re-acquired pose is TRACKING on the search frame or the
+// one after it; before, it waited for three ROI frames of the new stream (recovery 5-6 frames).
+// No pose is TRACKING while > 3 px or > 10° off.
+TEST(Tracker, TrackingAgainWithinTwoFramesOfAJump) {
+  for (const auto& [target, dose] : {std::pair<const char*, double>{"lamella", 6.0}, {"needle_tip", 2.5}}) {
+    Scenario s;
+    s.target = target;
+    s.motion = "jump";
+    s.dose_e = dose;
+    s.frames = 60;
+    s.start_phi_deg = 30;
+    SimHarness h(s, config::TrackerConfig{});
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    const RunStats r = h.stats();
+    EXPECT_GE(r.jumps, 1) << target;
+    EXPECT_GE(r.recovery_max, 1) << target;
+    EXPECT_LE(r.recovery_max, 2) << target << " at " << dose << " e-/px: frames from the jump to TRACKING < 1 px off";
+    EXPECT_EQ(r.false_tracking, 0) << target << ": worst TRACKING pose " << r.false_max_px << " px off";
+  }
+}

@@ -66,6 +66,53 @@ double LossPolicy::false_probability(double sigma_px, double sigma_deg) noexcept
   return std::max(p_pos, p_phi);
 }
 
+namespace {
+// e^−x·I0(x), the modified Bessel function scaled so that it stays finite: the power series
+// below 15, the asymptotic expansion above (relative error < 1e-5 there).
+double bessel_i0_scaled(double x) noexcept {
+  x = std::fabs(x);
+  if (x < 15.0) {
+    double term = 1.0, sum = 1.0;
+    const double q = 0.25 * x * x;
+    for (int k = 1; k < 60 && term > 1e-17 * sum; ++k) {
+      term *= q / (static_cast<double>(k) * k);
+      sum += term;
+    }
+    return sum * std::exp(-x);
+  }
+  const double t = 1.0 / (8.0 * x);
+  return (1.0 + t * (1.0 + 4.5 * t * (1.0 + 25.0 / 6.0 * t))) / std::sqrt(2.0 * M_PI * x);
+}
+}  // namespace
+
+double LossPolicy::false_probability_offset(double offset_px, double sd_px, double offset_deg, double sd_deg) noexcept {
+  double p_pos = 0.0;
+  if (sd_px > 0) {
+    // P(|e| > R) = 1 − ∫0^R r/s² · exp(−(r − m)²/2s²) · e^−(rm/s²) I0(rm/s²) dr (Simpson, 96 steps).
+    const double s2 = sd_px * sd_px, m = offset_px, big_r = kFalsePx;
+    constexpr int kSteps = 96;
+    const double h = big_r / kSteps;
+    double inside = 0.0;
+    for (int i = 0; i <= kSteps; ++i) {
+      const double r = i * h;
+      const double f = r / s2 * std::exp(-(r - m) * (r - m) / (2.0 * s2)) * bessel_i0_scaled(r * m / s2);
+      inside += f * (i == 0 || i == kSteps ? 1.0 : (i % 2 ? 4.0 : 2.0));
+    }
+    p_pos = std::clamp(1.0 - inside * h / 3.0, 0.0, 1.0);
+  }
+  double p_phi = 0.0;
+  if (sd_deg > 0) {
+    const double k = 1.0 / (sd_deg * std::sqrt(2.0));
+    p_phi = 0.5 * std::erfc((kFalseDeg - offset_deg) * k) + 0.5 * std::erfc((kFalseDeg + offset_deg) * k);
+  }
+  return std::max(p_pos, p_phi);
+}
+
+bool LossPolicy::trusted_offset(double offset_px, double sd_px, double offset_deg, double sd_deg) const noexcept {
+  if (calibrating_ || !(cfg_.max_false_probability > 0)) return true;
+  return false_probability_offset(offset_px, sd_px, offset_deg, sd_deg) <= cfg_.max_false_probability;
+}
+
 bool LossPolicy::trusted(double sigma_px, double sigma_deg) const noexcept {
   if (calibrating_ || !(cfg_.max_false_probability > 0)) return true;
   return false_probability(sigma_px, sigma_deg) <= cfg_.max_false_probability;

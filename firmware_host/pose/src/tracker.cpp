@@ -156,14 +156,54 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
 // not see a neighbouring maximum. At 1 e-/px 10 of the 14 false poses of all dose-1 rows were
 // there (the warped crop's re-searches landing on a maximum 9-12 px off, kept by the walk at
 // the target's score with σ 0.9 px; a search 4 px off on the needle tip); now UNCERTAIN.
-bool Tracker::Impl::trusted_pose(const PoseEstimate& e) const noexcept {
+//
+// After a loss of the same target the stream's noise from before the loss stands in until the
+// new stream shows its own (MotionModel::pose_noise_carried; a REACQUIRE or another pattern set
+// forgets it), adapted to this frame by carried_noise_factor: a re-acquired pose the noise model
+// supports is TRACKING on its first frame again, one it does not stays UNCERTAIN.
+//
+// With a prediction made from two ROI poses, the pose is judged by its error given where it
+// landed against that prediction (MotionModel::error_given_innovation: the prediction and the
+// measurement fused as a Kalman update would; LossPolicy::false_probability_offset): a pose that
+// jumped to a neighbouring maximum 3-5 px off lands 4-6 px from the prediction, and its error
+// given that is centred 1 px or more away from 0. At 1 e-/px those first frames of a wander
+// were the last false poses (lamella on post, fast: 4.2 and 3.3 px off at the target's score,
+// σ 0.4-0.6 px, the stream's noise 0.9 px: 0.4 % by σ alone, 3-6 % given the innovation).
+bool Tracker::Impl::trusted_pose(const PoseEstimate& e, const Innovation& innov) const noexcept {
   double s_px = std::max(e.sigma_x_px, e.sigma_y_px), s_deg = e.sigma_phi_deg;
   if (e.score < loss.explained_bound() && !motion.pose_noise_known() && !loss.calibrating()) return false;
   if (motion.pose_noise_known() && e.score < loss.explained_bound()) {
-    s_px = std::max(s_px, motion.pose_noise_px());
-    s_deg = std::max(s_deg, motion.pose_noise_deg());
+    const double k = motion.pose_noise_carried() ? carried_noise_factor(e.score) : 1.0;
+    s_px = std::max(s_px, k * motion.pose_noise_px());
+    s_deg = std::max(s_deg, k * motion.pose_noise_deg());
+    if (innov.known) {
+      const MotionModel::ErrorGivenInnovation g = motion.error_given_innovation(innov.d_px, innov.d_deg, s_px, s_deg);
+      return loss.trusted_offset(g.offset_px, g.sd_px, g.offset_deg, g.sd_deg);
+    }
   }
   return loss.trusted(s_px, s_deg);
+}
+
+// How much larger the pose noise learnt before a loss is on this frame (never smaller: the
+// carried noise is a bound, and a longer dwell or a better score only makes it more careful).
+// A pose's error variance goes as the frame's noise over the target's signal:
+//  * the dwell: detected electrons per pixel ∝ dwell, so the variance ∝ 1/dwell (the governor
+//    shortens the dwell once the compute time allows, and a full-field search frame is scanned
+//    at its own dwell);
+//  * the score: a ZNCC r leaves (1 − r²)/r² of noise per unit of explained signal; a target
+//    re-found over other background, or after the beam drifted, scores lower than its level
+//    before the loss (the procedural lamella after a jump: 0.57-0.61 where it scored ~0.70).
+double Tracker::Impl::carried_noise_factor(double score) const noexcept {
+  double v = 1.0;
+  const double learnt_dwell = motion.pose_noise_dwell_ns();
+  if (learnt_dwell > 0 && frame_dwell_ns > 0) v *= std::max(1.0, learnt_dwell / frame_dwell_ns);
+  const double level = motion.pose_noise_score();
+  auto noise_over_signal = [](double r) {
+    const double r2 = std::clamp(r * r, 1e-4, 1.0);
+    return (1.0 - r2) / r2;
+  };
+  if (level > 0) v *= std::max(1.0, noise_over_signal(score) / std::max(1e-6, noise_over_signal(level)));
+  return std::sqrt(v);
 }
 
 double Tracker::Impl::significance_z() const noexcept {
@@ -314,7 +354,7 @@ void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) 
   e.state = TrackState::kTracking;
   held_frames = 0;
   loss.set_held(false);
-  motion.accept(e.x_px, e.y_px, e.phi_deg, fresh);
+  motion.accept(e.x_px, e.y_px, e.phi_deg, fresh, frame_dwell_ns, e.score);
   loss.accepted(e.score);
   tracking = true;
   if (fresh) filter.reset();
@@ -332,6 +372,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   e.x_px = motion.x_px();
   e.y_px = motion.y_px();
   e.phi_deg = motion.phi_deg();
+  frame_dwell_ns = static_cast<double>(frame.dwell_ns);
   if (frame.field_w > 0 && frame.field_h > 0) {
     field.field_w = frame.field_w;
     field.field_h = frame.field_h;
@@ -352,6 +393,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // Commanded, or a new magnification: the target's look may have changed; the new
     // pattern set has its own noise floors and is matched at its own size first.
     loss.forget_target();
+    motion.forget_noise();
     scale = expected_scale.load(std::memory_order_relaxed);
     scale_tracked = false;
     use_noise_floors_of(set);
@@ -403,7 +445,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       open_flip_check(m, prior_known);
       // The search frame's pose is judged like a tracked one (trusted_pose: below the explained
       // bound it waits for the stream's pose noise; above it σ = 0, not measured, passes as before).
-      if (flip_open || !trusted_pose(e)) e.state = TrackState::kUncertain;
+      if (flip_open || !trusted_pose(e, Innovation{})) e.state = TrackState::kUncertain;
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable
@@ -466,12 +508,17 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
   if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
   switch (loss.judge(m)) {
-    case FrameVerdict::kAccept:
+    case FrameVerdict::kAccept: {
+      // Where the pose landed against a prediction made from two ROI poses (before the motion
+      // model learns it): trusted_pose weighs it.
+      Innovation innov;
+      if (!flipped && motion.prediction_from_roi_poses())
+        innov = {true, motion.innovation_px(e.x_px, e.y_px), motion.innovation_deg(e.phi_deg)};
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
-      if (flip_open || !trusted_pose(e)) e.state = TrackState::kUncertain;
+      if (flip_open || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
       // A good frame teaches the appearance model (RT: sums into a preallocated batch). It reads
       // the pixels the walk was scored on (the ROI resampled to the pattern's size if rescaled).
       if (learning && e.reason_bits == 0 && e.state == TrackState::kTracking && m.score >= cfg.appearance.min_score) {
@@ -480,6 +527,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
                           m.uy + m.dy + c, (m.j + m.dj) * angles.step_deg);
       }
       break;
+    }
     case FrameVerdict::kLost:
       e.reason_bits |= loss.weak_reasons(m);
       e.state = TrackState::kLost;

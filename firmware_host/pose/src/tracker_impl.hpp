@@ -191,7 +191,14 @@ struct Tracker::Impl {
   static void set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept;
   void go_lost() noexcept;
   void hold() noexcept;
-  bool trusted_pose(const PoseEstimate& e) const noexcept;
+  // How far an accepted pose landed from a prediction made from two ROI poses (known: there was one).
+  struct Innovation {
+    bool known = false;
+    double d_px = 0, d_deg = 0;
+  };
+  bool trusted_pose(const PoseEstimate& e, const Innovation& innov) const noexcept;
+  double carried_noise_factor(double score) const noexcept;
+  double frame_dwell_ns = 0;  // the pixel dwell of the frame being measured (0: not known)
 
   // Flip check (a near-symmetric target, e.g. a lamella, scores almost alike turned by 180°):
   // after a search without a trusted angle prior whose choice does not lead the opposite

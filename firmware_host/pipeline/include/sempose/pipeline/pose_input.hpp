@@ -21,6 +21,7 @@ inline pose::PoseFrame to_pose_frame(const hal::FrameMeta& meta, const hal::Pixe
   f.bad = meta.status == hal::FrameStatus::kBad;
   f.t_scan_start_ns = meta.t_scan_start_ns;
   f.t_scan_end_ns = meta.t_scan_end_ns;
+  f.dwell_ns = meta.dwell_ns;
   return f;
 }
 

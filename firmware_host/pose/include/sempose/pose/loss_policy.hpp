@@ -104,6 +104,12 @@ class LossPolicy {
   // The chance of a pose more than kFalsePx / kFalseDeg off (the larger of the two).
   static double false_probability(double sigma_px, double sigma_deg) noexcept;
   static constexpr double kFalsePx = 3.0, kFalseDeg = 10.0;  // issue 13's false-pose rule
+  // The same for an error whose mean is offset from 0 (the error given the innovation,
+  // MotionModel::error_given_innovation): position, a 2-D Gaussian of per-axis SD sd_px centred
+  // offset_px from 0 (the Rice distribution's tail, by quadrature); angle, a normal of SD
+  // sd_deg centred offset_deg from 0 (both tails).
+  static double false_probability_offset(double offset_px, double sd_px, double offset_deg, double sd_deg) noexcept;
+  bool trusted_offset(double offset_px, double sd_px, double offset_deg, double sd_deg) const noexcept;
 
   // The reported score of an accepted pose (the recent mean the relative threshold uses).
   void accepted(float score) noexcept;

@@ -18,15 +18,21 @@ class MotionModel {
  public:
   explicit MotionModel(bool predict_velocity) noexcept : predict_velocity_(predict_velocity) {}
 
-  // An accepted pose; fresh: the first after a search (no velocity from it).
-  void accept(double x_px, double y_px, double phi_deg, bool fresh) noexcept;
+  // An accepted pose; fresh: the first after a search (no velocity from it). dwell_ns and
+  // score: the pixel dwell of the frame it was measured on (0: not known) and its score, learnt
+  // with the pose noise (what the noise was measured at).
+  void accept(double x_px, double y_px, double phi_deg, bool fresh, double dwell_ns = 0, double score = 0) noexcept;
   // A weak frame that is not yet a loss: the prediction stands in for the pose.
   void coast() noexcept;
   // The target is there but its pose is not trusted (held): the prediction stays at the last
   // accepted pose, without velocity, so the ROI does not wander after what it cannot vouch for.
   void hold() noexcept;
   // The target is lost: no velocity, no previous pose (the prediction and the angle prior stay).
+  // The pose noise learnt so far is carried over (pose_noise_carried()).
   void reset() noexcept;
+  // The target's look or scale changed (REACQUIRE, another pattern set or magnification): the
+  // pose noise learnt before says nothing about the next stream.
+  void forget_noise() noexcept;
 
   double x_px() const noexcept { return x_; }
   double y_px() const noexcept { return y_; }
@@ -65,7 +71,18 @@ class MotionModel {
   // Two memories, the larger counts: ~5 frames (a wander now) and ~20 frames (the level of
   // this target at this dose: a single-frame excursion of 3-4 px at 1 e-/px starts like a
   // smooth move, so the short memory alone sees it only once it is over).
-  bool pose_noise_known() const noexcept { return have_noise_ && innovations_since_fresh_ >= 3; }
+  //
+  // After a loss of the same target (a jump, a torn frame) the noise learnt before it is
+  // carried over (pose_noise_carried()): same target, same detector, so a re-acquired pose is
+  // judged against it from its first frame instead of waiting three ROI frames for the new
+  // stream's own innovations (that wait made recovery after a jump 5-6 frames instead of 1-2).
+  // The caller adapts it to the frame's dwell and score (Tracker: carried_noise_factor).
+  bool pose_noise_known() const noexcept { return have_noise_ && (innovations_since_fresh_ >= 3 || carried_); }
+  bool pose_noise_carried() const noexcept { return carried_ && innovations_since_fresh_ < 3; }
+  // The pixel dwell and the score the pose noise was learnt at (running means over the same ~20
+  // frames as its long memory; 0: not known).
+  double pose_noise_dwell_ns() const noexcept { return noise_dwell_ns_; }
+  double pose_noise_score() const noexcept { return noise_score_; }
   double pose_noise_px() const noexcept {
     return std::sqrt(std::max(noise_px2_, level_px2_) / (predict_velocity_ ? 12.0 : 4.0));
   }
@@ -73,6 +90,31 @@ class MotionModel {
     return std::sqrt(std::max(noise_deg2_, level_deg2_) / (predict_velocity_ ? 6.0 : 2.0));
   }
   static constexpr double kLevelShare = 0.05;
+
+  // A measured pose's error given where it landed against the prediction (Gaussian fusion, as
+  // a Kalman update): the measurement's error e (per-axis SD sigma_m) and the prediction's
+  // error e_p are independent, the innovation d = e − e_p is seen, so e | d is Gaussian with
+  // mean d·σm²/(σm² + σp²) and per-axis variance σm²σp²/(σm² + σp²). σp² is the prediction's:
+  // for a constant-velocity prediction from two poses measured as this stream's are,
+  // 4σ² + σ² = 5σ² (σ = pose_noise, which holds the target's acceleration too); without
+  // velocity prediction σ². A pose that jumped to a neighbouring maximum lands far from the
+  // prediction, and its error given the innovation is centred away from 0: at 1 e⁻/px the
+  // first frame of a wander (4 px off, 6 px from the prediction, the stream's noise 0.9 px)
+  // has a 3-6 % chance of being > 3 px off given its innovation where its σ alone says 0.4 %.
+  // Only meaningful when the prediction was made from two ROI poses (prediction_from_roi_poses()
+  // before the pose was accepted).
+  struct ErrorGivenInnovation {
+    double offset_px = 0, sd_px = 0;    // |mean| of the 2-D position error, per-axis SD
+    double offset_deg = 0, sd_deg = 0;  // |mean| of the angle error, its SD
+  };
+  // d_px, d_deg: the innovation's size (innovation() before the pose is accepted).
+  ErrorGivenInnovation error_given_innovation(double d_px, double d_deg, double sigma_m_px, double sigma_m_deg) const noexcept;
+  // How far a pose lands from the current prediction, in position and in angle.
+  double innovation_px(double x_px, double y_px) const noexcept { return std::hypot(x_px - pred_x_, y_px - pred_y_); }
+  double innovation_deg(double phi_deg) const noexcept;
+  // The prediction for the next frame is made from two ROI poses (a velocity not spanning a
+  // full-field scan) and the stream's pose noise is known.
+  bool prediction_from_roi_poses() const noexcept { return have_velocity_ && innovations_since_fresh_ >= 1 && pose_noise_known(); }
 
   static constexpr double kSurpriseSigmas = 4.0;
   // Floors: an innovation this small is never a surprise (measurement noise at 1 e⁻/px is
@@ -99,6 +141,9 @@ class MotionModel {
   // pose-noise bound); kept across a loss like the ones above.
   double noise_px2_ = 0, noise_deg2_ = 0, level_px2_ = 0, level_deg2_ = 0;
   bool have_noise_ = false;
+  int noise_updates_ = 0;  // innovations learnt into the pose noise since it was last forgotten
+  bool carried_ = false;   // the pose noise is from the stream before the last loss
+  double noise_dwell_ns_ = 0, noise_score_ = 0;
   double x_ = 0, y_ = 0, phi_ = 0;
   double vx_ = 0, vy_ = 0, vphi_ = 0;
   double pred_x_ = 0, pred_y_ = 0, pred_phi_ = 0;

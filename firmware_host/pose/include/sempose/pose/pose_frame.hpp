@@ -28,6 +28,7 @@ struct PoseFrame {
   std::uint8_t bits = 8;                  // significant bits per pixel
   bool bad = false;                       // the source flagged the frame (overrun, torn, missed sync)
   std::int64_t t_scan_start_ns = 0, t_scan_end_ns = 0;  // the pose is timed at mid-scan
+  std::uint32_t dwell_ns = 0;             // pixel dwell of this scan (0: not known)
   HeldPlaces held_by_others;              // the run's other targets (none: a single target)
 };
 
