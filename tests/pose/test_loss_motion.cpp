@@ -312,6 +312,13 @@ TEST(MotionModel, PoseNoiseIsCarriedAcrossALossNotAcrossForgetting) {
   EXPECT_DOUBLE_EQ(mm.pose_noise_px(), before);
   EXPECT_DOUBLE_EQ(mm.pose_noise_dwell_ns(), 250.0);
   EXPECT_NEAR(mm.pose_noise_score(), 0.7, 1e-12);
+  // Adapted to the frame, never smaller: half the dwell doubles the variance; a score of 0.6
+  // where the noise was learnt at 0.7 raises it by (0.64/0.36)/(0.51/0.49); a longer dwell or a
+  // better score leave it.
+  EXPECT_NEAR(mm.carried_noise_factor(125, 0.7), std::sqrt(2.0), 1e-9);
+  EXPECT_NEAR(mm.carried_noise_factor(250, 0.6), std::sqrt((0.64 / 0.36) / (0.51 / 0.49)), 1e-9);
+  EXPECT_DOUBLE_EQ(mm.carried_noise_factor(500, 0.9), 1.0);
+  EXPECT_DOUBLE_EQ(mm.carried_noise_factor(0, 0.7), 1.0) << "dwell not known";
   mm.accept(200, 100, 90, true, 250, 0.6);  // re-acquired by the search
   EXPECT_TRUE(mm.pose_noise_carried());
   for (int k = 1; k <= 4; ++k) mm.accept(200 + k, 100, 90, false, 250, 0.6);

@@ -72,6 +72,18 @@ void MotionModel::reset() noexcept {
   vx_ = vy_ = vphi_ = 0;
 }
 
+double MotionModel::carried_noise_factor(double dwell_ns, double score) const noexcept {
+  double v = 1.0;
+  if (noise_dwell_ns_ > 0 && dwell_ns > 0) v *= std::max(1.0, noise_dwell_ns_ / dwell_ns);
+  auto noise_over_signal = [](double r) {
+    const double r2 = std::clamp(r * r, 1e-4, 1.0);
+    return (1.0 - r2) / r2;
+  };
+  if (noise_score_ > 0 && score > 0)
+    v *= std::max(1.0, noise_over_signal(score) / std::max(1e-6, noise_over_signal(noise_score_)));
+  return std::sqrt(v);
+}
+
 void MotionModel::forget_noise() noexcept {
   reset();
   noise_px2_ = noise_deg2_ = level_px2_ = level_deg2_ = 0;

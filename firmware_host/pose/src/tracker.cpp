@@ -159,7 +159,7 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
 //
 // After a loss of the same target the stream's noise from before the loss stands in until the
 // new stream shows its own (MotionModel::pose_noise_carried; a REACQUIRE or another pattern set
-// forgets it), adapted to this frame by carried_noise_factor: a re-acquired pose the noise model
+// forgets it), adapted to this frame (MotionModel::carried_noise_factor): a re-acquired pose the noise model
 // supports is TRACKING on its first frame again, one it does not stays UNCERTAIN.
 //
 // With a prediction made from two ROI poses, the pose is judged by its error given where it
@@ -173,7 +173,7 @@ bool Tracker::Impl::trusted_pose(const PoseEstimate& e, const Innovation& innov)
   double s_px = std::max(e.sigma_x_px, e.sigma_y_px), s_deg = e.sigma_phi_deg;
   if (e.score < loss.explained_bound() && !motion.pose_noise_known() && !loss.calibrating()) return false;
   if (motion.pose_noise_known() && e.score < loss.explained_bound()) {
-    const double k = motion.pose_noise_carried() ? carried_noise_factor(e.score) : 1.0;
+    const double k = motion.pose_noise_carried() ? motion.carried_noise_factor(frame_dwell_ns, e.score) : 1.0;
     s_px = std::max(s_px, k * motion.pose_noise_px());
     s_deg = std::max(s_deg, k * motion.pose_noise_deg());
     if (innov.known) {
@@ -184,27 +184,6 @@ bool Tracker::Impl::trusted_pose(const PoseEstimate& e, const Innovation& innov)
   return loss.trusted(s_px, s_deg);
 }
 
-// How much larger the pose noise learnt before a loss is on this frame (never smaller: the
-// carried noise is a bound, and a longer dwell or a better score only makes it more careful).
-// A pose's error variance goes as the frame's noise over the target's signal:
-//  * the dwell: detected electrons per pixel ∝ dwell, so the variance ∝ 1/dwell (the governor
-//    shortens the dwell once the compute time allows, and a full-field search frame is scanned
-//    at its own dwell);
-//  * the score: a ZNCC r leaves (1 − r²)/r² of noise per unit of explained signal; a target
-//    re-found over other background, or after the beam drifted, scores lower than its level
-//    before the loss (the procedural lamella after a jump: 0.57-0.61 where it scored ~0.70).
-double Tracker::Impl::carried_noise_factor(double score) const noexcept {
-  double v = 1.0;
-  const double learnt_dwell = motion.pose_noise_dwell_ns();
-  if (learnt_dwell > 0 && frame_dwell_ns > 0) v *= std::max(1.0, learnt_dwell / frame_dwell_ns);
-  const double level = motion.pose_noise_score();
-  auto noise_over_signal = [](double r) {
-    const double r2 = std::clamp(r * r, 1e-4, 1.0);
-    return (1.0 - r2) / r2;
-  };
-  if (level > 0) v *= std::max(1.0, noise_over_signal(score) / std::max(1e-6, noise_over_signal(level)));
-  return std::sqrt(v);
-}
 
 double Tracker::Impl::significance_z() const noexcept {
   const double p = std::clamp(cfg.max_false_probability, 1e-12, 0.5);

@@ -197,7 +197,6 @@ struct Tracker::Impl {
     double d_px = 0, d_deg = 0;
   };
   bool trusted_pose(const PoseEstimate& e, const Innovation& innov) const noexcept;
-  double carried_noise_factor(double score) const noexcept;
   double frame_dwell_ns = 0;  // the pixel dwell of the frame being measured (0: not known)
 
   // Flip check (a near-symmetric target, e.g. a lamella, scores almost alike turned by 180°):

@@ -76,13 +76,24 @@ class MotionModel {
   // carried over (pose_noise_carried()): same target, same detector, so a re-acquired pose is
   // judged against it from its first frame instead of waiting three ROI frames for the new
   // stream's own innovations (that wait made recovery after a jump 5-6 frames instead of 1-2).
-  // The caller adapts it to the frame's dwell and score (Tracker: carried_noise_factor).
+  // The caller adapts it to the frame's dwell and score (carried_noise_factor).
   bool pose_noise_known() const noexcept { return have_noise_ && (innovations_since_fresh_ >= 3 || carried_); }
   bool pose_noise_carried() const noexcept { return carried_ && innovations_since_fresh_ < 3; }
   // The pixel dwell and the score the pose noise was learnt at (running means over the same ~20
   // frames as its long memory; 0: not known).
   double pose_noise_dwell_ns() const noexcept { return noise_dwell_ns_; }
   double pose_noise_score() const noexcept { return noise_score_; }
+  // How much larger the carried pose noise is on a frame of pixel dwell dwell_ns whose pose
+  // scores score (never smaller: the carried noise is a bound, and a longer dwell or a better
+  // score only makes it more careful; 0 = not known, no change). A pose's error variance goes
+  // as the frame's noise over the target's signal:
+  //  * the dwell: detected electrons per pixel ∝ dwell, so the variance ∝ 1/dwell (the
+  //    governor shortens the dwell once the compute time allows, and a full-field search frame
+  //    is scanned at its own dwell);
+  //  * the score: a ZNCC r leaves (1 − r²)/r² of noise per unit of explained signal; a target
+  //    re-found over other background, or after the beam drifted, scores lower than its level
+  //    before the loss (the procedural lamella after a jump: 0.57-0.61 where it scored ~0.70).
+  double carried_noise_factor(double dwell_ns, double score) const noexcept;
   double pose_noise_px() const noexcept {
     return std::sqrt(std::max(noise_px2_, level_px2_) / (predict_velocity_ ? 12.0 : 4.0));
   }
