@@ -388,4 +388,9 @@ TEST(LossPolicy, FalseProbabilityOfAnOffsetError) {
   // innovation is.
   EXPECT_TRUE(loss.trusted_offset(0.0, 0.82, 0.0, 1.0));
   EXPECT_FALSE(loss.trusted_offset(1.03, 0.82, 0.0, 1.0));
+  // Where the quick upper bound is not enough, the quadrature decides: offset 0.9, SD 0.8 gives
+  // a bound exp(−2.1²/1.28) = 3.2 % but a Rice tail of 0.85 %.
+  EXPECT_GT(std::exp(-2.1 * 2.1 / (2 * 0.8 * 0.8)), 0.01);
+  EXPECT_LT(LossPolicy::false_probability_offset(0.9, 0.8, 0.0, 0.0), 0.01);
+  EXPECT_TRUE(loss.trusted_offset(0.9, 0.8, 0.0, 1.0));
 }
