@@ -41,6 +41,10 @@ void read_tracker(Section& s, TrackerConfig& c) {
     Section appearance = s.child("appearance");
     read_appearance(appearance, c.appearance);
   }
+  {
+    Section refine = s.child("refine");
+    read_refine(refine, c.refine);
+  }
   s.opt("max_angle_steps_per_frame", c.max_angle_steps_per_frame, 1, 180);
   s.opt("recover_sweep_deg", c.recover_sweep_deg, 0.0, 180.0);
   s.opt("recover_step_deg", c.recover_step_deg, 0.25, 90.0);

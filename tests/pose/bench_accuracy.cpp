@@ -346,6 +346,8 @@ int main(int argc, char** argv) {
   // --visp-levels N: ViSP's pyramid levels (3 by default, as the issue specifies).
   // --search-scale MIN MAX: tracker.search_scale_min/max (what the defaults were chosen against).
   // --appearance on|off: learned appearance (tracker.appearance.enabled) regardless of its default.
+  // --refine on|off: the final Gauss–Newton fit (tracker.refine.enabled) regardless of its default;
+  // --refine-iterations N, --refine-scale on|off, --refine-source S: its tracker.refine.max_iterations / fit_scale / source.
   // --sigma-tile N, --sigma-calibration K, --sigma-floor PX DEG, --sigma-noise-factor F: the σ
   // stage's tile side, sandwich factor, model-error floor and white-noise factor (to try them; the defaults are tracker.sigma_*).
   config::TrackerConfig tc;
@@ -378,6 +380,10 @@ int main(int argc, char** argv) {
       tc.search_scale_max = std::atof(argv[++i]);
     }
     else if (a == "--appearance" && i + 1 < argc) appearance = std::string(argv[++i]) == "on" ? 1 : 0;
+    else if (a == "--refine" && i + 1 < argc) tc.refine.enabled = std::string(argv[++i]) == "on";
+    else if (a == "--refine-iterations" && i + 1 < argc) tc.refine.max_iterations = std::atoi(argv[++i]);
+    else if (a == "--refine-scale" && i + 1 < argc) tc.refine.fit_scale = std::string(argv[++i]) == "on";
+    else if (a == "--refine-source" && i + 1 < argc) tc.refine.source = argv[++i];
     else if (a == "--sigma-tile" && i + 1 < argc) sigma_tile = std::atoi(argv[++i]);
     else if (a == "--sigma-calibration" && i + 1 < argc) sigma_cal = std::atof(argv[++i]);
     else if (a == "--sigma-noise-factor" && i + 1 < argc) tc.sigma_noise_factor = std::atof(argv[++i]);
@@ -391,7 +397,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
       return 2;
     }
   }
@@ -424,7 +430,7 @@ int main(int argc, char** argv) {
   const std::int64_t bench_t0 = rt::now_ns();
   std::printf(
       "accuracy against the single-frame Cramér–Rao bound and ViSP: 640x480 field, pattern %d², ROI %d², 250 ns dwell,\n"
-      "%d frames per run, bits 8 (warped: 16, Poisson only); learned appearance %s\n"
+      "%d frames per run, bits 8 (warped: 16, Poisson only); learned appearance %s, refinement %s\n"
       "targets: needle_tip = needle_contact_eb.pgm crop 552,430 120x160 at 90x120 (threshold mask);\n"
       "         lamella_post = lamella_on_post_eb.pgm crop 420,460 180x180 at 100x100; lamella = procedural 100x64;\n"
       "         warped = lamella_on_post_eb.pgm moved rigidly (σ 1 px PSF, exact crop as pattern); gripper = procedural 110x84\n"
@@ -439,7 +445,7 @@ int main(int argc, char** argv) {
       "  <= 10 deg (RMS over those); false = valid but > 3 px or > 10 deg; recov = frames from a jump to a valid pose < 1 px\n"
       "ViSP 3.5: vpTemplateTrackerZNCCInverseCompositional + vpTemplateTrackerWarpSRT, %d pyramid levels, same pattern and\n"
       "  circle (r %.0f px), 256² crop on its last estimate, started at the truth on the first frame\n",
-      tc.pattern_size_px, tc.roi_size_px, frames, tc.appearance.enabled ? "on" : "off", visp_levels, zone_r);
+      tc.pattern_size_px, tc.roi_size_px, frames, tc.appearance.enabled ? "on" : "off", tc.refine.enabled ? "on" : "off", visp_levels, zone_r);
   std::printf("%-12s %-12s %4s | %5s %5s %5s %6s %7s %5s %5s %7s | %5s %5s %5s %6s %7s %5s %5s %7s | %7s %7s\n", "target",
               "case", "dose", "trk%", "false", "recov", "rms_px", "rms_deg", "x_px", "x_deg", "us/pose", "ok%", "false",
               "recov", "rms_px", "rms_deg", "x_px", "x_deg", "ms/frm", "bnd_px", "bnd_deg");

@@ -45,7 +45,7 @@ void Tracker::Impl::forget_everything() noexcept {
 // Tracking: the predicted angle's FFT peak in the loaded ROI, the walk and the fit; when the
 // walk hit its bound or the score collapsed, a bounded angle sweep in this ROI before giving
 // up (a fast spin or a slip in angle is recovered here, not followed).
-Measurement Tracker::Impl::track(const PatternBank& bank, bool& swept) noexcept {
+Measurement Tracker::Impl::track(const PatternBank& bank, bool& swept, std::uint8_t set, const RawRoi& raw) noexcept {
   const int max_moves = cfg.max_angle_steps_per_frame;
   const int j_pred = angles.index_of(motion.predicted_phi_deg());
   half.correlate(bank.spectrum(j_pred), maps.work());
@@ -59,7 +59,7 @@ Measurement Tracker::Impl::track(const PatternBank& bank, bool& swept) noexcept 
     if (r.score > m.score) m = r;
     else m.steps = r.steps;
   }
-  return refinement.refine(bank, m);
+  return refinement.refine(set, bank, m, raw);
 }
 
 // The motion check (a pose stream must never lie): a pose that lands farther from the
@@ -467,7 +467,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     }
   };
   bool swept = false;
-  Measurement m = track(bank, swept);
+  Measurement m = track(bank, swept, set, {load_px, load_stride});
   place(m, e);
   // The loaded ROI's origin in the field (a rescaled ROI is resampled about its centre).
   const int loaded_w = std::min(scored.w, sizes.roi_fft_px), loaded_h = std::min(scored.h, sizes.roi_fft_px);

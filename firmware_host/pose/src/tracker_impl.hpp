@@ -62,7 +62,7 @@ struct Tracker::Impl {
   const OrientationWalk walk;
   AngleSweep sweep;
   StartSearch search;
-  const PoseRefinement refinement;
+  PoseRefinement refinement;
   PoseUncertainty uncertainty;
   LossPolicy loss;
   MotionModel motion;
@@ -151,7 +151,7 @@ struct Tracker::Impl {
         walk(scorer, fit, angles),
         sweep(half, walk, angles, maps),
         search(cfg, sizes, angles, coarse, coarse_wide.get(), half, loader, rescaler, scale_probe, scale_evidence, walk, sweep, maps),
-        refinement(scorer),
+        refinement(scorer, c.refine, angles.step_deg),
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
                     c.sigma_noise_factor, c.sigma_angle_factor, angles.count),
         loss(cfg),
@@ -183,7 +183,7 @@ struct Tracker::Impl {
   void forget_everything() noexcept;
 
   PoseEstimate update(const PoseFrame& frame) noexcept;
-  Measurement track(const PatternBank& bank, bool& swept) noexcept;
+  Measurement track(const PatternBank& bank, bool& swept, std::uint8_t set, const RawRoi& raw) noexcept;
   template <class Place>
   void check_motion(const PatternBank& bank, Measurement& m, PoseEstimate& e, bool swept, double origin_x, double origin_y,
                     double scale, const Place& place) noexcept;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "sempose/config/appearance_config.hpp"
+#include "sempose/config/refine_config.hpp"
 #include "sempose/config/pose_filter_config.hpp"
 
 namespace sempose::config {
@@ -91,6 +92,8 @@ struct TrackerConfig {
   // Learned appearance (tracker.appearance:): pixels the target does not explain leave the
   // exact scorer's support.
   AppearanceConfig appearance;
+  // Final Gauss–Newton fit at the refinement seam (tracker.refine:).
+  RefineConfig refine;
 };
 
 struct PatternSetConfig {

@@ -3,6 +3,8 @@
 // sub-step offsets of the fit, the exact score there and the position peak's PSR.
 #pragma once
 
+#include <cstdint>
+
 namespace sempose::pose {
 
 struct Measurement {
@@ -30,6 +32,10 @@ struct Measurement {
   // the target from its best look-alike (Tracker: search check).
   float coarse_score = 0.0f;
   float runner_up_rank = -4.0f;
+  // The refinement seam's outcome (FitStatus: 0 off, 1 refined, 2 diverged — the walk's pose
+  // kept —, 3 skipped) and the scale the fit found relative to the loaded ROI's (1: not fitted).
+  std::uint8_t refine_status = 0;
+  float refined_scale = 1.0f;
 };
 
 }  // namespace sempose::pose

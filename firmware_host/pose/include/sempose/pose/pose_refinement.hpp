@@ -1,29 +1,53 @@
-// The seam for a model-based refinement of a tracked measurement, right after the orientation
-// walk and the sub-pixel fit (and the recovery sweep), before the loss policy judges it.
-// Today it passes the measurement through unchanged; a refinement (e.g. Gauss–Newton on the
-// exact scores, scale) replaces refine()'s body. It sees the ROI the measurement was made in
-// (the scorer holds it) and the bank. The start search's result is not passed through here:
-// the scorer then holds the last candidate's ROI, not necessarily the winner's, and the next
-// frame (tracked at the found pose) is refined anyway. RT: noexcept, no allocation.
+// The refinement seam: right after the orientation walk and its sub-pixel fit (and the recovery
+// sweep), before the motion check and the loss policy judge the measurement. With
+// tracker.refine.enabled it replaces the walk's sub-pixel / sub-step offsets by the final
+// Gauss–Newton fit of the pattern (gauss_newton_fit.hpp), started at the walk's pose; otherwise,
+// and when the fit is skipped or diverges, the walk's measurement passes unchanged (marked in
+// Measurement::refine_status). The grid point (j, ux, uy) and the exact score stay the walk's:
+// the scale probe, σ and the loss policy read them. The start search's result is not passed
+// through here: the scorer then holds the last candidate's ROI, not necessarily the winner's,
+// and the next frame (tracked at the found pose) is refined anyway.
+// Setup: add_set() per pattern set (allocates the templates). refine() is RT: noexcept, no
+// allocation.
 #pragma once
 
+#include <cstdint>
+#include <vector>
+
+#include "sempose/config/refine_config.hpp"
 #include "sempose/pose/exact_scorer.hpp"
+#include "sempose/pose/gauss_newton_fit.hpp"
 #include "sempose/pose/measurement.hpp"
+#include "sempose/pose/pattern_bank.hpp"
+#include "sempose/pose/pattern_image.hpp"
 
 namespace sempose::pose {
 
+// The raw ROI the exact scorer's copy was loaded from (the rescaled one when resampled).
+struct RawRoi {
+  const std::uint16_t* px = nullptr;
+  std::ptrdiff_t stride = 0;
+};
+
 class PoseRefinement {
  public:
-  PoseRefinement(const ExactScorer& scorer) noexcept : scorer_(scorer) {}
+  PoseRefinement(const ExactScorer& scorer, const config::RefineConfig& cfg, double angle_step_deg)
+      : scorer_(scorer), fit_(cfg), step_deg_(angle_step_deg), raw_(cfg.source == "raw") {}
 
-  Measurement refine(const PatternBank& bank, const Measurement& m) const noexcept {
-    (void)bank;
-    (void)scorer_;
-    return m;
-  }
+  // Setup, per pattern set in order: the template over the bank's angle-0 support — the bank's
+  // prefiltered copy, or the recorded pattern (raw source). False when it has too few pixels.
+  bool add_set(const PatternBank& bank, const PatternImage& recorded);
+
+  Measurement refine(std::uint8_t set, const PatternBank& bank, const Measurement& m, const RawRoi& raw) const noexcept;
+
+  std::size_t memory_bytes() const noexcept;
 
  private:
   const ExactScorer& scorer_;
+  GaussNewtonFit fit_;
+  double step_deg_;
+  bool raw_;
+  std::vector<FitTemplate> templates_;
 };
 
 }  // namespace sempose::pose

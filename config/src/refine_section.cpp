@@ -1,0 +1,16 @@
+#include "sempose/config/refine_config.hpp"
+#include "sempose/config/reader.hpp"
+
+namespace sempose::config {
+
+void read_refine(Section& s, RefineConfig& c) {
+  s.opt("enabled", c.enabled);
+  s.opt("max_iterations", c.max_iterations, 1, 10);
+  // Below a quarter pixel the fit could not correct the walk's own error (±0.5 px, ±0.5 step).
+  s.opt("max_move_px", c.max_move_px, 0.25, 4.0);
+  s.opt_choice("source", c.source, {"prefiltered", "raw"});
+  s.opt("fit_scale", c.fit_scale);
+  s.opt("min_score", c.min_score, 0.0, 1.0);
+}
+
+}  // namespace sempose::config
