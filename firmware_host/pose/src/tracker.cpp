@@ -126,6 +126,7 @@ void Tracker::Impl::to_estimate(const Measurement& m, int origin_x, int origin_y
   e.score = std::clamp(m.score, -1.0f, 1.0f);
   e.psr = m.psr;
   e.angle_steps = m.steps;
+  e.refine_status = m.refine_status;
 }
 
 // σ in the loaded ROI's pixels, back to the scanned ones (a resampled ROI is 1/scale of them).
