@@ -10,6 +10,7 @@ void read_refine(Section& s, RefineConfig& c) {
   s.opt("max_move_px", c.max_move_px, 0.25, 4.0);
   s.opt_choice("source", c.source, {"prefiltered", "raw"});
   s.opt("fit_scale", c.fit_scale);
+  s.opt("fit_position", c.fit_position);
   s.opt("min_score", c.min_score, 0.0, 1.0);
 }
 

@@ -347,7 +347,8 @@ int main(int argc, char** argv) {
   // --search-scale MIN MAX: tracker.search_scale_min/max (what the defaults were chosen against).
   // --appearance on|off: learned appearance (tracker.appearance.enabled) regardless of its default.
   // --refine on|off: the final Gauss–Newton fit (tracker.refine.enabled) regardless of its default;
-  // --refine-iterations N, --refine-scale on|off, --refine-source S: its tracker.refine.max_iterations / fit_scale / source.
+  // --refine-iterations N, --refine-scale on|off, --refine-source S, --refine-position on|off:
+  // its tracker.refine.max_iterations / fit_scale / source / fit_position.
   // --sigma-tile N, --sigma-calibration K, --sigma-floor PX DEG, --sigma-noise-factor F: the σ
   // stage's tile side, sandwich factor, model-error floor and white-noise factor (to try them; the defaults are tracker.sigma_*).
   config::TrackerConfig tc;
@@ -384,6 +385,7 @@ int main(int argc, char** argv) {
     else if (a == "--refine-iterations" && i + 1 < argc) tc.refine.max_iterations = std::atoi(argv[++i]);
     else if (a == "--refine-scale" && i + 1 < argc) tc.refine.fit_scale = std::string(argv[++i]) == "on";
     else if (a == "--refine-source" && i + 1 < argc) tc.refine.source = argv[++i];
+    else if (a == "--refine-position" && i + 1 < argc) tc.refine.fit_position = std::string(argv[++i]) == "on";
     else if (a == "--sigma-tile" && i + 1 < argc) sigma_tile = std::atoi(argv[++i]);
     else if (a == "--sigma-calibration" && i + 1 < argc) sigma_cal = std::atof(argv[++i]);
     else if (a == "--sigma-noise-factor" && i + 1 < argc) tc.sigma_noise_factor = std::atof(argv[++i]);
@@ -397,7 +399,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
       return 2;
     }
   }

@@ -36,8 +36,10 @@ Measurement PoseRefinement::refine(std::uint8_t set, const PatternBank& bank, co
                            : fit_.fit(tpl, scorer_.roi(), scorer_.roi_w(), scorer_.roi_h(), scorer_.roi_w(), start);
   out.refine_status = static_cast<std::uint8_t>(r.status);
   if (r.status != FitStatus::kRefined) return out;
-  out.dx = r.pose.cx - c - m.ux;
-  out.dy = r.pose.cy - c - m.uy;
+  if (fit_.config().fit_position) {
+    out.dx = r.pose.cx - c - m.ux;
+    out.dy = r.pose.cy - c - m.uy;
+  }
   out.dj = rt::wrap_deg(r.pose.phi_deg - m.j * step_deg_) / step_deg_;
   out.refined_scale = static_cast<float>(r.pose.scale);
   return out;

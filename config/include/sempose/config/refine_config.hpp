@@ -25,6 +25,10 @@ struct RefineConfig {
   std::string source = "prefiltered";
   // Fit the scale too (otherwise the ROI's tracked scale is taken as exact).
   bool fit_scale = true;
+  // Report the fit's position (false: only its angle, the walk's position kept — the fit
+  // still moves position jointly to find the angle). Measured: the fit lowers the angle's
+  // noise part but not the position's (README: Known limitations).
+  bool fit_position = true;
   // Only measurements scoring at least this are refined (below it the fit has too little signal
   // to beat the walk and a look-alike is as likely).
   double min_score = 0.2;
