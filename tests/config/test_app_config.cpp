@@ -69,6 +69,26 @@ TEST(AppConfig, AppearanceKeysAreReadAndChecked) {
   EXPECT_NE(e.find("tracker.appearance.blok_px: unknown key"), std::string::npos) << e;
 }
 
+TEST(AppConfig, RefineKeysAreReadAndChecked) {
+  const auto good = write_yaml("refine.yaml",
+                               "tracker:\n  refine:\n    enabled: true\n    source: raw\n    max_iterations: 4\n"
+                               "    fit_position: false\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_TRUE(load_app_config(good, c, e)) << e;
+  EXPECT_TRUE(c.tracker.refine.enabled);
+  EXPECT_EQ(c.tracker.refine.source, "raw");
+  EXPECT_EQ(c.tracker.refine.max_iterations, 4);
+  EXPECT_FALSE(c.tracker.refine.fit_position);
+  const auto bad = write_yaml("refine_bad.yaml", "tracker:\n  refine:\n    max_iterations: 0\n    source: both\n");
+  AppConfig d;
+  e.clear();
+  EXPECT_FALSE(load_app_config(bad, d, e));
+  EXPECT_NE(e.find("tracker.refine.max_iterations: 0 is outside the allowed range [1, 10]"), std::string::npos) << e;
+  EXPECT_NE(e.find("tracker.refine.source"), std::string::npos) << e;
+  EXPECT_NE(e.find("both"), std::string::npos) << e;
+}
+
 // The start search's scale span: read, and refused outside the tracker's scale range.
 TEST(AppConfig, StartSearchScaleSpan) {
   const auto good = write_yaml("scale_span.yaml", "tracker:\n  search_scale_min: 0.8\n  search_scale_max: 1.2\n");
