@@ -106,7 +106,7 @@ void read_target(Section& s, SimTargetConfig& t) {
   tex.opt_choice("source", t.texture.source, {"image", "gripper", "lamella"});
   tex.opt("path", t.texture.path);
   read_crop(tex, t.texture.crop_x, t.texture.crop_y, t.texture.crop_w, t.texture.crop_h);
-  tex.opt_choice("mask", t.texture.mask, {"full", "threshold"});
+  tex.opt_choice("mask", t.texture.mask, {"full", "threshold", "threshold_all"});
   tex.opt("mask_level", t.texture.mask_level, 0.0, 1.0);
   if (t.texture.source == "image" && t.texture.path.empty()) {
     tex.error("path", "texture source 'image' needs a PGM path");

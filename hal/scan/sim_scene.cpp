@@ -110,10 +110,12 @@ FloatImage crop_to_float(const Image& img, std::int32_t x, std::int32_t y, std::
 
 namespace {
 
-// Keeps the largest 4-connected region of mask > 0.5 (the needle, not bright grains).
-void keep_largest_region(FloatImage& m) {
+// Keeps the largest 4-connected region of mask > 0.5 (the needle, not bright grains); with
+// `all`, every region of at least 5 % of the largest and 64 px too (a needle and the lamella it
+// carries are two regions with a dark gap between them; grains stay out).
+void keep_regions(FloatImage& m, bool all) {
   std::vector<int> label(m.v.size(), 0);
-  std::vector<std::size_t> stack;
+  std::vector<std::size_t> stack, sizes(1, 0);
   int best_label = 0, next = 0;
   std::size_t best_size = 0;
   for (std::size_t s = 0; s < m.v.size(); ++s) {
@@ -138,9 +140,14 @@ void keep_largest_region(FloatImage& m) {
         }
       }
     }
+    sizes.push_back(size);
     if (size > best_size) best_size = size, best_label = next;
   }
-  for (std::size_t s = 0; s < m.v.size(); ++s) m.v[s] = label[s] == best_label && best_label != 0 ? 1.0f : 0.0f;
+  const std::size_t min_size = std::max<std::size_t>(64, best_size / 20);
+  for (std::size_t s = 0; s < m.v.size(); ++s) {
+    const bool keep = label[s] != 0 && (label[s] == best_label || (all && sizes[static_cast<std::size_t>(label[s])] >= min_size));
+    m.v[s] = keep ? 1.0f : 0.0f;
+  }
 }
 
 FloatImage granular(std::int32_t w, std::int32_t h, double grain_px, std::uint64_t seed) {
@@ -203,11 +210,11 @@ SimLayer build_layer(const config::SimTargetConfig& t, std::size_t index, const 
     tex = crop_to_float(img, t.texture.crop_x, t.texture.crop_y, t.texture.crop_w, t.texture.crop_h, what);
     if (t.width_px > 0 && t.height_px > 0) tex = resample(tex, t.width_px, t.height_px);
     alpha = FloatImage{tex.w, tex.h, std::vector<float>(tex.v.size(), 1.0f)};
-    if (t.texture.mask == "threshold") {
+    if (t.texture.mask == "threshold" || t.texture.mask == "threshold_all") {
       FloatImage smooth = tex;
       gaussian_blur(smooth, 3.0);
       for (std::size_t i = 0; i < smooth.v.size(); ++i) alpha.v[i] = smooth.v[i] >= t.texture.mask_level ? 1.0f : 0.0f;
-      keep_largest_region(alpha);
+      keep_regions(alpha, t.texture.mask == "threshold_all");
       double area = 0;
       for (float a : alpha.v) area += a;
       if (area < 16) {

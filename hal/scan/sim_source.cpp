@@ -198,6 +198,35 @@ void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_st
   for (std::size_t t = n_targets; t < static_cast<std::size_t>(kMaxTargets); ++t) truth[t] = TargetTruth{};
 }
 
+TargetTruth SimSource::truth_as_scanned(std::size_t t, const Roi& roi, std::uint32_t dwell_ns,
+                                        std::int64_t t_start_ns) noexcept {
+  TargetTruth tr;
+  if (t >= scene_.targets().size() || roi.w <= 0 || roi.h <= 0) return tr;
+  const double line_ns = static_cast<double>(roi.w) * dwell_ns + limits_.line_flyback_ns;
+  const double t0 = seconds(t_start_ns);
+  // Start at mid-scan; the pixel time of the point moves by (speed x line time) per step, far
+  // below 1 px, so three steps converge (a jump during the scan settles on either side of it).
+  double ts = t0 + 0.5 * static_cast<double>(limits_.scan_time_ns(roi.w, roi.h, dwell_ns)) * 1e-9;
+  SimTargetPose p{};
+  double dx = 0, dy = 0;
+  for (int k = 0; k < 4; ++k) {
+    p = target_pose(t, ts);
+    drift_at(ts, dx, dy);
+    const double row = std::clamp(p.y_px + dy - roi.y, 0.0, roi.h - 1.0);
+    const double col = std::clamp(p.x_px + dx - roi.x, 0.0, roi.w - 1.0);
+    const double next = t0 + (std::round(row) * line_ns + col * dwell_ns) * 1e-9;
+    if (k > 0 && std::fabs(next - ts) < 1e-7) break;
+    ts = next;
+  }
+  tr.x_px = p.x_px + dx;
+  tr.y_px = p.y_px + dy;
+  tr.phi_deg = p.phi_deg;
+  tr.scale = p.scale;
+  tr.present = scene_.targets()[t].enabled && tr.x_px >= 0 && tr.y_px >= 0 && tr.x_px <= limits_.field_w - 1 &&
+               tr.y_px <= limits_.field_h - 1;
+  return tr;
+}
+
 namespace {
 // Where the pattern crop of a target lies: centred on the target, clamped to the field.
 void pattern_origin(const config::SimTargetConfig& t, const ScanLimits& limits, int size_px, std::int32_t& ox,

@@ -65,7 +65,8 @@ struct TextureConfig {
   std::string source = "image";  // image | gripper | lamella
   std::string path;              // image: PGM path (relative: to cwd, then to the repo root)
   std::int32_t crop_x = 0, crop_y = 0, crop_w = 0, crop_h = 0;  // 0 size: the whole image
-  // image mask: full (the crop rectangle) | threshold (largest bright region of the crop)
+  // image mask: full (the crop rectangle) | threshold (largest bright region of the crop) |
+  // threshold_all (every bright region of >= 5 % of the largest: a needle with the lamella it carries)
   std::string mask = "full";
   double mask_level = 0.6;  // threshold mask: brightness 0..1 on the smoothed texture
 };

@@ -37,6 +37,12 @@ class SimSource final : public TimedScanSource {
   // pixels) and fills truth[0..target count) with the poses at mid-scan. RT-safe.
   void render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_start_ns, std::uint64_t seq, Pixel* out,
               TargetTruth* truth) noexcept;
+  // Target t's truth as a scan of roi from t_start_ns shows it: its pose (drift included) at the
+  // moment the beam passed its pose point, found by iterating point -> pixel time -> point. For a
+  // ROI centred on the target that is mid-scan (render()'s truth); a 640x480 field takes ~78 ms
+  // at 250 ns, and a target moving 100 px/s is ~4 px from its mid-scan pose when the beam meets it
+  // near the field's top or bottom. `sempose sim` writes this truth for its full-field frames.
+  TargetTruth truth_as_scanned(std::size_t t, const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_start_ns) noexcept;
   std::uint8_t target_count() const noexcept { return static_cast<std::uint8_t>(scene_.targets().size()); }
   const SimScene& scene() const noexcept { return scene_; }
 
