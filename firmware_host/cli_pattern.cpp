@@ -91,6 +91,11 @@ int sempose::cli::pattern(int argc, char** argv) {
     const int w = first.width, h = first.height;
     const double half = (size - 1) / 2.0;
     const double x0 = cx - half, y0 = cy - half;
+    if (size > w || size > h) {
+      std::fprintf(stderr, "sempose pattern: --size %ld does not fit the %dx%d frames of %s (at most %d)\n", size, w, h,
+                   dir.c_str(), std::min(w, h));
+      return 2;
+    }
     if (x0 < 0 || y0 < 0 || x0 + size - 1 > w - 1 || y0 + size - 1 > h - 1) {
       std::fprintf(stderr,
                    "sempose pattern: centre (%g, %g) is too close to the edge of the %dx%d frames for a %ld px "
@@ -111,6 +116,12 @@ int sempose::cli::pattern(int argc, char** argv) {
       if (img.width != w || img.height != h) {
         std::fprintf(stderr, "sempose pattern: %s: size %dx%d differs from the first frame's %dx%d\n",
                      names[f].c_str(), img.width, img.height, w, h);
+        return 2;
+      }
+      // A frame of another depth is from another recording (its grey levels mean other things).
+      if (img.bits != first.bits) {
+        std::fprintf(stderr, "sempose pattern: %s: %d-bit samples where the first frame has %d-bit ones\n",
+                     names[f].c_str(), static_cast<int>(img.bits), static_cast<int>(first.bits));
         return 2;
       }
       if (f > 0) {

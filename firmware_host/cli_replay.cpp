@@ -9,7 +9,8 @@
 //   summary: frames=N tracked_share=F compute_us_p50=A compute_us_p99=B compute_us_max=C acquire_ms=D
 // compute = the tracker's update() per ROI pose (wall time, file I/O excluded); acquire = the
 // first full-field search. With --truth: RMS/max position and angle errors over TRACKING
-// poses, on a line before the summary.
+// poses, the TRACKING poses > 3 px or > 10° off (false_tracking) and those on a frame the truth
+// has no row for (tracking_without_truth), on a line before the summary.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -64,13 +65,20 @@ class TruthCheckSink final : public pipeline::PoseSink {
       max_px = std::max(max_px, d);
       max_deg = std::max(max_deg, a);
       ++compared;
+      // Issue 13's rule for a pose a robot must not be driven with.
+      if (d > 3.0 || a > 10.0) ++false_tracking;
+    } else if (p.state == pose::TrackState::kTracking && !truth_.empty()) {
+      // No truth for this frame and target: `sempose sim` leaves a target out of a frame it is
+      // not in, so this is a pose of something else; a hand-made truth may just have a gap.
+      // Either way it is counted, not silently left out of the comparison.
+      ++uncompared;
     }
     return out_.publish(p, t_now_ns);
   }
   void flush() override { out_.flush(); }
 
   double sum_px2 = 0, max_px = 0, sum_deg2 = 0, max_deg = 0;
-  long compared = 0;
+  long compared = 0, false_tracking = 0, uncompared = 0;
 
  private:
   pipeline::PoseSink& out_;
@@ -194,8 +202,10 @@ int run_replay(int argc, char** argv) {
   }
   if (!truth_path.empty()) {
     const long n = sink.compared;
-    std::printf("truth: poses_compared=%ld rms_px=%.4f max_px=%.4f rms_deg=%.4f max_deg=%.4f\n", n,
-                n ? std::sqrt(sink.sum_px2 / n) : 0.0, sink.max_px, n ? std::sqrt(sink.sum_deg2 / n) : 0.0, sink.max_deg);
+    std::printf("truth: poses_compared=%ld rms_px=%.4f max_px=%.4f rms_deg=%.4f max_deg=%.4f false_tracking=%ld "
+                "tracking_without_truth=%ld\n",
+                n, n ? std::sqrt(sink.sum_px2 / n) : 0.0, sink.max_px, n ? std::sqrt(sink.sum_deg2 / n) : 0.0, sink.max_deg,
+                sink.false_tracking, sink.uncompared);
   }
   std::vector<double> compute_us;
   for (const std::int64_t ns : stats.roi_compute_ns) compute_us.push_back(ns * 1e-3);
