@@ -78,7 +78,6 @@ struct Tracker::Impl {
   // TRACKING until a frame passes every check again.
   int held_frames = 0;
   static constexpr double kImplausibleWider = 1.5;  // motion check: implausible beyond 1.5 × the surprise limits
-  static constexpr double kLookAlikeShare = 0.1;  // search check: the least lead worth a look-alike's rank (share of the room)
   static constexpr int kMaxHeldFrames = 25;  // ~0.25 s of 192² ROIs, then the field is searched
   // The target's scale (size over the pattern's): each tracked ROI is resampled by 1/scale.
   // Learnt from the accepted frames' scale readings, kept across a loss (the magnification
