@@ -182,19 +182,8 @@ void SimSource::render(const Roi& roi, std::uint32_t dwell_ns, std::int64_t t_st
                   out + static_cast<std::size_t>(row) * roi.w);
     }
   }
-  // Truth: each target's pose at mid-scan as it appears (drift included, jitter not).
-  double dx = 0, dy = 0;
-  drift_at(t_mid, dx, dy);
-  for (std::size_t t = 0; t < n_targets && t < static_cast<std::size_t>(kMaxTargets); ++t) {
-    const SimTargetPose p = target_pose(t, t_mid);
-    TargetTruth& tr = truth[t];
-    tr.x_px = p.x_px + dx;
-    tr.y_px = p.y_px + dy;
-    tr.phi_deg = p.phi_deg;
-    tr.scale = p.scale;
-    tr.present = scene_.targets()[t].enabled && tr.x_px >= 0 && tr.y_px >= 0 && tr.x_px <= limits_.field_w - 1 &&
-                 tr.y_px <= limits_.field_h - 1;
-  }
+  // Truth: each target's pose at mid-scan.
+  for (std::size_t t = 0; t < n_targets && t < static_cast<std::size_t>(kMaxTargets); ++t) truth[t] = truth_at(t, t_mid);
   for (std::size_t t = n_targets; t < static_cast<std::size_t>(kMaxTargets); ++t) truth[t] = TargetTruth{};
 }
 
@@ -207,17 +196,22 @@ TargetTruth SimSource::truth_as_scanned(std::size_t t, const Roi& roi, std::uint
   // Start at mid-scan; the pixel time of the point moves by (speed x line time) per step, far
   // below 1 px, so three steps converge (a jump during the scan settles on either side of it).
   double ts = t0 + 0.5 * static_cast<double>(limits_.scan_time_ns(roi.w, roi.h, dwell_ns)) * 1e-9;
-  SimTargetPose p{};
-  double dx = 0, dy = 0;
   for (int k = 0; k < 4; ++k) {
-    p = target_pose(t, ts);
-    drift_at(ts, dx, dy);
-    const double row = std::clamp(p.y_px + dy - roi.y, 0.0, roi.h - 1.0);
-    const double col = std::clamp(p.x_px + dx - roi.x, 0.0, roi.w - 1.0);
+    tr = truth_at(t, ts);
+    const double row = std::clamp(tr.y_px - roi.y, 0.0, roi.h - 1.0);
+    const double col = std::clamp(tr.x_px - roi.x, 0.0, roi.w - 1.0);
     const double next = t0 + (std::round(row) * line_ns + col * dwell_ns) * 1e-9;
     if (k > 0 && std::fabs(next - ts) < 1e-7) break;
     ts = next;
   }
+  return tr;
+}
+
+TargetTruth SimSource::truth_at(std::size_t t, double t_s) noexcept {
+  const SimTargetPose p = target_pose(t, t_s);
+  double dx = 0, dy = 0;
+  drift_at(t_s, dx, dy);
+  TargetTruth tr;
   tr.x_px = p.x_px + dx;
   tr.y_px = p.y_px + dy;
   tr.phi_deg = p.phi_deg;

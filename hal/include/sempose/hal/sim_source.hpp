@@ -54,6 +54,9 @@ class SimSource final : public TimedScanSource {
 
  private:
   void drift_at(double t_s, double& dx, double& dy) const noexcept;
+  // Target t's truth at time t_s as it appears (drift included, jitter not); present when
+  // enabled and inside the field.
+  TargetTruth truth_at(std::size_t t, double t_s) noexcept;
   // One line's scene brightness -> detector -> output counts: charging gain/offset, Poisson
   // electrons × Gamma gain + read noise (or the mean), the bandwidth low-pass, quantisation.
   void detect_line(const float* b, int n, double gain, double offset, std::uint32_t dwell_ns, Pixel* dst) noexcept;
