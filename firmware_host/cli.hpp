@@ -1,6 +1,7 @@
 // The `sempose` subcommands. Each returns the process exit code; argv[0] is the subcommand.
 #pragma once
 
+#include <cstdio>
 #include <string>
 
 namespace sempose::config {
@@ -19,5 +20,13 @@ int view(int argc, char** argv);     // operator's pictures of a run or recordin
 // The check-rt lines for `cfg` on the system under `root`; returns check-rt's exit code
 // (`sempose run --strict-rt` refuses to start on 3).
 int print_rt_checks(const config::AppConfig& cfg, const std::string& root);
+
+// "-" names standard output to most tools; where an output is a folder or a binary file whose
+// command also reports on stdout, sempose refuses it instead of creating a file called "-".
+inline bool refuse_stdout_output(const char* command, const std::string& value, const char* what) {
+  if (value != "-") return false;
+  std::fprintf(stderr, "sempose %s: --out '-' (standard output) is not supported: --out names %s\n", command, what);
+  return true;
+}
 
 }  // namespace sempose::cli

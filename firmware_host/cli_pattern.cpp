@@ -66,6 +66,7 @@ int sempose::cli::pattern(int argc, char** argv) {
     std::fprintf(stderr, "sempose pattern: --frames, --center and --out are required\n");
     return usage(stderr);
   }
+  if (cli::refuse_stdout_output("pattern", out, "the pattern's PGM file")) return 2;
   double cx = 0, cy = 0;
   {
     const auto comma = center.find(',');

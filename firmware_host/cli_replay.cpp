@@ -39,6 +39,7 @@ int usage(std::FILE* out) {
   std::fprintf(out,
                "usage: sempose replay --frames DIR --pattern P.pgm [--mask M.pgm] [--pattern Q.pgm ...] [--config FILE]\n"
                "                      [--truth ground_truth.csv] --out poses.csv\n"
+               "  --out:    the poses' CSV; - writes it to standard output (the report then goes to stderr)\n"
                "  tracks every pattern (one target each) through the recorded full-field frames in DIR\n"
                "  --config: YAML; its tracker: section (and targets:, when no --pattern is given) are used\n"
                "  --mask:   the preceding pattern's shape mask (PGM, same size; non-zero = the target)\n"
@@ -200,16 +201,18 @@ int run_replay(int argc, char** argv) {
                  static_cast<unsigned long long>(csv.lost_lines() + csv.dropped()), std::strerror(csv.last_errno()));
     return 4;
   }
+  // With the poses on standard output (--out -) the report goes to stderr, so a pipe gets CSV only.
+  std::FILE* report = out_path == "-" ? stderr : stdout;
   if (!truth_path.empty()) {
     const long n = sink.compared;
-    std::printf("truth: poses_compared=%ld rms_px=%.4f max_px=%.4f rms_deg=%.4f max_deg=%.4f false_tracking=%ld "
+    std::fprintf(report, "truth: poses_compared=%ld rms_px=%.4f max_px=%.4f rms_deg=%.4f max_deg=%.4f false_tracking=%ld "
                 "tracking_without_truth=%ld\n",
                 n, n ? std::sqrt(sink.sum_px2 / n) : 0.0, sink.max_px, n ? std::sqrt(sink.sum_deg2 / n) : 0.0, sink.max_deg,
                 sink.false_tracking, sink.uncompared);
   }
   std::vector<double> compute_us;
   for (const std::int64_t ns : stats.roi_compute_ns) compute_us.push_back(ns * 1e-3);
-  std::printf("summary: frames=%llu tracked_share=%.4f compute_us_p50=%.1f compute_us_p99=%.1f compute_us_max=%.1f "
+  std::fprintf(report, "summary: frames=%llu tracked_share=%.4f compute_us_p50=%.1f compute_us_p99=%.1f compute_us_max=%.1f "
               "acquire_ms=%.2f\n",
               static_cast<unsigned long long>(stats.frames),
               stats.poses ? static_cast<double>(stats.tracked) / static_cast<double>(stats.poses) : 0.0,

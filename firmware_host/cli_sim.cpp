@@ -106,6 +106,7 @@ int sempose::cli::sim(int argc, char** argv) {
     std::fprintf(stderr, "sempose sim: --out DIR is required\n");
     return usage(stderr);
   }
+  if (cli::refuse_stdout_output("sim", out_dir, "the folder the recording is written to")) return 2;
   config::ScanLimits scan;
   config::SimConfig sim_cfg;
   if (!config_path.empty()) {

@@ -78,6 +78,7 @@ int sempose::cli::view(int argc, char** argv) {
     }
   }
   if (poses_path.empty() || out_dir.empty()) return usage(stderr);
+  if (cli::refuse_stdout_output("view", out_dir, "the folder the pictures are written to")) return 2;
 
   try {
     const auto rows = operator_view::read_pose_csv(poses_path);

@@ -66,7 +66,12 @@ void cross_check(Section& root, const AppConfig& c) {
                             " (need a directory of PGM frames)");
     }
   }
-  if (const std::string why = output_path_problem(c.output.poses_csv); !c.output.poses_csv.empty() && !why.empty()) {
+  if (c.output.poses_csv == "-") {
+    // `sempose run` prints its status lines on stdout; poses there would be mixed into them.
+    root.errors().add(root.mark(), "output.poses_csv",
+                      "'-' (standard output) is not supported here: stdout carries the run's status lines; name a file");
+  } else if (const std::string why = output_path_problem(c.output.poses_csv);
+             !c.output.poses_csv.empty() && !why.empty()) {
     root.errors().add(root.mark(), "output.poses_csv", "'" + c.output.poses_csv + "' cannot be written: it is " + why);
   }
   if (const std::string why = output_path_problem(c.can.log_file);

@@ -285,3 +285,44 @@ TEST(CliFaults, SimAndPatternNameBadInputBeforeMakingOutputs) {
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/p.pgm"));
 }
+
+// "-" as --out: replay writes its poses' CSV to standard output (the report to stderr, so a
+// pipe gets CSV only); sim, pattern and view refuse it by name rather than make a file or
+// folder called "-".
+TEST(CliFaults, DashAsOutIsStandardOutputOrRefused) {
+  const std::string dir = work_dir() + "/dash";
+  fs::create_directories(dir);
+  fs::remove_all("-");
+  const std::string cfg = small_config(dir, "");
+  Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "4", "--config", cfg}, 120);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "2", "--out",
+           dir + "/p.pgm"},
+          60);
+  ASSERT_EQ(r.code, 0) << r.err;
+
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "-"}, 120);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.rfind("frame,t_ns,x_px,y_px,phi_deg,score,status", 0), 0u) << r.out;
+  EXPECT_EQ(r.out.find("summary:"), std::string::npos) << "the report went into the CSV:\n" << r.out;
+  EXPECT_NE(r.err.find("summary: frames="), std::string::npos) << r.err;
+  std::size_t lines = 0;
+  for (char c : r.out) lines += c == '\n';
+  EXPECT_GE(lines, 4u) << r.out;  // the header and a pose per recorded frame
+
+  const std::vector<std::vector<std::string>> refused = {
+      {"sim", "--out", "-", "--frames", "2", "--config", cfg},
+      {"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--out", "-"},
+      {"view", "--poses", dir + "/none.csv", "--out", "-"},
+  };
+  for (const auto& args : refused) {
+    r = run(args, 60);
+    EXPECT_EQ(r.code, 2) << args[0] << ": " << r.err;
+    EXPECT_NE(r.err.find("--out '-' (standard output) is not supported"), std::string::npos) << args[0] << ": " << r.err;
+    EXPECT_FALSE(fs::exists("-")) << args[0] << " made a file or folder called '-'";
+  }
+  r = run({"run", "--config", small_config(dir, "output: {poses_csv: '-'}\n"), "--duration", "1"}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("output.poses_csv"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("standard output"), std::string::npos) << r.err;
+}

@@ -24,6 +24,9 @@
 #include <limits>
 #include <vector>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/hal/sim_source.hpp"
 #include "sim_harness.hpp"
@@ -67,44 +70,28 @@ struct CrlbNuisance {
   bool jaws = false;        // where the gripper's jaws move
 };
 
-// Inverse of a symmetric positive definite n×n matrix (Cholesky on the matrix scaled to unit
-// diagonal, so the singularity test is scale-free); false when singular or not finite.
+// Inverse of a symmetric positive definite n×n matrix: Eigen's Cholesky (LLT) on the matrix
+// scaled to unit diagonal, so the singularity test is scale-free; false when singular or not
+// finite. (Benchmark code: Eigen's dynamic matrices may allocate; the RT fit keeps its own
+// fixed 6×6 solve.)
 inline bool invert_spd(const CrlbMatrix& a, int n, CrlbMatrix& inv) {
-  std::array<double, kCrlbMaxParams> d{};
+  Eigen::VectorXd d(n);
   for (int i = 0; i < n; ++i) {
     if (!(a[i][i] > 0) || !std::isfinite(a[i][i])) return false;
     d[i] = 1.0 / std::sqrt(a[i][i]);
   }
-  CrlbMatrix L{};
+  Eigen::MatrixXd r(n, n);
   for (int i = 0; i < n; ++i)
-    for (int j = 0; j <= i; ++j) {
-      double s = a[i][j] * d[i] * d[j];
-      for (int k = 0; k < j; ++k) s -= L[i][k] * L[j][k];
-      if (i == j) {
-        if (!(s > 1e-12)) return false;  // (near) linearly dependent parameters
-        L[i][i] = std::sqrt(s);
-      } else {
-        L[i][j] = s / L[j][j];
-      }
-    }
-  // inv(R) for R = L Lᵀ, column by column, then undo the scaling.
-  for (int c = 0; c < n; ++c) {
-    std::array<double, kCrlbMaxParams> y{}, x{};
-    for (int i = 0; i < n; ++i) {
-      double s = i == c ? 1.0 : 0.0;
-      for (int k = 0; k < i; ++k) s -= L[i][k] * y[k];
-      y[i] = s / L[i][i];
-    }
-    for (int i = n - 1; i >= 0; --i) {
-      double s = y[i];
-      for (int k = i + 1; k < n; ++k) s -= L[k][i] * x[k];
-      x[i] = s / L[i][i];
-    }
-    for (int i = 0; i < n; ++i) inv[i][c] = x[i] * d[i] * d[c];
-  }
+    for (int j = 0; j < n; ++j) r(i, j) = a[i][j] * d[i] * d[j];
+  const Eigen::LLT<Eigen::MatrixXd> llt(r);
+  // (Near) linearly dependent parameters: a pivot of the unit-diagonal matrix at ~0.
+  if (llt.info() != Eigen::Success || !(llt.matrixL().toDenseMatrix().diagonal().minCoeff() > 1e-6)) return false;
+  const Eigen::MatrixXd ri = llt.solve(Eigen::MatrixXd::Identity(n, n));
   for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j)
+    for (int j = 0; j < n; ++j) {
+      inv[i][j] = ri(i, j) * d[i] * d[j];
       if (!std::isfinite(inv[i][j])) return false;
+    }
   return true;
 }
 

@@ -17,7 +17,8 @@ CsvPoseSink::~CsvPoseSink() { close(); }
 bool CsvPoseSink::close() {
   if (file_ == nullptr) return write_errors_ == 0;
   write_pending();
-  if (std::fclose(file_) != 0) note_error(errno, 0);
+  // stdout ("-") is flushed, not closed: the process still prints its report after the poses.
+  if ((file_ == stdout ? std::fflush(file_) : std::fclose(file_)) != 0) note_error(errno, 0);
   file_ = nullptr;
   return write_errors_ == 0;
 }
@@ -29,7 +30,8 @@ void CsvPoseSink::note_error(int err, std::uint64_t lines) {
 }
 
 rt::Status CsvPoseSink::open() {
-  file_ = std::fopen(path_.c_str(), "w");
+  // "-" is standard output, as for any Unix tool that writes a stream (`replay --out - | …`).
+  file_ = path_ == "-" ? stdout : std::fopen(path_.c_str(), "w");
   if (file_ == nullptr) {
     return rt::Status::failure("output.poses_csv: cannot create '" + path_ + "': " + std::strerror(errno));
   }

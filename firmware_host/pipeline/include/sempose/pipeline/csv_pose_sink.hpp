@@ -17,7 +17,8 @@ namespace sempose::pipeline {
 
 class CsvPoseSink final : public PoseSink {
  public:
-  // Setup: opens the file and writes the header. capacity: poses buffered (power of two).
+  // Setup: opens the file ("-": standard output) and writes the header. capacity: poses
+  // buffered (power of two).
   CsvPoseSink(std::string path, std::size_t capacity, bool with_target_column);
   ~CsvPoseSink() override;
   rt::Status open();
