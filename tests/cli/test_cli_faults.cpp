@@ -326,3 +326,56 @@ TEST(CliFaults, DashAsOutIsStandardOutputOrRefused) {
   EXPECT_NE(r.err.find("output.poses_csv"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("standard output"), std::string::npos) << r.err;
 }
+
+// Patterns the tracker cannot use are refused at setup by what is wrong with them (exit 2,
+// no output file): a flat one, one whose only detail is a 1-px checkerboard (the prefilter and
+// the binned search level average it to flat: it used to be called "flat" too), a
+// non-square one, a mask of another size and a mask that leaves too little.
+TEST(CliFaults, UntrackablePatternsAreRefusedByName) {
+  const std::string dir = work_dir() + "/badpat";
+  fs::create_directories(dir + "/frames");
+  sempose::hal::Image frame;
+  frame.width = 320;
+  frame.height = 240;
+  frame.pixels.resize(320 * 240);
+  for (std::size_t i = 0; i < frame.pixels.size(); ++i) frame.pixels[i] = static_cast<std::uint16_t>((i * 7919) % 251);
+  sempose::hal::write_pgm(dir + "/frames/f0.pgm", frame);
+  auto image = [&](const std::string& name, int w, int h, auto value) {
+    sempose::hal::Image img;
+    img.width = w;
+    img.height = h;
+    img.pixels.resize(static_cast<std::size_t>(w) * h);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) img.pixels[static_cast<std::size_t>(y) * w + x] = static_cast<std::uint16_t>(value(x, y));
+    sempose::hal::write_pgm(dir + "/" + name, img);
+    return dir + "/" + name;
+  };
+  const std::string flat = image("flat.pgm", 64, 64, [](int, int) { return 100; });
+  const std::string checker = image("checker.pgm", 64, 64, [](int x, int y) { return (x + y) % 2 ? 200 : 20; });
+  const std::string rect = image("rect.pgm", 64, 32, [](int x, int) { return x * 3; });
+  const std::string good = image("good.pgm", 64, 64, [](int x, int y) { return (x / 8 + y / 8) % 2 ? 200 : 20; });
+  const std::string mask_small = image("mask_small.pgm", 32, 32, [](int, int) { return 255; });
+  const std::string mask_dot = image("mask_dot.pgm", 64, 64, [](int x, int y) { return x == 32 && y == 32 ? 255 : 0; });
+  struct Case {
+    std::vector<std::string> pattern_args;
+    std::string expect;
+  };
+  const Case cases[] = {
+      {{"--pattern", flat}, "flat (constant grey level)"},
+      {{"--pattern", checker}, "only at the pixel scale"},
+      {{"--pattern", rect}, "64x32; patterns must be square"},
+      {{"--pattern", good, "--mask", mask_small}, "the shape mask is 32x32, the pattern 64x64"},
+      {{"--pattern", good, "--mask", mask_dot}, "the shape mask leaves under 64 pixels"},
+  };
+  const std::string cfg = small_config(dir, "");
+  for (const Case& c : cases) {
+    std::vector<std::string> args = {"replay", "--frames", dir + "/frames", "--config", cfg};
+    args.insert(args.end(), c.pattern_args.begin(), c.pattern_args.end());
+    args.insert(args.end(), {"--out", dir + "/o.csv"});
+    const Outcome r = run(args, 60);
+    ASSERT_FALSE(r.hung) << c.expect;
+    EXPECT_EQ(r.code, 2) << c.expect << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir + "/o.csv")) << "output made before the pattern was refused: " << c.expect;
+  }
+}

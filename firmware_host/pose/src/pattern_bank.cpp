@@ -54,6 +54,13 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
 
   std::vector<float> src(static_cast<std::size_t>(n) * n), raw(src.size()), small(static_cast<std::size_t>(m) * m);
   for (std::size_t i = 0; i < src.size(); ++i) src[i] = static_cast<float>(pattern.pixels[i]);
+  const auto [lo, hi] = std::minmax_element(src.begin(), src.end());
+  // Detail only at the pixel scale (a 1-px checkerboard) is averaged away by the prefilter's
+  // binomial kernel or the 2×2 bins of the search: refused as such, not as a flat pattern.
+  const char* no_contrast = *lo == *hi ? "the pattern is flat (constant grey level) inside its mask"
+                                       : "the pattern has no contrast the tracker can use inside its mask: detail "
+                                         "only at the pixel scale (e.g. a 1-px checkerboard) is averaged away by the "
+                                         "prefilter (tracker.prefilter_passes) and the 2x2 binned search level";
   // The frame is low-passed the same way (Prefilter); filtering before rotating is the same
   // as after for this near-isotropic kernel and keeps one interpolation for all angles.
   prefilter_pattern(src.data(), n, spec.prefilter_passes);
@@ -96,8 +103,7 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
       std::copy_n(fine_mask.bitmap(), fine_in.size(), fine_in.begin());
     }
     if (!normalize_pattern(p, n, fine_in.data()) || !normalize_pattern(halved.data(), half_mask)) {
-      why = has_shape_ && count < 64 ? "the shape mask leaves under 64 pixels inside the pattern circle"
-                                     : "the pattern is flat (constant grey level) inside its mask";
+      why = has_shape_ && count < 64 ? "the shape mask leaves under 64 pixels inside the pattern circle" : no_contrast;
       return false;
     }
     const std::vector<MaskBand> bands = has_shape_ ? bands_of(fine_in.data(), n) : fine_mask.bands();
