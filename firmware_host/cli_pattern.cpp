@@ -168,8 +168,21 @@ int sempose::cli::pattern(int argc, char** argv) {
       std::fprintf(stderr, "sempose pattern: %s\n", e.what());
       return 1;  // the output, not the input
     }
-    std::printf("sempose pattern: %s: %ldx%ld around (%g, %g), mean of %zu frames\n", out.c_str(), size, size, cx,
-                cy, used);
+    // The pattern's own noise stays in every pose of a run (a fixed error no frame shows; README:
+    // Uncertainty), so say how much is left: one scan's noise over √frames, against the
+    // window's contrast (its variance less that noise).
+    double sum = 0, sum2 = 0;
+    for (const double v : window_mean) {
+      sum += v;
+      sum2 += v * v;
+    }
+    const double cells = static_cast<double>(window_mean.size());
+    const double noise_var = first_noise / static_cast<double>(used);
+    const double contrast_var = std::max(0.0, sum2 / cells - (sum / cells) * (sum / cells) - noise_var);
+    std::printf("sempose pattern: %s: %ldx%ld around (%g, %g), mean of %zu frames; noise sigma %.2f grey levels (one "
+                "scan's %.2f / sqrt %zu), contrast sigma %.2f: contrast-to-noise %.1f\n",
+                out.c_str(), size, size, cx, cy, used, std::sqrt(noise_var), std::sqrt(first_noise), used,
+                std::sqrt(contrast_var), noise_var > 0 ? std::sqrt(contrast_var / noise_var) : 0.0);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sempose pattern: %s\n", e.what());
     return 2;  // the frames: missing, unreadable, not PGM

@@ -52,4 +52,21 @@ check still_2000 static 2000 all
 check moving_2000 "linear, vx_px_s: 10, vy_px_s: 2.5" 2000 cut      # ~4 px a frame
 check sine_2000 "sine, amplitude_x_px: 60, amplitude_y_px: 30, amplitude_phi_deg: 20, period_s: 4" 2000 cut
 check turning_2000 "spin, omega_deg_s: 10" 2000 cut                 # ~4° a frame
+# The noise left in the pattern (one scan's noise / sqrt frames) and its contrast (window
+# variance less that noise): the contrast is the scene's, the same whether 1 or 10 frames are
+# averaged (within 10 %), and the contrast-to-noise ratio grows by sqrt 10 (2.6-3.8) — a noise
+# estimate off by a factor would move the contrast with the frame count.
+cnr() {  # frames -> "contrast cnr"
+  "$bin" pattern --frames "$work/still_2000" --center 256,192 --size 128 --average "$1" --out "$work/cnr.pgm" 2>/dev/null |
+    sed -n 's/.*contrast sigma \([0-9.]*\): contrast-to-noise \([0-9.]*\).*/\1 \2/p'
+}
+read -r c1 r1 <<<"$(cnr 1)"
+read -r c10 r10 <<<"$(cnr 10)"
+if [ -n "${c1:-}" ] && [ -n "${c10:-}" ] &&
+   python3 -c "import sys; c1,r1,c10,r10=map(float,sys.argv[1:]); sys.exit(0 if abs(c10/c1-1)<0.1 and 2.6<=r10/r1<=3.8 else 1)" \
+     "$c1" "$r1" "$c10" "$r10"; then
+  ok "pattern noise: contrast sigma $c1 / $c10, contrast-to-noise $r1 -> $r10 (1 -> 10 frames)"
+else
+  bad "pattern noise: contrast sigma '${c1:-}' / '${c10:-}', contrast-to-noise '${r1:-}' -> '${r10:-}' (1 -> 10 frames)"
+fi
 [ "$fails" -eq 0 ] && echo "pattern_stillness: all passed" || { echo "pattern_stillness: $fails failed"; exit 1; }
