@@ -31,10 +31,24 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
   pose::PoseFrame frame = to_pose_frame(m, pixels);
   frame.held_by_others = held_by_others(o.target);
   o.est = trackers_[o.target]->update(frame);
+  const std::int64_t t_mid_ns = m.t_scan_start_ns / 2 + m.t_scan_end_ns / 2;
+  if (on_a_look_alikes_place(o.target, o.est, t_mid_ns)) {
+    if (o.est.state == pose::TrackState::kTracking) o.est.state = pose::TrackState::kUncertain;
+    if (++same_place_frames_[o.target] >= kSamePlaceFrames) {
+      trackers_[o.target]->request_reacquire();
+      same_place_frames_[o.target] = 0;
+    }
+  } else {
+    same_place_frames_[o.target] = 0;
+  }
   // A target holds its object while it is followed (TRACKING, or UNCERTAIN at a measured pose).
-  held_[o.target] = {o.est.state == pose::TrackState::kTracking ||
-                         (o.est.state == pose::TrackState::kUncertain && !o.est.searched),
-                     o.est.x_px, o.est.y_px};
+  Held& h = held_[o.target];
+  const bool followed = o.est.state == pose::TrackState::kTracking ||
+                        (o.est.state == pose::TrackState::kUncertain && !o.est.searched);
+  const double dt = static_cast<double>(t_mid_ns - h.t_ns);
+  const bool moving = followed && h.held && dt > 0;
+  h = {followed, o.est.x_px, o.est.y_px, t_mid_ns, moving ? (o.est.x_px - h.x_px) / dt : 0.0,
+       moving ? (o.est.y_px - h.y_px) / dt : 0.0};
   const std::int64_t wall1 = rt::now_ns();
   o.compute_ns = clock_.compute_ns(wall1 - wall0);
   m.t_pose_done_ns = clock_.pose_done_ns(o.t_start_ns, o.compute_ns, wall1);
@@ -42,6 +56,22 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
   const bool tracking = o.est.state == pose::TrackState::kTracking;
   governor_.observe(o.target, o.compute_ns, o.est.score, o.est.psr, tracking && !o.est.searched);
   return o;
+}
+
+bool TrackingStep::on_a_look_alikes_place(std::uint8_t target, const pose::PoseEstimate& est,
+                                          std::int64_t t_ns) const noexcept {
+  const bool followed = est.state == pose::TrackState::kTracking ||
+                        (est.state == pose::TrackState::kUncertain && !est.searched);
+  if (!followed) return false;
+  for (std::size_t t = 0; t < trackers_.size() && t < held_.size(); ++t) {
+    if (t == target || !alike_[target][t] || !held_[t].held) continue;
+    // The other's place carried to this frame's time at its last velocity.
+    const double ahead = static_cast<double>(t_ns - held_[t].t_ns);
+    const double dx = est.x_px - (held_[t].x_px + held_[t].vx_px_ns * ahead);
+    const double dy = est.y_px - (held_[t].y_px + held_[t].vy_px_ns * ahead);
+    if (dx * dx + dy * dy < kSamePlacePx * kSamePlacePx) return true;
+  }
+  return false;
 }
 
 pose::HeldPlaces TrackingStep::held_by_others(std::uint8_t target) const noexcept {

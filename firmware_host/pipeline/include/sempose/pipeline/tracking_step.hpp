@@ -53,11 +53,25 @@ class TrackingStep {
   struct Held {
     bool held = false;
     double x_px = 0, y_px = 0;
+    // Where it was seen (mid-scan) and how fast it moved since its previous held pose: each
+    // frame goes to one target, so the others' places are a frame or more old.
+    std::int64_t t_ns = 0;
+    double vx_px_ns = 0, vy_px_ns = 0;
   };
   std::array<Held, hal::kMaxTargets> held_{};
   // alike_[t][u]: u's patterns look like t's (pose::Tracker::likeness ≥ kAlike, setup).
   std::array<std::array<bool, hal::kMaxTargets>, hal::kMaxTargets> alike_{};
   pose::HeldPlaces held_by_others(std::uint8_t target) const noexcept;
+  // Two look-alike targets on one object (they crossed and one followed the other's object):
+  // at most one of them can be right, and which one the pixels cannot say. A pose within
+  // kSamePlacePx of a place a look-alike target holds is reported UNCERTAIN; after
+  // kSamePlaceFrames such frames in a row the target searches the field again, where the
+  // start search skips the other's place. The radius is issue 13's false-pose distance: two
+  // poses that close belong to objects less than twice it apart, or one of them is false.
+  static constexpr double kSamePlacePx = 3.0;
+  static constexpr int kSamePlaceFrames = 3;
+  bool on_a_look_alikes_place(std::uint8_t target, const pose::PoseEstimate& est, std::int64_t t_ns) const noexcept;
+  std::array<int, hal::kMaxTargets> same_place_frames_{};
 };
 
 }  // namespace sempose::pipeline
