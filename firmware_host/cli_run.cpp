@@ -96,16 +96,24 @@ bool parse(int argc, char** argv, Options& o) {
   return !o.config.empty();
 }
 
-void dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
-  if (dir.empty()) return;
+// False when a file could not be written in full (a full disk shows only when the buffer is
+// flushed, so both files are closed before they are judged).
+bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
+  if (dir.empty()) return true;
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   const auto series = p.histograms().snapshot();
   std::ofstream txt(dir + "/latency_hist.txt");
   rt::write_cyclictest_histogram(txt, series);
+  txt.close();
   std::ofstream json(dir + "/latency_hist.json");
   rt::write_histogram_json(json, series);
-  if (!txt || !json) std::fprintf(stderr, "sempose run: cannot write histograms to %s\n", dir.c_str());
+  json.close();
+  if (!txt || !json) {
+    std::fprintf(stderr, "sempose run: cannot write histograms to %s\n", dir.c_str());
+    return false;
+  }
+  return true;
 }
 
 // A SIGINT/SIGTERM that arrived while setup ran (signals are blocked, so it waits): taken
@@ -310,8 +318,9 @@ int sempose::cli::run(int argc, char** argv) {
       break;
     }
     if (sig == SIGUSR1) {
-      dump_histograms(hist_dir, *pipe);
-      std::printf("histograms written to %s\n", hist_dir.empty() ? "(no --hist-dir)" : hist_dir.c_str());
+      const bool written = dump_histograms(hist_dir, *pipe);
+      std::printf("histograms %s %s\n", written ? "written to" : "NOT written (write error) to",
+                  hist_dir.empty() ? "(no --hist-dir)" : hist_dir.c_str());
     }
     if (rt::now_ns() >= watchdog.next_due_ns()) watchdog.poll(rt::now_ns());
     if (rt::now_ns() >= next_status) {
@@ -356,7 +365,7 @@ int sempose::cli::run(int argc, char** argv) {
   const bool csv_ok = run.csv ? run.csv->close() : true;
   if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
   if (pipe->source_ended()) std::printf("the source ended\n");
-  dump_histograms(hist_dir, *pipe);
+  const bool hist_ok = dump_histograms(hist_dir, *pipe);
 
   // ---- summary
   for (const auto& s : pipe->histograms().snapshot()) {
@@ -382,6 +391,8 @@ int sempose::cli::run(int argc, char** argv) {
   }
   if (hist_dir.empty()) {
     std::printf("histograms: not written (no --hist-dir / output.hist_dir)\n");
+  } else if (!hist_ok) {
+    std::printf("histograms: NOT written to %s (write error)\n", hist_dir.c_str());
   } else {
     std::printf("histograms: %s/latency_hist.txt (cyclictest layout), %s/latency_hist.json\n", hist_dir.c_str(),
                 hist_dir.c_str());
@@ -398,10 +409,10 @@ int sempose::cli::run(int argc, char** argv) {
   session::print_summary(stdout, summary);
   // Exit code: 0 only when nothing was lost. 4: an output failed to write; 5: the source stalled;
   // 6 (above): the stages did not drain within service.stop_timeout_ms.
-  if (summary.output_errors > 0 || !csv_ok || summary.can_log_bytes_lost > 0) {
-    std::fprintf(stderr, "sempose run: output write errors (csv lines lost %llu, candump log bytes lost %llu)\n",
+  if (summary.output_errors > 0 || !csv_ok || summary.can_log_bytes_lost > 0 || !hist_ok) {
+    std::fprintf(stderr, "sempose run: output write errors (csv lines lost %llu, candump log bytes lost %llu%s)\n",
                  static_cast<unsigned long long>(summary.csv_lines_lost),
-                 static_cast<unsigned long long>(summary.can_log_bytes_lost));
+                 static_cast<unsigned long long>(summary.can_log_bytes_lost), hist_ok ? "" : ", histograms not written");
     return 4;
   }
   if (source_watchdog.stalls() > 0) {

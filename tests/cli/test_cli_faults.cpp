@@ -157,6 +157,26 @@ TEST(CliFaults, CandumpLogOnAFullDiskIsReportedAndFailsTheRun) {
   EXPECT_NE(field(r.out, "output_errors"), "0");
 }
 
+// The histograms are written at the end of the run; a disk that fills up by then shows only
+// when the files are flushed. Both files here lead to /dev/full: the run must say they were
+// not written (it printed "histograms: DIR/latency_hist.txt" as if they were) and exit 4.
+TEST(CliFaults, HistogramsOnAFullDiskAreReportedAndFailTheRun) {
+  const std::string dir = work_dir() + "/full_hist";
+  fs::create_directories(dir);
+  for (const char* f : {"/latency_hist.txt", "/latency_hist.json"}) {
+    fs::remove(dir + f);
+    fs::create_symlink("/dev/full", dir + f);
+  }
+  const std::string cfg = small_config(work_dir(), "can: {log_file: " + work_dir() + "/can_hist.log}\n");
+  const Outcome r = run({"run", "--config", cfg, "--duration", "1", "--hist-dir", dir});
+  ASSERT_FALSE(r.hung) << r.out << r.err;
+  EXPECT_TRUE(r.exited) << "signal " << r.signal;
+  EXPECT_EQ(r.code, 4) << r.out << r.err;
+  EXPECT_NE(r.err.find("cannot write histograms to " + dir), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("histograms: NOT written to " + dir), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("histograms not written"), std::string::npos) << r.err;
+}
+
 TEST(CliFaults, FifoDirectoryOrDeviceAsAPathIsRefusedAtOnce) {
   const std::string dir = work_dir();
   const std::string fifo = dir + "/fifo";
