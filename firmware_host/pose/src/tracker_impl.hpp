@@ -196,6 +196,12 @@ struct Tracker::Impl {
     double d_px = 0, d_deg = 0;
   };
   bool trusted_pose(const PoseEstimate& e, const Innovation& innov) const noexcept;
+  // The motion check's sweep found a second hypothesis more than the false-pose rule's 3 px /
+  // 10° from the pose kept whose score is within the noise of the kept one's (the two differ
+  // by less than significance_z() SDs of a difference of two independent scores, flip_sd):
+  // the frame cannot tell which is the target (a torn frame: the target jumped mid-scan and
+  // half the ROI shows it at each place). Followed, reported UNCERTAIN.
+  bool rival_within_noise = false;
   double frame_dwell_ns = 0;  // the pixel dwell of the frame being measured (0: not known)
 
   // Flip check (a near-symmetric target, e.g. a lamella, scores almost alike turned by 180°):
