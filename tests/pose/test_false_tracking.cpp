@@ -3,6 +3,7 @@
 // case prints its measured shares so a regression shows by how much.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -305,4 +306,59 @@ TEST(NoFalseTracking, NotTrackingRightAfterASearchWhereTheStreamIsUnknown) {
   EXPECT_GT(early_low, 0) << "the case must contain such poses, or it tests nothing";
   EXPECT_EQ(early_low_tracked, 0) << "TRACKING before the stream's pose noise is known";
   EXPECT_EQ(c.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (6 before the rule)";
+}
+
+// A torn frame (issue 13 item 6, `pose_accuracy_bench --full`, lamella on post jump@1.25 at
+// 2.5 e-/px, frame 128): the target jumped 13 px while its ROI was scanned, so part of the ROI
+// shows it at each place. The walk found the new place (0.657), the motion check's sweep around
+// the old prediction scored 0.675 and replaced it: 12 px off, it was TRACKING. Two hypotheses
+// more than 3 px apart whose scores differ by less than the score noise are rivals: the frame
+// is followed but UNCERTAIN. The jump is still re-found at once (TRACKING < 1 px off within 2
+// frames, as TrackingAgainWithinTwoFramesOfAJump asks).
+TEST(NoFalseTracking, TornFrameDuringAJumpIsNotTracking) {
+  pt::Scenario s;
+  s.target = "lamella_post";
+  s.motion = "jump";
+  s.dose_e = 2.5;
+  s.frames = 150;
+  s.start_phi_deg = 30;
+  s.scale_from = s.scale_to = 1.25;
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  const FalseCount c = count_false(h);
+  std::printf("lamella_post jump@1.25 dose 2.5, 150 frames: TRACKING %d/%d, false %d, searches %d\n", c.tracked, s.frames,
+              c.false_n, c.searches);
+  EXPECT_EQ(c.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (1 before the rival rule, frame 128)";
+  EXPECT_GE(c.tracked, s.frames - 5) << "the rule costs the torn frames only";
+}
+
+// A spin past the recorded orientation (issue 13 item 6, `pose_accuracy_bench --full`,
+// procedural lamella spin at 6 e-/px, frames 146-148): the bank's unrotated pattern (no
+// interpolation) scores ~0.09 above its rotated neighbours where the target passes the
+// orientation it was recorded at, and the walk, started at the predicted angle, stayed on that
+// bump while the target turned on: 4 -> 9 -> 12 deg behind, the last one TRACKING at 0.62 (the
+// spin's own score swing made it "confirmed"). A score below the target's recent level by more
+// than the detector noise explains is now searched again around the prediction (the sweep).
+TEST(NoFalseTracking, SpinPastTheRecordedOrientationIsFollowed) {
+  pt::Scenario s;
+  s.target = "lamella";
+  s.motion = "spin";
+  s.dose_e = 6.0;
+  s.frames = 150;
+  s.start_phi_deg = 30;
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  const FalseCount c = count_false(h);
+  double worst_deg = 0;
+  for (std::size_t f = 0; f < h.poses().size(); ++f) {
+    const auto& e = h.poses()[f];
+    if (e.state != TrackState::kTracking) continue;
+    worst_deg = std::max(worst_deg, std::fabs(std::remainder(e.phi_deg - h.records()[f].truth.phi_deg, 360.0)));
+  }
+  std::printf("lamella spin dose 6, 150 frames: TRACKING %d/%d, false %d, worst TRACKING angle error %.2f deg\n", c.tracked,
+              s.frames, c.false_n, worst_deg);
+  EXPECT_EQ(c.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (1 before, frame 148: 11.6 deg behind)";
+  EXPECT_GE(c.tracked, s.frames - 10) << "the spin is followed, not rejected (143/150 before)";
 }

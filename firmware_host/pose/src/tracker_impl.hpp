@@ -183,6 +183,7 @@ struct Tracker::Impl {
 
   PoseEstimate update(const PoseFrame& frame) noexcept;
   Measurement track(const PatternBank& bank, bool& swept, std::uint8_t set, const RawRoi& raw) noexcept;
+  bool rivals(const Measurement& a, const Measurement& b, double used_scale) const noexcept;
   template <class Place>
   void check_motion(const PatternBank& bank, Measurement& m, PoseEstimate& e, bool swept, double origin_x, double origin_y,
                     double scale, const Place& place) noexcept;

@@ -74,11 +74,8 @@ class LossPolicy {
   // it is still the target. A neighbouring local maximum (the walk started from a stale angle,
   // a look-alike) scores visibly below the target's level. No level yet: not confirmed.
   bool confirmed(float score) const noexcept;
-  // The score is below the target's own best level by more than a ZNCC of that level's room
-  // (the explained check's "at its level", kLevelShare × (1 − level²)); no level yet: false.
-  // Unlike confirmed(), not widened by the running spread: a spinning lamella's scores swing
-  // 0.70-0.81 with its angle, which made 0.62 "confirmed".
-  bool below_own_level(float score) const noexcept { return have_peak_ && !at_own_level(score); }
+  // The running mean of the target's recent accepted scores (−1: none yet).
+  double recent_level() const noexcept { return have_score_mean_ ? score_mean_ : -1.0; }
   static constexpr double kConfirmSigmas = 3.0;
   static constexpr double kConfirmShare = 0.1;
 
