@@ -12,6 +12,10 @@ void read_refine(Section& s, RefineConfig& c) {
   s.opt("fit_scale", c.fit_scale);
   s.opt("fit_position", c.fit_position);
   s.opt("min_score", c.min_score, 0.0, 1.0);
+  s.opt("template_passes", c.template_passes, -1, 4);  // -1: auto
+  s.opt("noise_weights", c.noise_weights);
+  s.opt("black_level", c.black_level, 0.0, 0.5);
+  s.opt("read_noise_counts", c.read_noise_counts, 0.0, 1.0e6);
 }
 
 }  // namespace sempose::config

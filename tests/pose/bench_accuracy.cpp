@@ -348,7 +348,9 @@ int main(int argc, char** argv) {
   // --appearance on|off: learned appearance (tracker.appearance.enabled) regardless of its default.
   // --refine on|off: the final Gauss–Newton fit (tracker.refine.enabled) regardless of its default;
   // --refine-iterations N, --refine-scale on|off, --refine-source S, --refine-position on|off:
-  // its tracker.refine.max_iterations / fit_scale / source / fit_position.
+  // its tracker.refine.max_iterations / fit_scale / source / fit_position; --refine-template-passes N,
+  // --refine-weights on|off: tracker.refine.template_passes / noise_weights (black_level: the
+  // simulator's output offset, 0 for the warped crop; sim_harness.hpp).
   // --sigma-tile N, --sigma-calibration K, --sigma-floor PX DEG, --sigma-noise-factor F: the σ
   // stage's tile side, sandwich factor, model-error floor and white-noise factor (to try them; the defaults are tracker.sigma_*).
   config::TrackerConfig tc;
@@ -386,6 +388,8 @@ int main(int argc, char** argv) {
     else if (a == "--refine-scale" && i + 1 < argc) tc.refine.fit_scale = std::string(argv[++i]) == "on";
     else if (a == "--refine-source" && i + 1 < argc) tc.refine.source = argv[++i];
     else if (a == "--refine-position" && i + 1 < argc) tc.refine.fit_position = std::string(argv[++i]) == "on";
+    else if (a == "--refine-template-passes" && i + 1 < argc) tc.refine.template_passes = std::atoi(argv[++i]);
+    else if (a == "--refine-weights" && i + 1 < argc) tc.refine.noise_weights = std::string(argv[++i]) == "on";
     else if (a == "--sigma-tile" && i + 1 < argc) sigma_tile = std::atoi(argv[++i]);
     else if (a == "--sigma-calibration" && i + 1 < argc) sigma_cal = std::atof(argv[++i]);
     else if (a == "--sigma-noise-factor" && i + 1 < argc) tc.sigma_noise_factor = std::atof(argv[++i]);
@@ -399,7 +403,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
       return 2;
     }
   }
@@ -430,6 +434,11 @@ int main(int argc, char** argv) {
 
   const double zone_r = tc.pattern_size_px / 2.0 - (2.0 + 2.0 * tc.prefilter_passes);  // sempose's mask radius
   const std::int64_t bench_t0 = rt::now_ns();
+  const std::string refine_label =
+      !tc.refine.enabled ? std::string("off")
+                         : "on (source " + tc.refine.source + ", template passes " + std::to_string(tc.refine.template_passes) +
+                               ", noise weights " + (tc.refine.noise_weights ? "on" : "off") + ", " +
+                               std::to_string(tc.refine.max_iterations) + " passes)";
   std::printf(
       "accuracy against the single-frame Cramér–Rao bound and ViSP: 640x480 field, pattern %d², ROI %d², 250 ns dwell,\n"
       "%d frames per run, bits 8 (warped: 16, Poisson only); learned appearance %s, refinement %s\n"
@@ -447,7 +456,7 @@ int main(int argc, char** argv) {
       "  <= 10 deg (RMS over those); false = valid but > 3 px or > 10 deg; recov = frames from a jump to a valid pose < 1 px\n"
       "ViSP 3.5: vpTemplateTrackerZNCCInverseCompositional + vpTemplateTrackerWarpSRT, %d pyramid levels, same pattern and\n"
       "  circle (r %.0f px), 256² crop on its last estimate, started at the truth on the first frame\n",
-      tc.pattern_size_px, tc.roi_size_px, frames, tc.appearance.enabled ? "on" : "off", tc.refine.enabled ? "on" : "off", visp_levels, zone_r);
+      tc.pattern_size_px, tc.roi_size_px, frames, tc.appearance.enabled ? "on" : "off", refine_label.c_str(), visp_levels, zone_r);
   std::printf("%-12s %-12s %4s | %5s %5s %5s %6s %7s %5s %5s %7s | %5s %5s %5s %6s %7s %5s %5s %7s | %7s %7s\n", "target",
               "case", "dose", "trk%", "false", "recov", "rms_px", "rms_deg", "x_px", "x_deg", "us/pose", "ok%", "false",
               "recov", "rms_px", "rms_deg", "x_px", "x_deg", "ms/frm", "bnd_px", "bnd_deg");

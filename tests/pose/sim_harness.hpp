@@ -247,7 +247,11 @@ class SimHarness {
         sim_gone_ = std::make_unique<hal::SimSource>(limits_, gone);
       }
     }
-    tracker_ = Tracker::create(tc, std::move(sets), limits_, status_);
+    // tracker.refine.black_level is the detector's: the simulator's output offset, none for the
+    // warped crop (Poisson electrons scaled to the image's levels).
+    config::TrackerConfig tcd = tc;
+    tcd.refine.black_level = warped_ ? 0.0 : sim_cfg_.output_offset;
+    tracker_ = Tracker::create(tcd, std::move(sets), limits_, status_);
     pixels_.assign(static_cast<std::size_t>(s.field_w) * s.field_h, 0);
     out_.resize(static_cast<std::size_t>(s.frames));
     truth_.resize(static_cast<std::size_t>(s.frames));

@@ -3,6 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
+
+#include "sempose/pose/window_noise.hpp"
 
 #include "sempose/pose/simd_clones.hpp"
 
@@ -15,14 +18,16 @@ constexpr double kRadToDeg = 180.0 / kPi;
 constexpr int kP = kFitParams;
 constexpr int kMinPixels = 64;  // a pattern's support is thousands
 
-// Σ f·J (J = sd0..sd3, T, 1) and Σ f² at the warp (a00 a01; a10 a11) + (cx, cy), f bilinear
-// from the ROI. The hot loop, cloned for AVX-512 / AVX2 (the build targets baseline x86-64).
+// Σ f·w·J (J = sd0..sd3, T, 1) and Σ w·f² at the warp (a00 a01; a10 a11) + (cx, cy), f bilinear
+// from the ROI; t, s0..s3 are already multiplied by w. The hot loop, cloned for AVX-512 / AVX2
+// (the build targets baseline x86-64).
 template <class Px>
-SEMPOSE_CLONES void warp_sums(const float* u, const float* v, const float* t, const float* s0, const float* s1,
-                              const float* s2, const float* s3, int n, const Px* img, std::ptrdiff_t stride, float a00,
+SEMPOSE_CLONES void warp_sums(const float* u, const float* v, const float* wt, const float* t, const float* s0,
+                              const float* s1, const float* s2, const float* s3, int n, const Px* img,
+                              std::ptrdiff_t stride, float a00,
                               float a01, float a10, float a11, float cx, float cy, double* out) noexcept {
-  float g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, ff = 0;
-#pragma omp simd reduction(+ : g0, g1, g2, g3, g4, g5, ff)
+  float g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, ff = 0, ph = 0;
+#pragma omp simd reduction(+ : g0, g1, g2, g3, g4, g5, ff, ph)
   for (int i = 0; i < n; ++i) {
     const float x = cx + a00 * u[i] + a01 * v[i];
     const float y = cy + a10 * u[i] + a11 * v[i];
@@ -38,8 +43,11 @@ SEMPOSE_CLONES void warp_sums(const float* u, const float* v, const float* t, co
     g2 += f * s2[i];
     g3 += f * s3[i];
     g4 += f * t[i];
-    g5 += f;
-    ff += f * f;
+    const float wf = f * wt[i];
+    g5 += wf;
+    ff += wf * f;
+    // The share of a pixel's noise variance bilinear interpolation keeps at this phase.
+    ph += (1.0f - 2.0f * fx * (1.0f - fx)) * (1.0f - 2.0f * fy * (1.0f - fy));
   }
   out[0] = g0;
   out[1] = g1;
@@ -48,6 +56,7 @@ SEMPOSE_CLONES void warp_sums(const float* u, const float* v, const float* t, co
   out[4] = g4;
   out[5] = g5;
   out[6] = ff;
+  out[7] = ph;
 }
 
 // Cholesky solve of a symmetric positive definite kP×kP system. False when it is not.
@@ -81,9 +90,9 @@ bool solve_spd(const double (&h)[kP][kP], const double (&g)[kP], double (&x)[kP]
 
 }  // namespace
 
-bool FitTemplate::build(const float* T, int P, const std::uint8_t* inside) {
+bool FitTemplate::build(const float* T, int P, const std::uint8_t* inside, const float* variance) {
   const double c = (P - 1) / 2.0;
-  for (auto* vec : {&u_, &v_, &t_, &sd0_, &sd1_, &sd2_, &sd3_}) vec->clear();
+  for (auto* vec : {&u_, &v_, &w_, &t_, &sd0_, &sd1_, &sd2_, &sd3_}) vec->clear();
   double r2 = 0;
   for (int y = 1; y < P - 1; ++y) {
     for (int x = 1; x < P - 1; ++x) {
@@ -93,6 +102,7 @@ bool FitTemplate::build(const float* T, int P, const std::uint8_t* inside) {
       const float u = static_cast<float>(x - c), v = static_cast<float>(y - c);
       u_.push_back(u);
       v_.push_back(v);
+      w_.push_back(variance != nullptr ? 1.0f / std::max(variance[i], 1e-20f) : 1.0f);
       t_.push_back(T[i]);
       // ∇T · ∂W/∂(tx, ty, θ, ln s) at the identity, W(d) = t + s·R(θ)·d (bicubic_rotate's map:
       // the pattern turned by θ shows at d what the pattern shows at R(θ)·d): ∂W/∂θ = (v, −u),
@@ -107,14 +117,29 @@ bool FitTemplate::build(const float* T, int P, const std::uint8_t* inside) {
   n_ = static_cast<int>(t_.size());
   radius_ = std::sqrt(r2);
   if (n_ < kMinPixels) return false;
+  noise_factor_ = 1.0;
+  if (variance != nullptr) {  // weights of mean 1: the Hessian keeps the unweighted one's scale
+    double sw = 0, sv = 0;
+    for (const float w : w_) {
+      sw += w;
+      sv += 1.0 / w;
+    }
+    const float k = static_cast<float>(n_ / sw);
+    for (float& w : w_) w *= k;
+    // w_i·σ_i² is then the same for every pixel: σ̄²·n² / (Σ v · Σ 1/v), σ̄² the mean variance.
+    noise_factor_ = static_cast<double>(n_) * n_ / (sv * sw);
+  }
   const std::vector<float>* col[kP - 1] = {&sd0_, &sd1_, &sd2_, &sd3_, &t_};
   for (int r = 0; r < kP; ++r)
     for (int cc = r; cc < kP; ++cc) {
       double s = 0;
       for (int i = 0; i < n_; ++i)
-        s += static_cast<double>(r < kP - 1 ? (*col[r])[i] : 1.0f) * (cc < kP - 1 ? (*col[cc])[i] : 1.0f);
+        s += static_cast<double>(w_[i]) * (r < kP - 1 ? (*col[r])[i] : 1.0f) * (cc < kP - 1 ? (*col[cc])[i] : 1.0f);
       m_[r][cc] = m_[cc][r] = s;
     }
+  // The loop's streams carry the weight: w·T and w·sd (exactly T and sd with w = 1).
+  for (auto* vec : {&t_, &sd0_, &sd1_, &sd2_, &sd3_})
+    for (int i = 0; i < n_; ++i) (*vec)[i] *= w_[i];
   return true;
 }
 
@@ -135,13 +160,24 @@ FitResult GaussNewtonFit::run(const FitTemplate& tpl, const Px* roi, int w, int 
   res.status = FitStatus::kSkipped;
   if (roi == nullptr || tpl.n_ < kMinPixels) return res;
   const auto& m = tpl.m_;
-  double s[kP + 1];
+  double s[kP + 2];
+  // The frame's noise in the sum of squares (raw source): Σ w·f² holds Σ w_i σ_i² φ_i, φ_i the
+  // share of the pixel noise that bilinear interpolation keeps at its phase (1 on a pixel, 1/4
+  // between four): the cost falls toward half-pixel phases by noise alone, so the guard compares
+  // costs with it taken out. σ̄² from Immerkær's estimator over the fit's window of the raw ROI.
+  double noise_kappa = 0;
+  if constexpr (std::is_same_v<Px, std::uint16_t>) {
+    const int r = static_cast<int>(std::ceil(tpl.radius_ * start.scale)) + 1;
+    const int x0 = std::max(0, static_cast<int>(std::floor(start.cx)) - r), y0 = std::max(0, static_cast<int>(std::floor(start.cy)) - r);
+    const int side = std::min({2 * r + 1, w - x0, h - y0});
+    if (side >= 8) noise_kappa = window_noise_var(roi, stride, x0, y0, side) * tpl.noise_factor_;
+  }
   auto pass = [&](const FitPose& p) {
     const double reach = tpl.radius_ * p.scale + 2.0;
     if (!(p.cx - reach >= 0 && p.cy - reach >= 0 && p.cx + reach <= w - 2 && p.cy + reach <= h - 2)) return false;
     const double th = p.phi_deg / kRadToDeg;
     const float a00 = static_cast<float>(p.scale * std::cos(th)), a01 = static_cast<float>(p.scale * std::sin(th));
-    warp_sums(tpl.u_.data(), tpl.v_.data(), tpl.t_.data(), tpl.sd0_.data(), tpl.sd1_.data(), tpl.sd2_.data(),
+    warp_sums(tpl.u_.data(), tpl.v_.data(), tpl.w_.data(), tpl.t_.data(), tpl.sd0_.data(), tpl.sd1_.data(), tpl.sd2_.data(),
               tpl.sd3_.data(), tpl.n_, roi, stride, a00, a01, -a01, a00, static_cast<float>(p.cx),
               static_cast<float>(p.cy), s);
     return true;
@@ -155,8 +191,9 @@ FitResult GaussNewtonFit::run(const FitTemplate& tpl, const Px* roi, int w, int 
     b = (m[4][4] * s[5] - m[4][5] * s[4]) / d;
     return s[6] - a * s[4] - b * s[5];
   };
+  auto judged = [&](double cost) { return cost - noise_kappa * s[7]; };
   FitPose p = start, prev = start;
-  double a = 0, b = 0, prev_cost = 0;
+  double a = 0, b = 0, prev_judged = 0;
   for (int it = 0; it < cfg_.max_iterations; ++it) {
     if (!pass(p)) {
       if (it == 0) return res;
@@ -168,11 +205,12 @@ FitResult GaussNewtonFit::run(const FitTemplate& tpl, const Px* roi, int w, int 
       if (it == 0) return res;
       break;
     }
-    if (it > 0 && cost > prev_cost) break;  // cost-increase guard: keep the pose before the step
+    const double judged_cost = judged(cost);
+    if (it > 0 && judged_cost > prev_judged) break;  // cost-increase guard: keep the pose before the step
     res.gain = a;
     res.offset = b;
     res.rms_residual = std::sqrt(std::max(0.0, cost) / tpl.n_);
-    prev_cost = cost;
+    prev_judged = judged_cost;
     prev = p;
     if (it + 1 == cfg_.max_iterations) break;  // no pass left to verify another step
     // Normal equations, pose columns scaled by the gain; at the optimal photometry the

@@ -125,7 +125,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     std::string why;
     auto bank = PatternBank::build(spec, {t.fine_mask, t.half_mask, t.half, t.coarse_mask, t.coarse, t.coarse_wide.get()}, why);
     if (!bank) return fail("pattern set " + std::to_string(i) + ": " + why);
-    if (!t.refinement.add_set(*bank, spec.pattern))
+    if (!t.refinement.add_set(*bank, spec.pattern, limits.bits))
       return fail("pattern set " + std::to_string(i) + ": too few pixels for tracker.refine's fit");
     t.banks.push_back(std::move(bank));
     t.nm_per_px.push_back(sets[i].nm_per_px);

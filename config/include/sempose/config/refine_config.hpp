@@ -32,6 +32,26 @@ struct RefineConfig {
   // Only measurements scoring at least this are refined (below it the fit has too little signal
   // to beat the walk and a look-alike is as likely).
   double min_score = 0.2;
+  // Raw source: 5-tap binomial low-pass passes (σ ≈ 1 px each) applied to the recorded pattern
+  // only — the template side of the fit — so the recorded pattern's own noise does not enter
+  // the fit unfiltered while the frame is fitted as scanned. 0: the recorded pattern as is.
+  // −1 (auto): the passes (0..3) that minimise the fit's predicted position variance given the
+  // pattern's noise measured at setup (PoseRefinement::auto_template_passes). Ignored with the
+  // prefiltered source (its template is the bank's prefiltered copy).
+  std::int32_t template_passes = 0;
+  // Weight each pixel's residual by 1 / its detector variance (Poisson + gain cascade + read
+  // noise: variance ∝ signal above the black level + read noise), the signal taken from the
+  // recorded pattern smoothed by two binomial passes (fixed per pattern set at setup, so the
+  // weighted Hessian is precomputed). Needs the recorded pattern (both sources).
+  bool noise_weights = false;
+  // The detector's output at zero signal, as a fraction of full scale (2^bits − 1): the
+  // simulator's output_offset (0.04). Only read with noise_weights.
+  double black_level = 0.04;
+  // The read noise's share of the variance, in counts of signal (the signal above the black
+  // level at which the shot noise equals it: read_noise² / (counts per electron × excess
+  // noise)), added to every pixel's; each pixel's signal is taken as at least 2 % of the
+  // pattern's mean over its support, so no weight is unbounded. Only read with noise_weights.
+  double read_noise_counts = 0.0;
 };
 
 // Reads a `refine:` mapping (tracker.refine); config/src/refine_section.cpp.

@@ -5,7 +5,10 @@
 // over the template's support pixels whose four neighbours are in it too (T's gradient is a
 // central difference there). f is sampled bilinearly. Two sources (tracker.refine.source):
 // the prefiltered ROI against the bank's prefiltered angle-0 copy over its support (the exact
-// scorer's pixels and objective), or the raw ROI against the raw recorded pattern.
+// scorer's pixels and objective), or the raw ROI against the recorded pattern, optionally
+// low-passed on its own side (tracker.refine.template_passes). With noise weights
+// (tracker.refine.noise_weights) the sum is Σ_d w(d)·(…)², w = 1 / the detector's variance at
+// the template's signal: fixed per template, so the weighted Hessian is still the template's.
 //
 // FitTemplate::build is setup (allocates; one per pattern set): in the inverse-compositional
 // form the steepest-descent images and the Hessian are the template's alone. fit() is RT:
@@ -48,18 +51,24 @@ inline constexpr int kFitParams = 6;  // tx, ty, θ, ln s (the template's frame)
 // One template (setup): its inner support pixels, values, steepest-descent images and moments.
 class FitTemplate {
  public:
-  // img: P×P floats; inside: P×P, non-zero = support. False when under 64 inner pixels.
-  bool build(const float* img, int size_px, const std::uint8_t* inside);
+  // img: P×P floats; inside: P×P, non-zero = support. variance: P×P relative noise variance
+  // per pixel (> 0; the weights are its inverse, normalised to mean 1 over the inner pixels),
+  // or null for equal weights. False when under 64 inner pixels.
+  bool build(const float* img, int size_px, const std::uint8_t* inside, const float* variance = nullptr);
   int pixels() const noexcept { return n_; }
   double radius_px() const noexcept { return radius_; }
-  std::size_t memory_bytes() const noexcept { return 7 * t_.size() * sizeof(float); }
+  std::size_t memory_bytes() const noexcept { return 8 * t_.size() * sizeof(float); }
 
  private:
   friend class GaussNewtonFit;
   int n_ = 0;
   double radius_ = 0;
-  std::vector<float> u_, v_, t_, sd0_, sd1_, sd2_, sd3_;
-  double m_[kFitParams][kFitParams] = {};  // Σ J Jᵀ, J = (sd0..sd3, T, 1)
+  // Per inner pixel: offsets (u, v), the weight w and w·T, w·sd0..w·sd3 (the steepest-descent
+  // images times the weight; w = 1 without weights, so these are then T and sd exactly).
+  std::vector<float> u_, v_, w_, t_, sd0_, sd1_, sd2_, sd3_;
+  double m_[kFitParams][kFitParams] = {};  // Σ w J Jᵀ, J = (sd0..sd3, T, 1)
+  // w_i·σ_i² over σ̄² (σ_i² ∝ the variance the weights were built from, σ̄² its mean): 1 unweighted.
+  double noise_factor_ = 1.0;
 };
 
 class GaussNewtonFit {

@@ -35,12 +35,22 @@ class PoseRefinement {
       : scorer_(scorer), fit_(cfg), step_deg_(angle_step_deg), raw_(cfg.source == "raw") {}
 
   // Setup, per pattern set in order: the template over the bank's angle-0 support — the bank's
-  // prefiltered copy, or the recorded pattern (raw source). False when it has too few pixels.
-  bool add_set(const PatternBank& bank, const PatternImage& recorded);
+  // prefiltered copy, or the recorded pattern (raw source) after template_passes binomial
+  // passes; with noise_weights the weights from the recorded pattern (levels of `bits` bits,
+  // black_level a fraction of that full scale). False when it has too few pixels.
+  bool add_set(const PatternBank& bank, const PatternImage& recorded, int bits = 8);
 
   Measurement refine(std::uint8_t set, const PatternBank& bank, const Measurement& m, const RawRoi& raw) const noexcept;
 
   std::size_t memory_bytes() const noexcept;
+
+  // The template's low-pass passes of pattern set `set` (template_passes, or what auto chose).
+  int template_passes(std::size_t set) const noexcept { return set < passes_.size() ? passes_[set] : 0; }
+
+  // template_passes auto (setup): the passes, 0..kMaxAutoPasses, that minimise the predicted
+  // variance of the fit's position given the recorded pattern's own noise (pose_refinement.cpp).
+  static constexpr int kMaxAutoPasses = 3;
+  static int auto_template_passes(const PatternImage& recorded, const std::vector<std::uint8_t>& inside);
 
  private:
   const ExactScorer& scorer_;
@@ -48,6 +58,7 @@ class PoseRefinement {
   double step_deg_;
   bool raw_;
   std::vector<FitTemplate> templates_;
+  std::vector<int> passes_;
 };
 
 }  // namespace sempose::pose
