@@ -72,7 +72,8 @@ TEST(AppConfig, AppearanceKeysAreReadAndChecked) {
 TEST(AppConfig, RefineKeysAreReadAndChecked) {
   const auto good = write_yaml("refine.yaml",
                                "tracker:\n  refine:\n    enabled: true\n    source: raw\n    max_iterations: 4\n"
-                               "    fit_position: false\n");
+                               "    fit_position: false\n    template_passes: -1\n    noise_weights: true\n"
+                               "    black_level: 0.02\n    read_noise_counts: 1.5\n");
   AppConfig c;
   std::string e;
   EXPECT_TRUE(load_app_config(good, c, e)) << e;
@@ -80,6 +81,10 @@ TEST(AppConfig, RefineKeysAreReadAndChecked) {
   EXPECT_EQ(c.tracker.refine.source, "raw");
   EXPECT_EQ(c.tracker.refine.max_iterations, 4);
   EXPECT_FALSE(c.tracker.refine.fit_position);
+  EXPECT_EQ(c.tracker.refine.template_passes, -1);
+  EXPECT_TRUE(c.tracker.refine.noise_weights);
+  EXPECT_EQ(c.tracker.refine.black_level, 0.02);
+  EXPECT_EQ(c.tracker.refine.read_noise_counts, 1.5);
   const auto bad = write_yaml("refine_bad.yaml", "tracker:\n  refine:\n    max_iterations: 0\n    source: both\n");
   AppConfig d;
   e.clear();
