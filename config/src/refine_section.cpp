@@ -11,6 +11,7 @@ void read_refine(Section& s, RefineConfig& c) {
   s.opt_choice("source", c.source, {"prefiltered", "raw"});
   s.opt("fit_scale", c.fit_scale);
   s.opt("fit_position", c.fit_position);
+  s.opt("fit_angle", c.fit_angle);
   s.opt("min_score", c.min_score, 0.0, 1.0);
   s.opt("template_passes", c.template_passes, -1, 4);  // -1: auto
   s.opt("noise_weights", c.noise_weights);

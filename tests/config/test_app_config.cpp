@@ -72,7 +72,7 @@ TEST(AppConfig, AppearanceKeysAreReadAndChecked) {
 TEST(AppConfig, RefineKeysAreReadAndChecked) {
   const auto good = write_yaml("refine.yaml",
                                "tracker:\n  refine:\n    enabled: true\n    source: raw\n    max_iterations: 4\n"
-                               "    fit_position: false\n    template_passes: -1\n    noise_weights: true\n"
+                               "    fit_position: false\n    fit_angle: false\n    template_passes: -1\n    noise_weights: true\n"
                                "    black_level: 0.02\n    read_noise_counts: 1.5\n");
   AppConfig c;
   std::string e;
@@ -81,6 +81,7 @@ TEST(AppConfig, RefineKeysAreReadAndChecked) {
   EXPECT_EQ(c.tracker.refine.source, "raw");
   EXPECT_EQ(c.tracker.refine.max_iterations, 4);
   EXPECT_FALSE(c.tracker.refine.fit_position);
+  EXPECT_FALSE(c.tracker.refine.fit_angle);
   EXPECT_EQ(c.tracker.refine.template_passes, -1);
   EXPECT_TRUE(c.tracker.refine.noise_weights);
   EXPECT_EQ(c.tracker.refine.black_level, 0.02);

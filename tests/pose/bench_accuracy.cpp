@@ -349,7 +349,8 @@ int main(int argc, char** argv) {
   // --refine on|off: the final Gauss–Newton fit (tracker.refine.enabled) regardless of its default;
   // --refine-iterations N, --refine-scale on|off, --refine-source S, --refine-position on|off:
   // its tracker.refine.max_iterations / fit_scale / source / fit_position; --refine-template-passes N,
-  // --refine-weights on|off: tracker.refine.template_passes / noise_weights (black_level: the
+  // --refine-weights on|off, --refine-angle on|off: tracker.refine.template_passes / noise_weights /
+  // fit_angle (black_level: the
   // simulator's output offset, 0 for the warped crop; sim_harness.hpp).
   // --sigma-tile N, --sigma-calibration K, --sigma-floor PX DEG, --sigma-noise-factor F: the σ
   // stage's tile side, sandwich factor, model-error floor and white-noise factor (to try them; the defaults are tracker.sigma_*).
@@ -388,6 +389,7 @@ int main(int argc, char** argv) {
     else if (a == "--refine-scale" && i + 1 < argc) tc.refine.fit_scale = std::string(argv[++i]) == "on";
     else if (a == "--refine-source" && i + 1 < argc) tc.refine.source = argv[++i];
     else if (a == "--refine-position" && i + 1 < argc) tc.refine.fit_position = std::string(argv[++i]) == "on";
+    else if (a == "--refine-angle" && i + 1 < argc) tc.refine.fit_angle = std::string(argv[++i]) == "on";
     else if (a == "--refine-template-passes" && i + 1 < argc) tc.refine.template_passes = std::atoi(argv[++i]);
     else if (a == "--refine-weights" && i + 1 < argc) tc.refine.noise_weights = std::string(argv[++i]) == "on";
     else if (a == "--sigma-tile" && i + 1 < argc) sigma_tile = std::atoi(argv[++i]);
@@ -403,7 +405,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A]\n", argv[0]);
       return 2;
     }
   }

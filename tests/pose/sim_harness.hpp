@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <ctime>
 #include <cstdio>
 #include <memory>
@@ -81,6 +82,12 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
   if (!s.background) c.background.contrast = 0;
   if (!s.drift) {
     c.drift.clear();
+    c.beam_lag_px = 0;
+  }
+  // BENCH_NO_JITTER=1 (diagnosis only): frames without per-line jitter and beam lag, the two
+  // frame effects the bound and the oracles leave out.
+  if (std::getenv("BENCH_NO_JITTER") != nullptr) {
+    c.line_jitter_px = 0;
     c.beam_lag_px = 0;
   }
   auto& t = c.targets[0];  // the default needle tip

@@ -150,8 +150,10 @@ Measurement PoseRefinement::refine(std::uint8_t set, const PatternBank& bank, co
     out.dx = r.pose.cx - c - m.ux;
     out.dy = r.pose.cy - c - m.uy;
   }
-  out.dj = rt::wrap_deg(r.pose.phi_deg - m.j * step_deg_) / step_deg_;
-  out.refined_scale = static_cast<float>(r.pose.scale);
+  if (fit_.config().fit_angle) {
+    out.dj = rt::wrap_deg(r.pose.phi_deg - m.j * step_deg_) / step_deg_;
+    out.refined_scale = static_cast<float>(r.pose.scale);
+  }
   return out;
 }
 

@@ -29,6 +29,9 @@ struct RefineConfig {
   // still moves position jointly to find the angle). Measured: the fit lowers the angle's
   // noise part but not the position's (README: Known limitations).
   bool fit_position = true;
+  // Report the fit's angle (and scale); false: the walk's angle kept (the fit still moves the
+  // angle jointly to find the position).
+  bool fit_angle = true;
   // Only measurements scoring at least this are refined (below it the fit has too little signal
   // to beat the walk and a look-alike is as likely).
   double min_score = 0.2;
