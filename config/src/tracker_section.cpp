@@ -71,6 +71,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("sigma_angle_factor", c.sigma_angle_factor, 0.01, 100.0);
   s.opt("sigma_floor_px", c.sigma_floor_px, 0.0, 10.0);
   s.opt("sigma_floor_deg", c.sigma_floor_deg, 0.0, 10.0);
+  s.opt("sigma_pattern_noise", c.sigma_pattern_noise);
   if (const SettingProblem problem = check_tracker_sizes(c, c.pattern_size_px)) s.error(problem.key.c_str(), problem.message);
 }
 

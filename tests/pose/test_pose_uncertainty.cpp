@@ -67,25 +67,36 @@ struct Stages {
     loader = std::make_unique<RoiLoader>(0, sizes.roi_fft_px, *scorer, *half);
     maps.assign(static_cast<std::size_t>(sizes.half_fft_px) * sizes.half_fft_px, 0.0f);
     walk = std::make_unique<OrientationWalk>(*scorer, fit, angles);
+    bank = make_bank(0.0, 0);
+    sigma = std::make_unique<PoseUncertainty>(*scorer, kPattern, PoseUncertainty::kDefaultTilePx, 1.0);
+  }
+
+  // The pattern as recorded: the texture plus white noise of SD pattern_noise_sd (seed: which
+  // draw of it; 0 SD: the exact texture).
+  std::unique_ptr<const PatternBank> make_bank(double pattern_noise_sd, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> noise(0.0, pattern_noise_sd);
     PatternBankSpec spec;
-    const std::vector<std::uint16_t> pattern =
-        test::render_analytic(kPattern, kPattern, (kPattern - 1) / 2.0, (kPattern - 1) / 2.0, 0, kTexture);
+    const std::vector<std::uint16_t> pattern = test::render_analytic(
+        kPattern, kPattern, (kPattern - 1) / 2.0, (kPattern - 1) / 2.0, 0, kTexture,
+        [&](int, int, double v) { return pattern_noise_sd > 0 ? v + noise(rng) : v; });
     spec.pattern = {kPattern, kPattern, pattern};
     spec.angle_step_deg = kStepDeg;
     spec.coarse_step_deg = 20;
     spec.coarse_factor = 4;
     std::string why;
-    bank = PatternBank::build(spec, {fine, half_mask, *half, coarse_mask, *coarse}, why);
-    EXPECT_NE(bank, nullptr) << why;
-    sigma = std::make_unique<PoseUncertainty>(*scorer, kPattern, PoseUncertainty::kDefaultTilePx, 1.0);
+    auto b = PatternBank::build(spec, {fine, half_mask, *half, coarse_mask, *coarse}, why);
+    EXPECT_NE(b, nullptr) << why;
+    return b;
   }
 
   // The walk's measurement of the loaded ROI, started at the true angle's grid point.
-  Measurement measure(double phi_deg) {
+  Measurement measure(double phi_deg) { return measure(phi_deg, *bank); }
+  Measurement measure(double phi_deg, const PatternBank& b) {
     const int j = angles.index_of(phi_deg);
-    half->correlate(bank->spectrum(j), maps.data());
+    half->correlate(b.spectrum(j), maps.data());
     const Peak pk = find_peak(maps.data(), half->valid_w(), half->valid_h());
-    return walk->measure(*bank, j, pk, 8);
+    return walk->measure(b, j, pk, 8);
   }
   std::vector<float> maps;  // the half-resolution correlation map (half_fft_px²)
 };
@@ -100,17 +111,19 @@ struct Scatter {
 };
 
 // frames noisy frames of the target at a fixed sub-pixel pose: the walk's error against the σ
-// the stage reports (RMS of each).
-Scatter run(Stages& st, double clutter, double noise_sd, int frames) {
-  std::mt19937 rng(7);
+// the stage reports (RMS of each), added to s. bank / sigma: st's unless given; seed: the frames' noise.
+Scatter run(Stages& st, double clutter, double noise_sd, int frames, Scatter s = {}, const PatternBank* bank = nullptr,
+            PoseUncertainty* sigma = nullptr, unsigned seed = 7) {
+  std::mt19937 rng(seed);
   const double cx = 40.3, cy = 39.6, phi = 12.4;
-  Scatter s;
+  const PatternBank& b = bank ? *bank : *st.bank;
+  PoseUncertainty& stage = sigma ? *sigma : *st.sigma;
   for (int f = 0; f < frames; ++f) {
     const auto roi = render(cx, cy, phi, clutter, noise_sd, rng);
     EXPECT_TRUE(st.loader->load(roi.data(), kRoi, kRoi, kRoi, 16));
-    const Measurement m = st.measure(phi);
+    const Measurement m = st.measure(phi, b);
     if (!m.valid) continue;
-    const PoseSigma sg = st.sigma->estimate(*st.bank, m, 1.0);
+    const PoseSigma sg = stage.estimate(b, m, 1.0);
     EXPECT_TRUE(sg.valid);
     if (!sg.valid) continue;
     const double ex = m.ux + m.dx + (kPattern - 1) / 2.0 - cx, ey = m.uy + m.dy + (kPattern - 1) / 2.0 - cy;
@@ -200,4 +213,60 @@ TEST(PoseUncertainty, InvalidOutsideTheRoiAndNoAllocation) {
   EXPECT_EQ(again.phi_deg, plain.phi_deg);
   EXPECT_EQ(again.scale, plain.scale);
   EXPECT_TRUE(std::isfinite(s.x_px) && std::isfinite(s.phi_deg) && std::isfinite(s.scale));
+}
+
+// The recorded pattern's own noise (PatternBank::noise_gram): the bank reads the pattern's
+// noise; with a pattern recorded noisily (SD 40, the frames' 120: the benchmark's 10-frame
+// average at any dose has a third of a frame's noise SD) σ grows and stays calibrated — over
+// many recordings of the pattern, since one recording's noise is the same error in every
+// frame. The white-noise part is what the pattern's noise changes (the sandwich keeps H0), so
+// the stage here is that part alone. Without the noise taken out of JᵀJ this σ is too small
+// (RMS(error)/RMS(σ) y 1.43, φ 1.64) and smaller than with the clean pattern.
+TEST(PoseUncertainty, PatternNoiseIsMeasuredAtSetup) {
+  Stages st;
+  ASSERT_NE(st.bank, nullptr);
+  std::printf("clean pattern's noise read: %.2f\n", std::sqrt(st.bank->pattern_noise_var()));
+  EXPECT_LT(st.bank->pattern_noise_var(), 9.0);  // the exact texture: its rounding and curvature only
+  const auto noisy = st.make_bank(80.0, 11);
+  ASSERT_NE(noisy, nullptr);
+  std::printf("pattern noise read: %.1f (true 80.0), rho %.2f\n", std::sqrt(noisy->pattern_noise_var()), noisy->pattern_noise_rho());
+  EXPECT_NEAR(std::sqrt(noisy->pattern_noise_var()), 80.0, 8.0);
+  ASSERT_NE(noisy->noise_gram(0), nullptr);
+  ASSERT_NE(noisy->noise_gram(359), nullptr);
+  // Its x and y gradient energy alike (white noise), φ's and the gain's above 0.
+  const double* g = noisy->noise_gram(37);
+  EXPECT_NEAR(g[0] / g[7], 1.0, 0.15);
+  EXPECT_GT(g[14], 0.0);
+  EXPECT_GT(g[28], 0.0);
+}
+
+TEST(PoseUncertainty, NoisierPatternGivesLargerSigmaAndStaysCalibrated) {
+  Stages st;
+  constexpr double kFrameSd = 120, kPatternSd = 40;
+  PoseUncertainty fisher(*st.scorer, kPattern, PoseUncertainty::kDefaultTilePx, 0.0, 0, 0, 1.0, 1, st.angles.count, true);
+  const Scatter clean = run(st, 0.0, kFrameSd, 40, {}, st.bank.get(), &fisher);
+  Scatter noisy;
+  constexpr int kRecordings = 40, kFrames = 5;
+  for (int r = 0; r < kRecordings; ++r) {
+    const auto bank = st.make_bank(kPatternSd, 100 + r);
+    ASSERT_NE(bank, nullptr);
+    noisy = run(st, 0.0, kFrameSd, kFrames, noisy, bank.get(), &fisher, 200 + r);
+  }
+  ASSERT_GT(noisy.n, kRecordings * kFrames * 9 / 10);
+  const auto sd = [](const Scatter& s, double v) { return std::sqrt(v / s.n); };
+  std::printf("clean pattern: sigma x %.4f y %.4f phi %.4f; RMS(error)/RMS(sigma) x %.2f y %.2f phi %.2f\n",
+              sd(clean, clean.sig2_x), sd(clean, clean.sig2_y), sd(clean, clean.sig2_phi), clean.ratio_x(), clean.ratio_y(),
+              clean.ratio_phi());
+  std::printf("noisy pattern: sigma x %.4f y %.4f phi %.4f; RMS(error)/RMS(sigma) x %.2f y %.2f phi %.2f\n",
+              sd(noisy, noisy.sig2_x), sd(noisy, noisy.sig2_y), sd(noisy, noisy.sig2_phi), noisy.ratio_x(), noisy.ratio_y(),
+              noisy.ratio_phi());
+  EXPECT_GT(sd(noisy, noisy.sig2_x), 1.1 * sd(clean, clean.sig2_x));
+  EXPECT_GT(sd(noisy, noisy.sig2_y), 1.2 * sd(clean, clean.sig2_y));
+  EXPECT_GT(sd(noisy, noisy.sig2_phi), sd(clean, clean.sig2_phi));
+  EXPECT_GT(noisy.ratio_x(), 0.75);
+  EXPECT_LT(noisy.ratio_x(), 1.3);
+  EXPECT_GT(noisy.ratio_y(), 0.75);
+  EXPECT_LT(noisy.ratio_y(), 1.3);
+  EXPECT_GT(noisy.ratio_phi(), 0.75);
+  EXPECT_LT(noisy.ratio_phi(), 1.3);
 }

@@ -3,12 +3,14 @@
 #include "sempose/pose/bicubic_rotate.hpp"
 #include "sempose/pose/box_downsample.hpp"
 #include "sempose/pose/prefilter.hpp"
+#include "sempose/pose/window_noise.hpp"
 
 #include <fftw3.h>
 
 #include <algorithm>
 #include <cmath>
 #include <new>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -84,6 +86,7 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
     dilate_disk(shape, n, spec.shape_margin_px);
   }
   std::vector<std::uint8_t> fine_in(src.size());
+  std::vector<double> norm(static_cast<std::size_t>(angles_), 0.0);  // copy = (turned − mean) · norm[j]
   support_.clear();
   support_begin_.assign(1, 0);
   support_count_.clear();
@@ -101,6 +104,18 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
       count = turned_support(shape, n, j * step_deg, fine_mask.bitmap(), shape_scratch, fine_in);
     } else {
       std::copy_n(fine_mask.bitmap(), fine_in.size(), fine_in.begin());
+    }
+    {
+      double sum = 0, ss = 0, cnt = 0;
+      for (std::size_t i = 0; i < fine_in.size(); ++i)
+        if (fine_in[i]) {
+          sum += p[i];
+          cnt += 1;
+        }
+      const double mean = cnt > 0 ? sum / cnt : 0.0;
+      for (std::size_t i = 0; i < fine_in.size(); ++i)
+        if (fine_in[i]) ss += (p[i] - mean) * (p[i] - mean);
+      norm[static_cast<std::size_t>(j)] = ss > 0 ? 1.0 / std::sqrt(ss) : 0.0;
     }
     if (!normalize_pattern(p, n, fine_in.data()) || !normalize_pattern(halved.data(), half_mask)) {
       why = has_shape_ && count < 64 ? "the shape mask leaves under 64 pixels inside the pattern circle" : no_contrast;
@@ -123,7 +138,116 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
     if (coarse_wide)
       coarse_wide->make_spectrum(small.data(), coarse_wide_spectra_.get() + static_cast<std::size_t>(k) * coarse_wide_len_);
   }
+  model_pattern_noise(pattern, spec.prefilter_passes, norm);
   return true;
+}
+
+void PatternBank::model_pattern_noise(const PatternImage& pattern, int prefilter_passes, const std::vector<double>& norm) {
+  const int n = size_;
+  noise_gram_.clear();
+  const WindowNoise wn = line_correlated_noise(pattern.pixels.data(), n, 0, 0, n);
+  pattern_noise_var_ = wn.var;
+  pattern_noise_rho_ = wn.rho;
+  if (!(wn.var > 0)) return;
+  // One noise field of the measured variance and line correlation (AR(1) along x), fixed seed
+  // (setup is deterministic), through the pattern's own prefilter.
+  std::vector<float> field(static_cast<std::size_t>(n) * n);
+  std::mt19937 rng(0x5e4d05e);
+  std::normal_distribution<double> white(0.0, 1.0);
+  const double rho = wn.rho, innov = std::sqrt(std::max(0.0, 1.0 - rho * rho)), sd = std::sqrt(wn.var);
+  for (int y = 0; y < n; ++y) {
+    double v = white(rng);
+    for (int x = 0; x < n; ++x) {
+      if (x > 0) v = rho * v + innov * white(rng);
+      field[static_cast<std::size_t>(y) * n + x] = static_cast<float>(sd * v);
+    }
+  }
+  prefilter_pattern(field.data(), n, prefilter_passes);
+  // Angle k's noise copy as the σ stage sees the bank's copy: turned, inside k's support,
+  // scaled like the copy (the support mean the copy loses is ~1/√support of the noise: left in).
+  const std::size_t nn = static_cast<std::size_t>(n) * n;
+  auto copy_of = [&](int k, std::vector<float>& out, std::vector<std::uint8_t>& in) {
+    k = ((k % angles_) + angles_) % angles_;
+    rotate_pattern(field.data(), n, k * (360.0 / angles_), out.data());
+    std::fill(in.begin(), in.end(), std::uint8_t{0});
+    for (std::size_t b = support_begin_[static_cast<std::size_t>(k)]; b < support_begin_[static_cast<std::size_t>(k) + 1]; ++b) {
+      const MaskBand& band = support_[b];
+      for (int y = band.y0; y <= band.y1; ++y)
+        for (int x = band.x0; x <= band.x1; ++x) in[static_cast<std::size_t>(y) * n + x] = 1;
+    }
+    const float s = static_cast<float>(norm[static_cast<std::size_t>(k)]);
+    for (std::size_t i = 0; i < nn; ++i) out[i] = in[i] ? out[i] * s : 0.0f;
+  };
+  std::vector<float> copies[3] = {std::vector<float>(nn), std::vector<float>(nn), std::vector<float>(nn)};
+  std::vector<std::uint8_t> ins[3] = {std::vector<std::uint8_t>(nn), std::vector<std::uint8_t>(nn), std::vector<std::uint8_t>(nn)};
+  copy_of(-1, copies[0], ins[0]);
+  copy_of(0, copies[1], ins[1]);
+  constexpr int K = kNoiseParams;
+  noise_gram_.assign(static_cast<std::size_t>(angles_) * K * K, 0.0);
+  const double step_deg = 360.0 / angles_;
+  const double per_deg = 0.5 / step_deg, c = 0.5 * (n - 1);
+  std::vector<double> gx(static_cast<std::size_t>(n));
+  for (int j = 0; j < angles_; ++j) {
+    // Ring of three: j − 1, j, j + 1.
+    const int im = (j + 2) % 3, ic = j % 3, ip = (j + 1) % 3;
+    if (j == 0) {
+      // copies[0] holds −1 and copies[1] holds 0: move them to the ring's slots for j = 0 (im = 2, ic = 0).
+      std::swap(copies[2], copies[0]);
+      std::swap(ins[2], ins[0]);
+      std::swap(copies[0], copies[1]);
+      std::swap(ins[0], ins[1]);
+    }
+    copy_of(j + 1, copies[ip], ins[ip]);
+    const float* t = copies[ic].data();
+    const std::uint8_t* in = ins[ic].data();
+    const float* tp = copies[ip].data();
+    const float* tm = copies[im].data();
+    double g[K][K] = {};
+    double tan2 = 0;  // the φ column's noise energy as the tangential derivative of copy j
+    for (std::size_t b = support_begin_[static_cast<std::size_t>(j)]; b < support_begin_[static_cast<std::size_t>(j) + 1]; ++b) {
+      const MaskBand& band = support_[b];
+      for (int v = band.y0; v <= band.y1; ++v) {
+        const float* row = t + static_cast<std::size_t>(v) * n;
+        const int x0 = band.x0, x1 = band.x1;
+        // The σ stage's columns (pose_uncertainty.cpp, row_terms), on the noise copy.
+        for (int u = x0; u <= x1; ++u)
+          gx[static_cast<std::size_t>(u)] = x1 == x0 ? 0.0
+                                             : u == x0 ? row[u + 1] - row[u]
+                                             : u == x1 ? row[u] - row[u - 1]
+                                                       : 0.5 * (row[u + 1] - row[u - 1]);
+        for (int u = x0; u <= x1; ++u) {
+          const std::size_t i = static_cast<std::size_t>(v) * n + u;
+          const bool up = v > 0 && in[i - n], dn = v + 1 < n && in[i + n];
+          const double tc = t[i], tu = up ? t[i - n] : tc, td = dn ? t[i + n] : tc;
+          double a[K];
+          a[0] = gx[static_cast<std::size_t>(u)];
+          a[1] = (up && dn ? 0.5 : 1.0) * (td - tu);
+          a[2] = per_deg * (tp[i] - tm[i]);
+          const double tangential = (M_PI / 180.0) * ((u - c) * a[1] - (v - c) * a[0]);
+          tan2 += tangential * tangential;
+          a[3] = (u - c) * a[0] + (v - c) * a[1];
+          a[4] = tc;
+          a[5] = 0.0;
+          for (int p = 0; p < K - 1; ++p)
+            for (int q = 0; q < K - 1; ++q) g[p][q] += a[p] * a[q];
+        }
+      }
+    }
+    // The φ column: the bank's neighbour difference (what J holds) over-states what the walk's
+    // angle fit feels of the noise, the tangential derivative of one copy under-states it
+    // (pose_uncertainty_test, noisy pattern: 1.6× too large / 1.4–2.4× too small a σφ); the
+    // geometric mean of the two energies, the φ row and column scaled alike.
+    if (g[2][2] > 0 && tan2 > 0) {
+      const double f = std::sqrt(std::sqrt(tan2 / g[2][2]));
+      for (int p = 0; p < K; ++p) {
+        g[2][p] *= f;
+        g[p][2] *= f;
+      }
+    }
+    double* out = noise_gram_.data() + static_cast<std::size_t>(j) * K * K;
+    for (int p = 0; p < K; ++p)
+      for (int q = 0; q < K; ++q) out[p * K + q] = g[p][q];
+  }
 }
 
 std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& base,
@@ -169,6 +293,16 @@ std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& 
     std::int64_t count = 0;
     for (std::uint8_t v : in) count += v;
     float* p = b.spatial_.data() + static_cast<std::size_t>(j) * n * n;
+    double renorm = 0;  // the renormalisation's factor on base's copy
+    {
+      double sum = 0, ss = 0;
+      for (std::size_t i = 0; i < in.size(); ++i)
+        if (in[i]) sum += p[i];
+      const double mean = count > 0 ? sum / static_cast<double>(count) : 0.0;
+      for (std::size_t i = 0; i < in.size(); ++i)
+        if (in[i]) ss += (p[i] - mean) * (p[i] - mean);
+      renorm = ss > 0 ? 1.0 / ss : 0.0;
+    }
     if (count < 64 || !normalize_pattern(p, n, in.data())) {
       why = "the learned support leaves " + std::to_string(count) + " pixels (or a flat pattern) at angle " +
             std::to_string(j * step_deg) + " deg";
@@ -178,7 +312,19 @@ std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& 
     b.support_.insert(b.support_.end(), bands.begin(), bands.end());
     b.support_begin_.push_back(b.support_.size());
     b.support_count_.push_back(count);
+    // The pattern noise's Gram: base's, over the smaller support (∝ its pixels) and in the
+    // renormalised copy's units (a learned support is a setup-side option; not re-simulated).
+    if (!base.noise_gram_.empty()) {
+      if (b.noise_gram_.empty()) b.noise_gram_.assign(base.noise_gram_.size(), 0.0);
+      const double f = renorm * static_cast<double>(count) /
+                       std::max<double>(1.0, static_cast<double>(base.support_count_[static_cast<std::size_t>(j)]));
+      constexpr std::size_t K2 = kNoiseParams * kNoiseParams;
+      for (std::size_t q = 0; q < K2; ++q)
+        b.noise_gram_[static_cast<std::size_t>(j) * K2 + q] = f * base.noise_gram_[static_cast<std::size_t>(j) * K2 + q];
+    }
   }
+  b.pattern_noise_var_ = base.pattern_noise_var_;
+  b.pattern_noise_rho_ = base.pattern_noise_rho_;
   return bank;
 }
 
@@ -191,7 +337,7 @@ double PatternBank::mean_support_count() const noexcept {
 std::size_t PatternBank::memory_bytes() const noexcept {
   return spatial_.size() * sizeof(float) + sizeof(Complex) * (spectrum_len_ * angles_ + (coarse_len_ + coarse_wide_len_) * coarse_angles_) +
          support_.size() * sizeof(MaskBand) + support_begin_.size() * sizeof(std::size_t) +
-         support_count_.size() * sizeof(std::int64_t);
+         support_count_.size() * sizeof(std::int64_t) + noise_gram_.size() * sizeof(double);
 }
 
 }  // namespace sempose::pose

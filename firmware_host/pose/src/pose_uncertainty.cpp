@@ -109,7 +109,7 @@ bool invert6(double a[kParams][kParams]) noexcept {
 
 PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration,
                                  double floor_px, double floor_deg, double noise_factor, double angle_factor,
-                                 int max_angles)
+                                 int max_angles, bool pattern_noise)
     : scorer_(scorer),
       pattern_px_(pattern_px),
       tile_(std::max(1, tile_px)),
@@ -118,6 +118,7 @@ PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int 
       floor_deg_(floor_deg),
       noise_factor_(noise_factor),
       angle_factor_(angle_factor),
+      pattern_noise_(pattern_noise),
       tile_sums_(static_cast<std::size_t>(pattern_px / std::max(1, tile_px) + 1) * kParams, 0.0),
       row_(static_cast<std::size_t>(8) * pattern_px, 0.0f),
       h0_cache_(static_cast<std::size_t>(std::max(0, max_angles)) * kParams * kParams, 0.0),
@@ -266,21 +267,49 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
       for (int k = 0; k < kParams; ++k) c0[a * kParams + k] = H[a][k];
     h0_valid_[static_cast<std::size_t>(j)] = 1;
   }
-  if (!invert6(H)) return out;
+  // The recorded pattern's noise (README: Uncertainty): JᵀJ = H_c + N holds the noise's own
+  // gradient energy N, the fit's curvature is H_c only, so the white-noise part is
+  // s²·H_c⁻¹ (H_c + N) H_c⁻¹ (the frame's noise against the pattern's noise gradients, the
+  // noise × noise term, included), H_c = H0 − λN with λ ≤ 1 keeping every diagonal of H_c at
+  // ≥ (1 − kMaxNoiseShare) of H0's. The sandwich keeps H0: its tiles already see the pattern's
+  // noise in the residual and its gradients in J (pose_uncertainty_test: with a noisy
+  // pattern it is not too small, and with H_c it is 1.3–1.9× too large).
+  double H0[kParams][kParams], Hc[kParams][kParams];
+  for (int a = 0; a < kParams; ++a)
+    for (int k = 0; k < kParams; ++k) H0[a][k] = Hc[a][k] = H[a][k];
+  const double* N = pattern_noise_ ? bank.noise_gram(j) : nullptr;
+  if (!invert6(H)) return out;  // H0⁻¹
+  if (N) {
+    double lambda = 1.0;
+    for (int k = 0; k < kParams; ++k) {
+      const double nk = N[k * kParams + k];
+      if (nk > kMaxNoiseShare * H0[k][k]) lambda = std::min(lambda, kMaxNoiseShare * H0[k][k] / nk);
+    }
+    for (int a = 0; a < kParams; ++a)
+      for (int k = 0; k < kParams; ++k) Hc[a][k] -= lambda * N[a * kParams + k];
+    if (!invert6(Hc)) return out;  // H_c⁻¹
+  }
   // Cov0 = H0⁻¹ M0 H0⁻¹; the pose's σ is √Cov0 over |gain| (D), times the calibration.
   // Plus the walk's own fit error: the squared step δ = H0⁻¹ G from its pose to the
   // least-squares optimum (in the sandwich's meat it is diluted over the tiles). And the
-  // white-noise (Fisher) covariance s²·H0⁻¹ with its own factor (README: Uncertainty).
+  // white-noise (Fisher) covariance s²·H_c⁻¹ H0 H_c⁻¹ (s²·H0⁻¹ without the pattern's noise)
+  // with its own factor (README: Uncertainty).
   const double s2 = sum_r2 / std::max(1.0, n - kParams);
   const double gain2 = gain * gain;
   double var[4];
   for (int k = 0; k < 4; ++k) {
-    double s = 0, step = 0;
+    double s = 0, step = 0, fisher = 0;
     for (int a = 0; a < kParams; ++a) {
       step += H[k][a] * G[a];
       for (int b = 0; b < kParams; ++b) s += H[k][a] * M[a][b] * H[b][k];
     }
-    var[k] = (calibration_ * calibration_ * (s + step * step) + noise_factor_ * noise_factor_ * s2 * H[k][k]) / gain2;
+    if (N) {
+      for (int a = 0; a < kParams; ++a)
+        for (int b = 0; b < kParams; ++b) fisher += Hc[k][a] * H0[a][b] * Hc[b][k];
+    } else {
+      fisher = H[k][k];
+    }
+    var[k] = (calibration_ * calibration_ * (s + step * step) + noise_factor_ * noise_factor_ * s2 * fisher) / gain2;
   }
   for (double v : var)
     if (!(v >= 0) || !std::isfinite(v)) return out;

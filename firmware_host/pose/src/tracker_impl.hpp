@@ -152,7 +152,7 @@ struct Tracker::Impl {
         search(cfg, sizes, angles, coarse, coarse_wide.get(), half, loader, rescaler, scale_probe, scale_evidence, walk, sweep, maps),
         refinement(scorer, c.refine, angles.step_deg),
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
-                    c.sigma_noise_factor, c.sigma_angle_factor, angles.count),
+                    c.sigma_noise_factor, c.sigma_angle_factor, angles.count, c.sigma_pattern_noise),
         loss(cfg),
         motion(c.predict_velocity),
         filter(c.filter) {

@@ -83,6 +83,9 @@ struct TrackerConfig {
   // A floor added in quadrature to σx, σy (px of the loaded ROI) and σφ (deg): a bias of the
   // pattern against the target that no single frame shows (0: the fit chose none).
   double sigma_floor_px = 0.0, sigma_floor_deg = 0.0;
+  // Model the recorded pattern's own noise (measured on the pattern at setup): its gradients
+  // are taken out of JᵀJ, so σ grows with a noisy pattern (README: Uncertainty).
+  bool sigma_pattern_noise = true;
   // Fit on Σtf/√(var − noise var) rather than the ZNCC, noise var estimated at the best
   // match: removes the pull of noisy windows towards more signal/noise variance.
   bool fit_noise_correction = true;

@@ -93,9 +93,27 @@ class PatternBank {
   bool has_shape() const noexcept { return has_shape_; }
   std::size_t memory_bytes() const noexcept;
 
+  // The recorded pattern's own noise, measured at build on the raw pattern (line_correlated_noise
+  // over the whole square: no knowledge of how it was recorded): its variance per raw pixel and
+  // its correlation along the line. Per angle, the expected Gram matrix (kNoiseParams², in the
+  // σ stage's order x, y, φ, scale, gain, offset; offset's row and column 0) of that noise's
+  // share of the σ stage's Jacobian columns, in the copy's units: what the noise's own gradients
+  // add to JᵀJ (pose_uncertainty.cpp takes it out). Found by running one unit-variance noise field
+  // of the measured correlation through the copies' prefilter, rotations, supports and
+  // normalisation. nullptr when not measured (a flat or too large pattern: 0 noise read).
+  static constexpr int kNoiseParams = 6;
+  const double* noise_gram(int j) const noexcept {
+    return noise_gram_.empty() ? nullptr : noise_gram_.data() + static_cast<std::size_t>(j) * kNoiseParams * kNoiseParams;
+  }
+  double pattern_noise_var() const noexcept { return pattern_noise_var_; }
+  double pattern_noise_rho() const noexcept { return pattern_noise_rho_; }
+
  private:
   PatternBank() = default;
   bool fill(const PatternBankSpec& spec, const BankLevels& levels, std::string& why);
+  // Setup: pattern_noise_var_ and noise_gram_ of this bank (norm: each copy's factor from the
+  // prefiltered, turned pattern to the copy, i.e. 1 / its norm over the support).
+  void model_pattern_noise(const PatternImage& pattern, int prefilter_passes, const std::vector<double>& norm);
 
   int size_ = 0, angles_ = 0, coarse_angles_ = 0;
   double coarse_step_deg_ = 20;
@@ -105,6 +123,8 @@ class PatternBank {
   std::vector<MaskBand> support_;            // every angle's support bands, one after another
   std::vector<std::size_t> support_begin_;   // angles_ + 1 offsets into support_
   std::vector<std::int64_t> support_count_;  // pixels per angle's support
+  double pattern_noise_var_ = 0, pattern_noise_rho_ = 0;
+  std::vector<double> noise_gram_;  // angles_ × kNoiseParams², empty: not measured
   // Shared with banks made by with_support() (the spectra do not depend on the fine support).
   std::shared_ptr<Complex> spectra_;
   std::shared_ptr<Complex> coarse_spectra_;

@@ -13,7 +13,14 @@
 // residual is structured. The residual is taken at the walk's sub-pixel / sub-step pose (its
 // offsets from the integer grid point are applied to first order); the walk's distance from the
 // least-squares optimum, δ = H⁻¹ Σ_b g_b, is added as δδᵀ (the walk's own fit error), and the
-// white-noise part s²·H⁻¹ with its own factor. The factors (set at setup) were fitted on part
+// white-noise part s²·H⁻¹ with its own factor.
+// The recorded pattern's own noise (PatternBank::noise_gram, measured at setup): its gradients
+// are in J too, so JᵀJ = H_c + N holds the noise's gradient energy N, while the fit's curvature
+// is H_c (the noise's share of JᵀJ is cancelled by the Σ r·∂²T term: E[Σ n ∂²n] = −N) — H⁻¹ is
+// too small by (1 + N/H_c) and the spread of Jᵀr the sandwich measures already holds both
+// noises (the residual holds the frame's and the pattern's noise, J the noise's gradients: the
+// noise × noise term). So the stage's bread is H_c⁻¹ = (JᵀJ − N)⁻¹ and the white-noise part
+// s²·H_c⁻¹ (H_c + N) H_c⁻¹: σ rises with a noisy pattern (low dose) and stays for a clean one. The factors (set at setup) were fitted on part
 // of the benchmark's targets; README: Uncertainty says how and what they give on the others.
 // RT: noexcept, no allocation (buffers and the per-angle JᵀJ cache are sized at setup), one
 // pass over the support.
@@ -43,8 +50,14 @@ class PoseUncertainty {
   // white-noise (Fisher × residual variance) part added in quadrature (0: none); angle_factor
   // a further factor on σφ's two parts (the walk's angle fit is less efficient than its position).
   // max_angles: the banks' angle count, for the per-angle cache of JᵀJ (0: no cache).
+  // pattern_noise: take the recorded pattern's noise (the bank's noise_gram) out of JᵀJ.
   PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration, double floor_px = 0,
-                  double floor_deg = 0, double noise_factor = 0, double angle_factor = 1, int max_angles = 0);
+                  double floor_deg = 0, double noise_factor = 0, double angle_factor = 1, int max_angles = 0,
+                  bool pattern_noise = true);
+
+  // At most this share of a diagonal of JᵀJ is taken as the pattern's noise (a pattern that is
+  // mostly noise would otherwise leave a singular H_c).
+  static constexpr double kMaxNoiseShare = 0.8;
 
   // RT: σ of the measurement m of the loaded ROI against bank angle m.j; scale_factor is the
   // scale probe's reading of this ROI (1 when it had none).
@@ -61,6 +74,7 @@ class PoseUncertainty {
   double floor_px_, floor_deg_;
   double noise_factor_;
   double angle_factor_;
+  bool pattern_noise_;
   std::vector<double> tile_sums_;  // one tile row's g_b: (pattern_px / tile + 1) × 6
   std::vector<float> row_;         // one row's ∂T/∂x and a tile row's column sums (7): 8 × pattern_px
   const PatternBank* cached_bank_ = nullptr;  // the bank h0_cache_ belongs to
