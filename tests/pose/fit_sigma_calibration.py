@@ -5,7 +5,7 @@ prints z = RMS(error/σ) pooled per group and dose, and how many rows have every
     B=build/release/tests/pose/pose_accuracy_bench
     BENCH_TRACE=1 $B --quick --no-visp --sigma-calibration 1 --sigma-noise-factor 0 --sigma-angle-factor 1 --sigma-floor 0 0 2> a.txt >/dev/null
     BENCH_TRACE=1 $B --quick --no-visp --sigma-calibration 0 --sigma-noise-factor 1 --sigma-angle-factor 1 --sigma-floor 0 0 2> f.txt >/dev/null
-    tests/pose/fit_sigma_calibration.py a.txt f.txt
+    tests/pose/fit_sigma_calibration.py [--pooled] a.txt f.txt
 
 a.txt holds each pose's sandwich + walk-step σ, f.txt its white-noise (Fisher) σ; the poses are
 the same in both runs (σ never moves a pose). Model, per axis:
@@ -14,6 +14,10 @@ the same in both runs (σ never moves a pose). Model, per axis:
 chosen to minimise Σ (log z)² over every (row, axis) of the fitting targets (needle_tip,
 lamella_post) at doses 2.5–20, so that no row is far off either way. The held-out targets
 (lamella, warped, gripper) are only reported, never fitted on.
+
+--pooled: minimise Σ (log z)² over the fitting targets' pooled cells instead (one z per dose
+and axis over all their rows' poses: issue 13's criterion is the pooled z per axis), floors 0.
+The tracker's defaults since the pattern-noise term (README: Uncertainty) are this fit's.
 """
 import math
 import sys
@@ -61,9 +65,35 @@ def frange(lo, hi, step):
     return [lo + i * step for i in range(int(round((hi - lo) / step)) + 1)]
 
 
-def main(path_a, path_f):
+def fit_pooled(rows):
+    cells = {}
+    for (t, _, d), a in rows.items():
+        if t in FIT and d >= 2.5:
+            cells.setdefault(d, []).extend(a)
+    best = None
+    for k in frange(0.0, 3.0, 0.05):
+        for kf in frange(0.0, 8.0, 0.1):
+            if k == 0 and kf == 0:
+                continue
+            c = sum(math.log(z_axis(a, ax, k * k, kf * kf, 0.0)) ** 2 for a in cells.values() for ax in (0, 1))
+            if best is None or c < best[0]:
+                best = (c, k, kf)
+    _, k, kf = best
+    besta = None
+    for ka in frange(0.5, 3.0, 0.02):
+        c = sum(math.log(z_axis(a, 2, k * k * ka * ka, kf * kf * ka * ka, 0.0)) ** 2 for a in cells.values())
+        if besta is None or c < besta[0]:
+            besta = (c, ka)
+    return k, kf, 0.0, besta[1], 0.0
+
+
+def main(path_a, path_f, pooled=False):
     rows = rows_of(load(path_a), load(path_f))
     fit_rows = [a for (t, _, d), a in rows.items() if t in FIT and d >= 2.5]
+    if pooled:
+        k, kf, fpx, ka, fdeg = fit_pooled(rows)
+        report(rows, k, kf, fpx, ka, fdeg, "pooled cells of")
+        return
     # Position: k, kF and the floor in px; then the angle: a factor on both parts and its floor.
     best = None
     for k in frange(0.0, 3.0, 0.15):
@@ -83,9 +113,14 @@ def main(path_a, path_f):
             if besta is None or c < besta[0]:
                 besta = (c, ka, fd)
     _, ka, fdeg = besta
-    print(f"fitted on {len(fit_rows)} rows of {sorted(FIT)}: sigma_calibration {k:.2f} sigma_noise_factor {kf:.2f} "
+    report(rows, k, kf, fpx, ka, fdeg, f"{len(fit_rows)} rows of")
+
+
+def report(rows, k, kf, fpx, ka, fdeg, what):
+    print(f"fitted on {what} {sorted(FIT)}: sigma_calibration {k:.2f} sigma_noise_factor {kf:.2f} "
           f"sigma_floor_px {fpx:.2f} sigma_angle_factor {ka:.2f} sigma_floor_deg {fdeg:.2f}")
-    for name, sel in (("fit", lambda t: t in FIT), ("held out", lambda t: t not in FIT)):
+    for name, sel in (("fit", lambda t: t in FIT), ("held out", lambda t: t in ("lamella", "warped")),
+                      ("gripper", lambda t: t == "gripper")):
         for dose in sorted({d for (_, _, d) in rows}, reverse=True):
             grp = [a for (t, _, d), a in rows.items() if sel(t) and d == dose]
             if not grp:
@@ -97,4 +132,5 @@ def main(path_a, path_f):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2])
+    args = [a for a in sys.argv[1:] if a != "--pooled"]
+    main(args[0], args[1], pooled="--pooled" in sys.argv[1:])
