@@ -73,13 +73,13 @@ struct TrackerConfig {
   // σ per tracked pose (pose_uncertainty.hpp): the side of the tiles the sandwich covariance
   // sums the residual's scores over (px; the residual is correlated within a tile). The factors
   // were fitted on needle_tip and lamella_post rows of pose_accuracy_bench only
-  // (tests/pose/fit_sigma_calibration.py --pooled, with the pattern-noise term; README: Uncertainty):
+  // (tests/pose/fit_sigma_calibration.py --pooled --k 0.75, with the pattern-noise term; README: Uncertainty):
   //   σ² = calibration²·(sandwich + walk step²) + noise_factor²·(Fisher × residual variance) + floor²
   // and σφ's first two parts × angle_factor.
   std::int32_t sigma_tile_px = 8;
-  double sigma_calibration = 1.35;
-  double sigma_noise_factor = 3.30;
-  double sigma_angle_factor = 1.22;
+  double sigma_calibration = 0.75;
+  double sigma_noise_factor = 4.95;
+  double sigma_angle_factor = 1.18;
   // A floor added in quadrature to σx, σy (px of the loaded ROI) and σφ (deg): a bias of the
   // pattern against the target that no single frame shows (0: the fit chose none).
   double sigma_floor_px = 0.0, sigma_floor_deg = 0.0;

@@ -98,9 +98,10 @@ class PatternBank {
   // its correlation along the line. Per angle, the expected Gram matrix (kNoiseParams², in the
   // σ stage's order x, y, φ, scale, gain, offset; offset's row and column 0) of that noise's
   // share of the σ stage's Jacobian columns, in the copy's units: what the noise's own gradients
-  // add to JᵀJ (pose_uncertainty.cpp takes it out). Found by running one unit-variance noise field
-  // of the measured correlation through the copies' prefilter, rotations, supports and
-  // normalisation. nullptr when not measured (a flat or too large pattern: 0 noise read).
+  // add to JᵀJ (pose_uncertainty.cpp takes it out). Found by running one noise field of the
+  // measured variance and correlation through the copies' prefilter, rotations, supports and
+  // normalisation (φ's row and column: pattern_bank.cpp). nullptr when not measured (0 noise
+  // read, or a pattern over 512 px).
   static constexpr int kNoiseParams = 6;
   const double* noise_gram(int j) const noexcept {
     return noise_gram_.empty() ? nullptr : noise_gram_.data() + static_cast<std::size_t>(j) * kNoiseParams * kNoiseParams;
