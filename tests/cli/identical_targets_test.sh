@@ -7,22 +7,40 @@ set -euo pipefail
 bin=${1:?usage: identical_targets_test.sh SEMPOSE SOURCE_DIR}
 src=${2:?usage: identical_targets_test.sh SEMPOSE SOURCE_DIR}
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
-scene() {  # $1: trajectory of both needles
+needles() {  # $1, $2: start "x, y, phi" of needle 0 and 1; $3, $4: their trajectories
   cat <<YAML
 scan: {field_w: 640, field_h: 480, max_roi_w: 256, max_roi_h: 256, min_dwell_ns: 250, max_dwell_ns: 2000}
 sim:
   seed: 5
   targets:
-    - texture: {path: $src/config/data/sem/needle_contact_eb.pgm, crop: [552, 430, 120, 160], mask: threshold, mask_level: 0.5}
-      size: [90, 120]
-      start: [180, 200, 0]
-      trajectory: {kind: $1}
-    - texture: {path: $src/config/data/sem/needle_contact_eb.pgm, crop: [552, 430, 120, 160], mask: threshold, mask_level: 0.5}
-      size: [90, 120]
-      start: [450, 280, 30]
-      trajectory: {kind: $1}
 YAML
+  local start traj
+  for i in 0 1; do
+    if [ $i = 0 ]; then start=$1 traj=$3; else start=$2 traj=$4; fi
+    cat <<YAML
+    - texture: {path: $src/config/data/sem/needle_contact_eb.pgm, crop: [552, 430, 120, 160], mask: threshold, mask_level: 0.5}
+      size: [90, 120]
+      start: [$start]
+      trajectory: {kind: $traj}
+YAML
+  done
 }
+scene() { needles "180, 200, 0" "450, 280, 30" "$1" "$1"; }  # $1: trajectory of both needles
+# Each TRACKING pose with the needles (ground truth's target column) it is within 3 px of.
+cat >"$work/near.py" <<'PY'
+import csv, math
+def tracking_near(poses_csv, truth_csv):
+    truth = {}
+    for r in csv.DictReader(open(truth_csv)):
+        truth[(int(r['frame']), int(r['target']))] = (float(r['x_px']), float(r['y_px']))
+    for p in csv.DictReader(open(poses_csv)):
+        if p['status'] != 'TRACKING':
+            continue
+        t, f = int(p['target']), int(p['frame'])
+        x, y = float(p['x_px']), float(p['y_px'])
+        near = [n for n in (0, 1) if (f, n) in truth and math.hypot(x - truth[(f, n)][0], y - truth[(f, n)][1]) < 3]
+        yield t, f, x, y, near
+PY
 scene static >"$work/still.yaml"
 scene "sine, amplitude_x_px: 30, amplitude_y_px: 15, amplitude_phi_deg: 10, period_s: 4" >"$work/moving.yaml"
 "$bin" sim --out "$work/still" --frames 10 --dwell 2000 --config "$work/still.yaml" >"$work/log" 2>&1
@@ -35,20 +53,12 @@ printf 'scan: {field_w: 640, field_h: 480, max_roi_w: 256, max_roi_h: 256, min_d
 # Per target: which needle (ground truth's target column) each TRACKING pose is within 3 px
 # of, the orientation relative to that needle's at frame 0 (the pattern's). Both must be
 # followed, each on one needle only, and not the same one.
-/usr/bin/python3 - "$work/poses.csv" "$work/rec/ground_truth.csv" <<'PY'
-import csv, math, sys
-poses = list(csv.DictReader(open(sys.argv[1])))
-truth = {}
-for r in csv.DictReader(open(sys.argv[2])):
-    truth[(int(r['frame']), int(r['target']))] = (float(r['x_px']), float(r['y_px']))
+PYTHONPATH="$work" /usr/bin/python3 - "$work/poses.csv" "$work/rec/ground_truth.csv" <<'PY'
+import sys
+from near import tracking_near
 held, fails = {0: set(), 1: set()}, 0
 count = {0: 0, 1: 0}
-for p in poses:
-    if p['status'] != 'TRACKING':
-        continue
-    t, f = int(p['target']), int(p['frame'])
-    x, y = float(p['x_px']), float(p['y_px'])
-    near = [n for n in (0, 1) if (f, n) in truth and math.hypot(x - truth[(f, n)][0], y - truth[(f, n)][1]) < 3]
+for t, f, x, y, near in tracking_near(sys.argv[1], sys.argv[2]):
     count[t] += 1
     if not near:
         print(f"FAIL frame {f}: target {t} TRACKING at ({x:.1f}, {y:.1f}), on neither needle"); fails += 1
@@ -70,20 +80,7 @@ PY
 # of target 1 on needle 0). Now two look-alike targets on one place are UNCERTAIN and the
 # one that stays there searches the field again (README: Several targets).
 cross() {  # $1, $2: start x of needle 0 and 1; $3, $4: their vx
-  cat <<YAML
-scan: {field_w: 640, field_h: 480, max_roi_w: 256, max_roi_h: 256, min_dwell_ns: 250, max_dwell_ns: 2000}
-sim:
-  seed: 5
-  targets:
-    - texture: {path: $src/config/data/sem/needle_contact_eb.pgm, crop: [552, 430, 120, 160], mask: threshold, mask_level: 0.5}
-      size: [90, 120]
-      start: [$1, 240, 0]
-      trajectory: {kind: linear, vx_px_s: $3, vy_px_s: 0}
-    - texture: {path: $src/config/data/sem/needle_contact_eb.pgm, crop: [552, 430, 120, 160], mask: threshold, mask_level: 0.5}
-      size: [90, 120]
-      start: [$2, 240, 0]
-      trajectory: {kind: linear, vx_px_s: $4, vy_px_s: 0}
-YAML
+  needles "$1, 240, 0" "$2, 240, 0" "linear, vx_px_s: $3, vy_px_s: 0" "linear, vx_px_s: $4, vy_px_s: 0"
 }
 cross 170 470 0 0 >"$work/cross_still.yaml"
 cross 170 470 30 -30 >"$work/cross.yaml"
@@ -93,19 +90,11 @@ cp "$work/cross_needle.pgm" "$work/cross_needle_too.pgm"
 "$bin" sim --out "$work/cross_rec" --frames 80 --dwell 500 --config "$work/cross.yaml" >>"$work/log" 2>&1
 "$bin" replay --frames "$work/cross_rec" --pattern "$work/cross_needle.pgm" --pattern "$work/cross_needle_too.pgm" \
   --config "$work/track.yaml" --out "$work/cross_poses.csv" >>"$work/log" 2>&1 || { cat "$work/log"; echo "FAIL crossing replay"; exit 1; }
-/usr/bin/python3 - "$work/cross_poses.csv" "$work/cross_rec/ground_truth.csv" <<'PY'
-import csv, math, sys
-poses = list(csv.DictReader(open(sys.argv[1])))
-truth = {}
-for r in csv.DictReader(open(sys.argv[2])):
-    truth[(int(r['frame']), int(r['target']))] = (float(r['x_px']), float(r['y_px']))
+PYTHONPATH="$work" /usr/bin/python3 - "$work/cross_poses.csv" "$work/cross_rec/ground_truth.csv" <<'PY'
+import sys
+from near import tracking_near
 fails, last = 0, {0: [], 1: []}
-for p in poses:
-    if p['status'] != 'TRACKING':
-        continue
-    t, f = int(p['target']), int(p['frame'])
-    x, y = float(p['x_px']), float(p['y_px'])
-    near = [n for n in (0, 1) if (f, n) in truth and math.hypot(x - truth[(f, n)][0], y - truth[(f, n)][1]) < 3]
+for t, f, x, y, near in tracking_near(sys.argv[1], sys.argv[2]):
     if len(near) != 1:
         print(f"FAIL crossing frame {f}: target {t} TRACKING at ({x:.1f}, {y:.1f}) near needles {near}"); fails += 1
         continue
