@@ -1,8 +1,11 @@
 // The `sempose` subcommands. Each returns the process exit code; argv[0] is the subcommand.
 #pragma once
 
+#include <algorithm>
 #include <cstdio>
+#include <initializer_list>
 #include <string>
+#include <string_view>
 
 namespace sempose::config {
 struct AppConfig;
@@ -27,6 +30,26 @@ inline bool refuse_stdout_output(const char* command, const std::string& value, 
   if (value != "-") return false;
   std::fprintf(stderr, "sempose %s: --out '-' (standard output) is not supported: --out names %s\n", command, what);
   return true;
+}
+
+// An option given twice (`--frames 3 ... --frames 4`) is ambiguous: the later one used to win
+// silently, so an operator's edited command line could run with a value they meant to replace
+// or keep. Every option but the listed repeatable ones (replay's and view's --pattern, --mask)
+// is refused by name when it appears again, before anything is read or written.
+inline bool refuse_repeated_options(const char* command, int argc, char** argv,
+                                    std::initializer_list<std::string_view> repeatable = {}) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view a = argv[i];
+    if (a.size() < 3 || a.substr(0, 2) != "--") continue;
+    if (std::find(repeatable.begin(), repeatable.end(), a) != repeatable.end()) continue;
+    for (int j = 1; j < i; ++j) {
+      if (a == argv[j]) {
+        std::fprintf(stderr, "sempose %s: option %s is given twice; give it once\n", command, argv[i]);
+        return true;
+      }
+    }
+  }
+  return false;
 }
 
 }  // namespace sempose::cli

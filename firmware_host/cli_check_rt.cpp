@@ -41,6 +41,7 @@ int sempose::cli::print_rt_checks(const config::AppConfig& cfg, const std::strin
 }
 
 int sempose::cli::check_rt(int argc, char** argv) {
+  if (refuse_repeated_options("check-rt", argc, argv)) return 2;
   std::string config_path, root = "/";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];

@@ -34,6 +34,7 @@ bool parse_int(const std::string& s, long& v, long lo, long hi) {
 }  // namespace
 
 int sempose::cli::pattern(int argc, char** argv) {
+  if (refuse_repeated_options("pattern", argc, argv)) return 2;
   std::string dir, out, center;
   long size = 128, average = 10;
   for (int i = 1; i < argc; ++i) {

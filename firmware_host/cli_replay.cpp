@@ -225,6 +225,7 @@ int run_replay(int argc, char** argv) {
 }  // namespace
 
 int sempose::cli::replay(int argc, char** argv) {
+  if (refuse_repeated_options("replay", argc, argv, {"--pattern", "--mask"})) return 2;
   try {
     return run_replay(argc, argv);
   } catch (const std::exception& e) {

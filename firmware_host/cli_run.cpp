@@ -146,6 +146,7 @@ void pin_non_rt_thread(int cpu) {
 }  // namespace
 
 int sempose::cli::run(int argc, char** argv) {
+  if (refuse_repeated_options("run", argc, argv)) return 2;
   Options opt;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) return usage(stdout);

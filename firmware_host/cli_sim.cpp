@@ -67,6 +67,7 @@ bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& sca
 }  // namespace
 
 int sempose::cli::sim(int argc, char** argv) {
+  if (refuse_repeated_options("sim", argc, argv)) return 2;
   std::string out_dir, config_path;
   unsigned long long frames = 100, seed = 0, dwell = 250;
   bool seed_given = false;

@@ -53,6 +53,7 @@ bool positive(const std::string& flag, const char* text, int& out, int lo, int h
 }  // namespace
 
 int sempose::cli::view(int argc, char** argv) {
+  if (refuse_repeated_options("view", argc, argv, {"--pattern"})) return 2;
   std::string poses_path, out_dir, frames_dir;
   std::vector<std::string> patterns;
   int every = 10, roi = 192, pattern_size = 128, scale = 2;

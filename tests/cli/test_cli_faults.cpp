@@ -399,3 +399,37 @@ TEST(CliFaults, UntrackablePatternsAreRefusedByName) {
     EXPECT_FALSE(fs::exists(dir + "/o.csv")) << "output made before the pattern was refused: " << c.expect;
   }
 }
+
+// An option given twice is refused by name (exit 2, nothing made) rather than the later one
+// silently winning; the repeatable ones (--pattern, replay's --mask) still repeat.
+TEST(CliFaults, AnOptionGivenTwiceIsRefusedByName) {
+  const std::string dir = work_dir() + "/twice";
+  fs::create_directories(dir);
+  const std::string cfg = small_config(dir, "");
+  const std::vector<std::vector<std::string>> refused = {
+      {"sim", "--out", dir + "/rec", "--frames", "3", "--frames", "4", "--config", cfg},
+      {"pattern", "--frames", dir, "--center", "1,1", "--out", dir + "/p.pgm", "--center", "2,2"},
+      {"replay", "--frames", dir, "--pattern", dir + "/p.pgm", "--out", dir + "/a.csv", "--out", dir + "/b.csv"},
+      {"run", "--config", cfg, "--duration", "1", "--duration", "2"},
+      {"check-rt", "--config", cfg, "--config", cfg},
+      {"view", "--poses", dir + "/p.csv", "--out", dir + "/v", "--every", "2", "--every", "3"},
+  };
+  for (const auto& args : refused) {
+    const Outcome r = run(args, 60);
+    EXPECT_EQ(r.code, 2) << args[0] << ": " << r.err;
+    EXPECT_NE(r.err.find("is given twice"), std::string::npos) << args[0] << ": " << r.err;
+  }
+  EXPECT_FALSE(fs::exists(dir + "/rec")) << "sim made its output before refusing";
+  EXPECT_FALSE(fs::exists(dir + "/v")) << "view made its output before refusing";
+
+  Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "3", "--config", cfg}, 120);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "2", "--out",
+           dir + "/p.pgm"},
+          60);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--pattern", dir + "/p.pgm", "--out",
+           dir + "/two.csv"},
+          120);
+  EXPECT_EQ(r.err.find("is given twice"), std::string::npos) << "--pattern is repeatable: " << r.err;
+}
