@@ -159,6 +159,9 @@ int sempose::cli::sim(int argc, char** argv) {
     img.height = scan.field_h;
     img.bits = scan.bits;
     img.pixels.resize(static_cast<std::size_t>(scan.field_w) * scan.field_h);
+    // Frames each target is in: a target that never enters the field (a typo in `start:`)
+    // leaves a recording of background only, and the truth has no row for it.
+    std::vector<unsigned long long> in_field(sim_cfg.targets.size(), 0);
     for (unsigned long long f = 0; f < frames; ++f) {
       const auto r = source.start({field, static_cast<std::uint32_t>(dwell), 0}, slot);
       if (r != hal::StartResult::kStarted) {
@@ -180,6 +183,7 @@ int sempose::cli::sim(int argc, char** argv) {
         const hal::TargetTruth tr = source.truth_as_scanned(static_cast<std::size_t>(t), field,
                                                             slot.meta.dwell_ns, slot.meta.t_scan_start_ns);
         if (!sim_cfg.targets[static_cast<std::size_t>(t)].enabled || !tr.present) continue;
+        ++in_field[static_cast<std::size_t>(t)];
         if (several) {
           std::fprintf(truth_csv, "%llu,%.4f,%.4f,%.4f,%d\n", f, tr.x_px, tr.y_px, tr.phi_deg, t);
         } else {
@@ -191,6 +195,12 @@ int sempose::cli::sim(int argc, char** argv) {
     if (!ok) {
       std::fprintf(stderr, "sempose sim: %s: writing the CSV files failed\n", out_dir.c_str());
       return 1;
+    }
+    for (std::size_t t = 0; t < in_field.size(); ++t) {
+      if (!sim_cfg.targets[t].enabled || in_field[t] == frames) continue;
+      std::fprintf(stderr, "sempose sim: warning: target %zu (start [%g, %g]) is in the %dx%d field on %llu of %llu frames%s\n", t,
+                   sim_cfg.targets[t].x_px, sim_cfg.targets[t].y_px, scan.field_w, scan.field_h, in_field[t], frames,
+                   in_field[t] == 0 ? "; the recording shows only background for it and the truth has no row for it" : "");
     }
     std::printf("sempose sim: wrote %llu frames (%dx%d, %u-bit, dwell %llu ns) to %s\n", frames, scan.field_w,
                 scan.field_h, static_cast<unsigned>(scan.bits), dwell, out_dir.c_str());

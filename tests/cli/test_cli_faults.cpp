@@ -433,3 +433,19 @@ TEST(CliFaults, AnOptionGivenTwiceIsRefusedByName) {
           120);
   EXPECT_EQ(r.err.find("is given twice"), std::string::npos) << "--pattern is repeatable: " << r.err;
 }
+
+// A simulated target that never enters the field (a typo in `start:`) used to give a recording
+// of background without a word; sim now says which target and on how many frames it is seen.
+TEST(CliFaults, SimSaysWhenATargetIsNotInTheField) {
+  const std::string dir = work_dir() + "/outside";
+  fs::create_directories(dir);
+  std::ofstream(dir + "/out.yaml") << "scan: {field_w: 320, field_h: 240}\nsim:\n  targets:\n"
+                                      "    - {texture: {source: lamella}, size: [60, 40], start: [3000, 120, 0]}\n";
+  Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "2", "--config", dir + "/out.yaml"}, 60);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("target 0 (start [3000, 120]) is in the 320x240 field on 0 of 2 frames"), std::string::npos)
+      << r.err;
+  r = run({"sim", "--out", dir + "/in", "--frames", "2", "--config", small_config(dir, "")}, 60);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("warning"), std::string::npos) << r.err;
+}
