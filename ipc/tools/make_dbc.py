@@ -24,10 +24,12 @@ POSE_ATTR = [
     ("score", 19, 11, True, 0.001, 0, -1, 1, "", "ZNCC peak score"),
     ("state", 30, 2, False, 1, 0, 0, 3, "", "0 TRACKING, 1 ACQUIRING, 2 LOST, 3 UNCERTAIN (followed, pose not trusted)"),
     ("reason", 32, 8, False, 1, 0, 0, 255,  "",
-     "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded, 64 angle unsettled, "
+     "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded (a REACQUIRE, or sempose's own re-search when look_alike is 1), 64 angle unsettled, "
      "128 unexplained (the pattern does not explain the window up to noise)"),
     ("seq", 40, 8, False, 1, 0, 0, 255, "", "Pose sequence counter (low 8 bits), same in POSE_XY"),
-    ("age", 48, 16, False, 1, 0, 0, 65535, "us", "Scan end to send (saturating)"),
+    ("age", 48, 15, False, 1, 0, 0, 32767, "us", "Scan end to send (saturating)"),
+    ("look_alike", 63, 1, False, 1, 0, 0, 1, "",
+     "1: a target with the same pattern is on this pose's place (state UNCERTAIN while both are there), or this pose comes from the search sempose started because of it (reason 32 on such a frame is sempose's own, not a controller REACQUIRE)"),
 ]
 POSE_FD = [
     ("x", 0, 32, True, 1, 0, -2147483648, 2147483647, "nm", "Pattern centre x (saturating)"),
@@ -49,6 +51,7 @@ POSE_FD = [
     ("sigma_y", 368, 32, False, 0.001, 0, 0, 4294967.295, "nm", "1 sigma of y, calibrated (0 = not measured)"),
     ("sigma_phi", 400, 32, False, 0.000001, 0, 0, 4294.967295, "deg", "1 sigma of phi, calibrated (0 = not measured)"),
     ("sigma_scale", 432, 32, False, 0.000001, 0, 0, 4294.967295, "", "1 sigma of target_scale (0 = not measured)"),
+    ("look_alike", 464, 1, False, 1, 0, 0, 1, "", "See POSE_ATTR"),
 ]
 POSE_UNC = [
     ("sigma_x", 0, 12, False, 0.1, 0, 0, 409.5, "nm", "1 sigma of x, calibrated (0 = not measured, saturating)"),

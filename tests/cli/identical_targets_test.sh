@@ -6,7 +6,7 @@
 set -euo pipefail
 bin=${1:?usage: identical_targets_test.sh SEMPOSE SOURCE_DIR}
 src=${2:?usage: identical_targets_test.sh SEMPOSE SOURCE_DIR}
-work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
+work=$(mktemp -d); [ -n "${KEEP:-}" ] || trap 'rm -rf "$work"' EXIT; echo "work: $work"
 needles() {  # $1, $2: start "x, y, phi" of needle 0 and 1; $3, $4: their trajectories
   cat <<YAML
 scan: {field_w: 640, field_h: 480, max_roi_w: 256, max_roi_h: 256, min_dwell_ns: 250, max_dwell_ns: 2000}
@@ -109,6 +109,67 @@ for t in (0, 1):
 if held[0] and held[0] == held[1]:
     print(f"FAIL crossing: both targets hold needle {sorted(held[0])} after the crossing"); fails += 1
 print(f"crossing: after it target 0 on needle {sorted(held[0])}, target 1 on needle {sorted(held[1])}")
+sys.exit(1 if fails else 0)
+PY
+# The same crossing through `sempose run` (source: replay, virtual clock) with the CAN frames in
+# a candump log, decoded with the DBC: the UNCERTAIN poses of a look-alike on one place carry
+# POSE_ATTR.look_alike, and so does the frame of the search that sempose itself started
+# after three of them (reason 32 when it is an ACQUIRING frame), so a controller can tell it
+# from its own REACQUIRE; the standing recording, where the needles never meet, carries none.
+crossing_can() {  # $1: recording, $2: out prefix
+  cat >"$work/$2_run.yaml" <<YAML
+scan: {field_w: 640, field_h: 480, max_roi_w: 256, max_roi_h: 256, min_dwell_ns: 250, max_dwell_ns: 2000}
+source: replay
+replay: {frames_dir: $work/$1, clock: virtual}
+targets:
+  - {name: left, pattern_sets: [{file: $work/cross_needle.pgm}]}
+  - {name: right, pattern_sets: [{file: $work/cross_needle_too.pgm}]}
+can: {log_file: $work/$2.log}
+output: {poses_csv: $work/$2_poses.csv}
+pipeline: {virtual_compute_ns: 200000, lock_memory: false, hold_dma_latency: false, acquisition: {cpu: -1, priority: 0},
+           correlation: {cpu: -1, priority: 0}, output: {cpu: -1, priority: 0}, non_rt_cpu: -1}
+YAML
+  "$bin" run --config "$work/$2_run.yaml" --duration 20 >>"$work/log" 2>&1 || { cat "$work/log"; echo "FAIL run $2"; exit 1; }
+  /usr/bin/python3 "$src/ipc/tools/sempose_dbc.py" "$src/ipc/sempose.dbc" "$work/$2.log" --json >"$work/$2.json"
+}
+"$bin" sim --out "$work/apart_rec" --frames 80 --dwell 500 --config "$work/cross_still.yaml" >>"$work/log" 2>&1
+crossing_can cross_rec crossing
+crossing_can apart_rec apart
+/usr/bin/python3 - "$work/crossing.json" "$work/apart.json" <<'PY'
+import json, sys
+def attrs(path):  # per target, its POSE_ATTR signals in order
+    out = {}
+    for line in open(path):
+        f = json.loads(line)
+        if (f.get("name") or "").startswith("POSE_ATTR_T"):
+            out.setdefault(f["name"][-1], []).append(f["signals"])
+    return out
+cross, apart = attrs(sys.argv[1]), attrs(sys.argv[2])
+fails, uncertain, own = 0, 0, 0
+if not cross or not apart:
+    print(f"FAIL no POSE_ATTR frames decoded ({len(cross)}, {len(apart)})"); fails += 1
+for t, poses in cross.items():
+    run = 0  # flagged UNCERTAIN poses in a row
+    for s in poses:
+        if s["look_alike"] == 1 and s["state"] == 3:
+            uncertain += 1
+            run += 1
+            continue
+        if s["look_alike"] == 1:  # sempose's own search: only right after 3 on one place
+            own += 1
+            if run < 3:
+                print(f"FAIL crossing T{t} seq {int(s['seq'])}: a search flagged look_alike after {run} UNCERTAIN poses, not 3"); fails += 1
+        run = 0
+if not uncertain:
+    print("FAIL crossing: no UNCERTAIN pose flagged look_alike"); fails += 1
+if not own:
+    print("FAIL crossing: no search of sempose's own flagged look_alike"); fails += 1
+apart = [s for poses in apart.values() for s in poses]
+if any(s["look_alike"] == 1 for s in apart):
+    print(f"FAIL apart: {sum(s['look_alike'] == 1 for s in apart)} poses flagged look_alike though the needles never meet"); fails += 1
+if any(int(s["reason"]) & 32 for s in apart):
+    print("FAIL apart: a re-search (reason 32) though nothing was commanded"); fails += 1
+print(f"crossing on CAN: {uncertain} UNCERTAIN poses look_alike, {own} own searches; apart: 0 of {len(apart)}")
 sys.exit(1 if fails else 0)
 PY
 echo "identical_targets: passed"

@@ -157,6 +157,7 @@ TEST_F(DbcTest, ClassicPoseFramesDecodeToTheEncodedValues) {
     p.reason_bits = static_cast<std::uint8_t>(i % 256);
     p.seq = static_cast<std::uint32_t>(i * 7);
     p.age_ns = static_cast<std::int64_t>(i) * 131'071;
+    p.look_alike = i % 5 == 0;
     const int t = i % ipc::kMaxTargets;
     std::uint8_t xy[8], at[8];
     ipc::encode_pose_xy(p, xy);
@@ -170,7 +171,8 @@ TEST_F(DbcTest, ClassicPoseFramesDecodeToTheEncodedValues) {
     EXPECT_EQ(sig(id_at, "state", at), i % 3);
     EXPECT_EQ(sig(id_at, "reason", at), i % 256);
     EXPECT_EQ(sig(id_at, "seq", at), p.seq % 256);
-    EXPECT_EQ(sig(id_at, "age", at), std::min<std::int64_t>(p.age_ns / 1000, 65535));
+    EXPECT_EQ(sig(id_at, "age", at), std::min<std::int64_t>(p.age_ns / 1000, 32767));
+    EXPECT_EQ(sig(id_at, "look_alike", at), i % 5 == 0 ? 1 : 0) << "the flag sits in the age's old top bit";
   }
 }
 

@@ -65,6 +65,15 @@ TEST(PoseFrames, ClassicRoundTrip) {
   EXPECT_EQ(da.score_milli, 877);
   EXPECT_EQ(da.state, ipc::WireState::kTracking);
   EXPECT_EQ(da.age_us, 2345);
+  EXPECT_FALSE(da.look_alike);
+  auto q = p;
+  q.look_alike = true;
+  q.age_ns = 1'000'000'000;  // saturating age must not spill into the flag, nor the flag into the age
+  ipc::encode_pose_attr(q, attr);
+  ASSERT_TRUE(ipc::decode_pose_attr(attr, 8, da));
+  EXPECT_TRUE(da.look_alike);
+  EXPECT_EQ(da.age_us, 32767);
+  EXPECT_EQ(da.seq, 0x34);
   EXPECT_FALSE(ipc::decode_pose_xy(xy, 7, dxy)) << "wrong DLC must be refused";
 }
 
@@ -100,7 +109,15 @@ TEST(PoseFrames, FdRoundTrip) {
   EXPECT_EQ(f.sigma_y_pm, 12500u);
   EXPECT_EQ(f.sigma_phi_udeg, 123456u);
   EXPECT_EQ(f.sigma_scale_e6, 1234u);
+  EXPECT_FALSE(f.look_alike);
   for (int i = 58; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
+  p.look_alike = true;
+  ipc::encode_pose_fd(p, d);
+  ASSERT_TRUE(ipc::decode_pose_fd(d, 64, f));
+  EXPECT_TRUE(f.look_alike);
+  EXPECT_EQ(f.sigma_scale_e6, 1234u);
+  EXPECT_EQ(d[58], 1) << "look_alike is bit 464, the lowest of byte 58";
+  for (int i = 59; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
 }
 
 TEST(PoseFrames, UncertaintyRoundTripAndSaturation) {
@@ -152,7 +169,8 @@ TEST(PoseFrames, SaturatesOutOfRangeValues) {
   EXPECT_EQ(dxy.x_nm, ipc::signed_max(ipc::kXyBits));
   EXPECT_EQ(dxy.y_nm, ipc::signed_min(ipc::kXyBits));
   EXPECT_EQ(da.score_milli, 1000);
-  EXPECT_EQ(da.age_us, 65535);
+  EXPECT_EQ(da.age_us, 32767);
+  EXPECT_FALSE(da.look_alike);
   p.score = -3;
   p.age_ns = -5;  // clock step: never a huge unsigned age
   ipc::encode_pose_attr(p, attr);

@@ -31,11 +31,20 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
   pose::PoseFrame frame = to_pose_frame(m, pixels);
   frame.held_by_others = held_by_others(o.target);
   o.est = trackers_[o.target]->update(frame);
+  // The target's first frame after this step asked it to search again runs that search (a
+  // full-field frame: its pose is the search's; an ROI frame: ACQUIRING with reason 32) unless
+  // the frame was bad, which leaves the request for the next one.
+  if (own_reacquire_[o.target] && (o.est.reason_bits & pose::kReasonBadFrame) == 0) {
+    o.est.look_alike = true;
+    own_reacquire_[o.target] = false;
+  }
   const std::int64_t t_mid_ns = m.t_scan_start_ns / 2 + m.t_scan_end_ns / 2;
   if (on_a_look_alikes_place(o.target, o.est, t_mid_ns)) {
     if (o.est.state == pose::TrackState::kTracking) o.est.state = pose::TrackState::kUncertain;
+    o.est.look_alike = true;
     if (++same_place_frames_[o.target] >= kSamePlaceFrames) {
       trackers_[o.target]->request_reacquire();
+      own_reacquire_[o.target] = true;
       same_place_frames_[o.target] = 0;
     }
   } else {

@@ -41,7 +41,7 @@ inline constexpr int kMaxPatternSets = 16;  // 4-bit field in the heartbeat
 inline constexpr unsigned kXyBits = 28;        // ±134 217 727 nm = ±134 mm
 inline constexpr unsigned kPhiBits = 19;       // ±262 143 mdeg holds ±180 000
 inline constexpr unsigned kScoreBits = 11;     // ±1023 holds ±1000 (score × 1000)
-inline constexpr unsigned kAgeBits = 16;       // 0..65 535 µs
+inline constexpr unsigned kAgeBits = 15;       // 0..32 767 µs (bit 63 is look_alike)
 inline constexpr std::int64_t kPhiMaxMdeg = 180'000;
 inline constexpr std::int64_t kScoreMaxMilli = 1'000;
 // POSE_UNC (classic): σx, σy in 0.1 nm (12 bit: ≤ 409.5 nm), σφ in mdeg (11 bit: ≤ 2.047°),
@@ -116,6 +116,10 @@ struct PoseValues {
   double psr = 0;
   WireState state = WireState::kAcquiring;
   std::uint8_t reason_bits = 0;  // pose::LostReason bits (all 8 used)
+  // A target with the same pattern is on this pose's place (UNCERTAIN while both are there),
+  // or this pose comes from the search sempose started because of it (its reason 32, on an
+  // ACQUIRING frame, is then sempose's own, not a REACQUIRE).
+  bool look_alike = false;
   std::uint32_t seq = 0;
   std::int64_t age_ns = 0;       // scan end -> send
   std::uint8_t pattern_set = 0;
@@ -165,6 +169,7 @@ struct PoseAttr {
   std::uint8_t reason_bits = 0;
   std::uint8_t seq = 0;
   std::uint16_t age_us = 0;
+  bool look_alike = false;
   friend bool operator==(const PoseAttr&, const PoseAttr&) = default;
 };
 
@@ -187,6 +192,7 @@ struct PoseFd {
   std::uint32_t sigma_x_pm = 0, sigma_y_pm = 0;  // 1σ, picometres
   std::uint32_t sigma_phi_udeg = 0;              // 1σ, µdeg
   std::uint32_t sigma_scale_e6 = 0;              // 1σ of the target's scale × 10⁶
+  bool look_alike = false;
   friend bool operator==(const PoseFd&, const PoseFd&) = default;
 };
 
@@ -269,6 +275,7 @@ inline void encode_pose_attr(const PoseValues& p, std::uint8_t* data) noexcept {
   put_bits(data, 32, 8, p.reason_bits);
   put_bits(data, 40, 8, p.seq & 0xFFu);
   put_bits(data, 48, kAgeBits, age_to_us(p.age_ns, kAgeBits));
+  put_bits(data, 63, 1, p.look_alike ? 1u : 0u);
 }
 
 inline void encode_pose_fd(const PoseValues& p, std::uint8_t* data) noexcept {
@@ -292,6 +299,7 @@ inline void encode_pose_fd(const PoseValues& p, std::uint8_t* data) noexcept {
   put_bits(data, 368, 32, unsigned_wire(p.sigma_y_nm, 1000.0, 32));
   put_bits(data, 400, 32, unsigned_wire(p.sigma_phi_deg, 1e6, 32));
   put_bits(data, 432, 32, unsigned_wire(p.sigma_scale, 1e6, 32));
+  put_bits(data, 464, 1, p.look_alike ? 1u : 0u);
 }
 
 inline void encode_pose_unc(const PoseValues& p, std::uint8_t* data) noexcept {
@@ -348,6 +356,7 @@ inline bool decode_pose_attr(const std::uint8_t* data, std::uint8_t len, PoseAtt
   out.reason_bits = static_cast<std::uint8_t>(get_bits(data, 32, 8));
   out.seq = static_cast<std::uint8_t>(get_bits(data, 40, 8));
   out.age_us = static_cast<std::uint16_t>(get_bits(data, 48, kAgeBits));
+  out.look_alike = get_bits(data, 63, 1) != 0;
   return true;
 }
 
@@ -372,6 +381,7 @@ inline bool decode_pose_fd(const std::uint8_t* data, std::uint8_t len, PoseFd& o
   out.sigma_y_pm = static_cast<std::uint32_t>(get_bits(data, 368, 32));
   out.sigma_phi_udeg = static_cast<std::uint32_t>(get_bits(data, 400, 32));
   out.sigma_scale_e6 = static_cast<std::uint32_t>(get_bits(data, 432, 32));
+  out.look_alike = get_bits(data, 464, 1) != 0;
   return true;
 }
 

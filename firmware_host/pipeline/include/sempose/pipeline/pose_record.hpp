@@ -21,6 +21,7 @@ inline PoseRecord make_pose_record(const hal::FrameMeta& m, const pose::PoseEsti
   p.pattern_set = est.pattern_set;
   p.state = est.state;
   p.reason_bits = est.reason_bits;
+  p.look_alike = est.look_alike;
   p.x_px = est.x_px;
   p.y_px = est.y_px;
   p.phi_deg = est.phi_deg;

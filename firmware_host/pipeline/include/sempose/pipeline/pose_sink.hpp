@@ -18,6 +18,7 @@ struct PoseRecord {
   std::uint8_t pattern_set = 0;     // active magnification step
   pose::TrackState state = pose::TrackState::kAcquiring;
   std::uint8_t reason_bits = 0;     // pose::LostReason bits
+  bool look_alike = false;           // see pose::PoseEstimate::look_alike (CAN: POSE_ATTR.look_alike)
   double x_px = 0;
   double y_px = 0;
   double phi_deg = 0;               // (-180, 180]

@@ -72,6 +72,9 @@ class TrackingStep {
   static constexpr int kSamePlaceFrames = 3;
   bool on_a_look_alikes_place(std::uint8_t target, const pose::PoseEstimate& est, std::int64_t t_ns) const noexcept;
   std::array<int, hal::kMaxTargets> same_place_frames_{};
+  // This step asked the target to search again: the frame that runs that search carries
+  // look_alike, so a controller tells it (and its reason 32) from a REACQUIRE of its own.
+  std::array<bool, hal::kMaxTargets> own_reacquire_{};
 };
 
 }  // namespace sempose::pipeline

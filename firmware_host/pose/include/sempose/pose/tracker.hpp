@@ -47,6 +47,10 @@ struct PoseEstimate {
   // tracker.refine's outcome for this frame's measurement (FitStatus: 0 off or not reached,
   // 1 refined, 2 diverged — the walk's pose kept —, 3 skipped).
   std::uint8_t refine_status = 0;
+  // Set by the pipeline (TrackingStep), not the tracker: a target with the same pattern is on
+  // this pose's place (UNCERTAIN), or this frame runs the search sempose started because of it
+  // (README: Several targets).
+  bool look_alike = false;
 };
 
 // One pattern per magnification step.
