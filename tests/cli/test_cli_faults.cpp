@@ -306,6 +306,18 @@ TEST(CliFaults, SimAndPatternNameBadInputBeforeMakingOutputs) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/p.pgm"));
 }
 
+// small_config's scene recorded by `sim` into DIR/rec (n frames) and its pattern averaged from
+// 2 of them into DIR/p.pgm, as an operator would make them.
+::testing::AssertionResult record_with_pattern(const std::string& dir, const std::string& cfg, int frames) {
+  Outcome r = run({"sim", "--out", dir + "/rec", "--frames", std::to_string(frames), "--config", cfg}, 120);
+  if (r.code != 0) return ::testing::AssertionFailure() << "sim: " << r.err;
+  r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "2", "--out",
+           dir + "/p.pgm"},
+          60);
+  if (r.code != 0) return ::testing::AssertionFailure() << "pattern: " << r.err;
+  return ::testing::AssertionSuccess();
+}
+
 // "-" as --out: replay writes its poses' CSV to standard output (the report to stderr, so a
 // pipe gets CSV only); sim, pattern and view refuse it by name rather than make a file or
 // folder called "-".
@@ -314,14 +326,9 @@ TEST(CliFaults, DashAsOutIsStandardOutputOrRefused) {
   fs::create_directories(dir);
   fs::remove_all("-");
   const std::string cfg = small_config(dir, "");
-  Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "4", "--config", cfg}, 120);
-  ASSERT_EQ(r.code, 0) << r.err;
-  r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "2", "--out",
-           dir + "/p.pgm"},
-          60);
-  ASSERT_EQ(r.code, 0) << r.err;
+  ASSERT_TRUE(record_with_pattern(dir, cfg, 4));
 
-  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "-"}, 120);
+  Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "-"}, 120);
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out.rfind("frame,t_ns,x_px,y_px,phi_deg,score,status", 0), 0u) << r.out;
   EXPECT_EQ(r.out.find("summary:"), std::string::npos) << "the report went into the CSV:\n" << r.out;
@@ -422,13 +429,8 @@ TEST(CliFaults, AnOptionGivenTwiceIsRefusedByName) {
   EXPECT_FALSE(fs::exists(dir + "/rec")) << "sim made its output before refusing";
   EXPECT_FALSE(fs::exists(dir + "/v")) << "view made its output before refusing";
 
-  Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "3", "--config", cfg}, 120);
-  ASSERT_EQ(r.code, 0) << r.err;
-  r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "2", "--out",
-           dir + "/p.pgm"},
-          60);
-  ASSERT_EQ(r.code, 0) << r.err;
-  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--pattern", dir + "/p.pgm", "--out",
+  ASSERT_TRUE(record_with_pattern(dir, cfg, 3));
+  const Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--pattern", dir + "/p.pgm", "--out",
            dir + "/two.csv"},
           120);
   EXPECT_EQ(r.err.find("is given twice"), std::string::npos) << "--pattern is repeatable: " << r.err;
