@@ -8,6 +8,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "sempose/operator_view/pose_csv.hpp"
 #include "sempose/operator_view/rgb_image.hpp"
@@ -62,6 +65,26 @@ TEST(PoseCsv, ErrorsNameFileLineAndCell) {
     FAIL() << "no error for nan";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find(p + ":2: 'nan' is not a finite number"), std::string::npos) << e.what();
+  }
+  // Cells sempose never writes: an unknown status, a score outside [-1, 1], a negative, a
+  // fractional and a huge frame (the last two were converted with undefined behaviour), a time
+  // beyond 64 bits.
+  const std::vector<std::pair<std::string, std::string>> cells = {
+      {"0,0,1,2,3,0.5,BOGUS", "status 'BOGUS' is not TRACKING, ACQUIRING, LOST or UNCERTAIN"},
+      {"0,0,1,2,3,2,TRACKING", "score '2' is not a number in [-1, 1]"},
+      {"-1,0,1,2,3,0.5,TRACKING", "frame '-1' is not a whole number"},
+      {"1.5,0,1,2,3,0.5,TRACKING", "frame '1.5' is not a whole number"},
+      {"1e300,0,1,2,3,0.5,TRACKING", "frame '1e300' is not a whole number"},
+      {"0,1e30,1,2,3,0.5,TRACKING", "t_ns '1e30' is not a whole number"},
+  };
+  for (const auto& [row, message] : cells) {
+    std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n" << row << "\n";
+    try {
+      read_pose_csv(p);
+      ADD_FAILURE() << "no error for " << row;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(p + ":2: " + message), std::string::npos) << e.what();
+    }
   }
   std::ofstream(p) << "x,y\n1,2\n";
   EXPECT_THROW(read_pose_csv(p), std::runtime_error);

@@ -19,6 +19,27 @@ double number(const std::string& cell, const std::string& where) {
   return v;
 }
 
+// A number from `lo` to `hi` (the frame counter, a time stamp and a score have ranges; a value
+// outside one would be undefined when converted, or a file sempose did not write).
+double number_in(const std::string& cell, const std::string& where, const char* what, double lo, double hi,
+                 bool whole) {
+  const double v = number(cell, where);
+  if (v < lo || v > hi || (whole && v != std::floor(v))) {
+    std::ostringstream m;
+    m << where << ": " << what << " '" << cell << "' is not " << (whole ? "a whole number" : "a number") << " in [" << lo
+      << ", " << hi << "]";
+    throw std::runtime_error(m.str());
+  }
+  return v;
+}
+
+std::string status(const std::string& cell, const std::string& where) {
+  for (const char* s : {"TRACKING", "ACQUIRING", "LOST", "UNCERTAIN"}) {
+    if (cell == s) return cell;
+  }
+  throw std::runtime_error(where + ": status '" + cell + "' is not TRACKING, ACQUIRING, LOST or UNCERTAIN");
+}
+
 }  // namespace
 
 std::vector<PoseRow> read_pose_csv(const std::string& path) {
@@ -61,13 +82,14 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
       throw std::runtime_error(where + ": " + std::to_string(cells.size()) + " cells, the header has " + std::to_string(columns));
     }
     PoseRow r;
-    r.frame = static_cast<std::uint64_t>(number(cells[0], where));
-    r.t_ns = static_cast<std::int64_t>(number(cells[1], where));
+    // Doubles hold every whole number up to 2^53 exactly; beyond it the conversion is not exact.
+    r.frame = static_cast<std::uint64_t>(number_in(cells[0], where, "frame", 0, 9007199254740992.0, true));
+    r.t_ns = static_cast<std::int64_t>(number_in(cells[1], where, "t_ns", -9007199254740992.0, 9007199254740992.0, true));
     r.x_px = number(cells[2], where);
     r.y_px = number(cells[3], where);
     r.phi_deg = number(cells[4], where);
-    r.score = number(cells[5], where);
-    r.status = cells[6];
+    r.score = number_in(cells[5], where, "score", -1, 1, false);
+    r.status = status(cells[6], where);
     if (with_target) r.target = cells[7];
     rows.push_back(std::move(r));
   }
