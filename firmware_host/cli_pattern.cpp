@@ -5,6 +5,7 @@
 // stands still are averaged (pattern_stillness.hpp): a moving target would be smeared.
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <cstdlib>
 #include <exception>
 #include <string>
@@ -79,6 +80,20 @@ int sempose::cli::pattern(int argc, char** argv) {
     if (comma == std::string::npos || xs.empty() || ys.empty() || *e1 != '\0' || *e2 != '\0' || !std::isfinite(cx) ||
         !std::isfinite(cy)) {
       std::fprintf(stderr, "sempose pattern: --center '%s' is not X,Y (pixels, e.g. 512,384)\n", center.c_str());
+      return 2;
+    }
+  }
+  {
+    // A PGM written into the frames folder is read as a frame by the next replay or pattern
+    // (a "size differs" failure), and one named like a frame overwrites the recording: the
+    // pattern goes elsewhere.
+    std::error_code ec;
+    const auto out_dir = std::filesystem::absolute(out, ec).parent_path();
+    if (!ec && std::filesystem::equivalent(out_dir, dir, ec) && !ec) {
+      std::fprintf(stderr,
+                   "sempose pattern: --out '%s' is in the frames folder %s: it would be read as a frame of the "
+                   "recording%s; write the pattern outside it\n",
+                   out.c_str(), dir.c_str(), std::filesystem::exists(out, ec) ? " (and overwrites one)" : "");
       return 2;
     }
   }

@@ -451,3 +451,21 @@ TEST(CliFaults, SimSaysWhenATargetIsNotInTheField) {
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.err.find("warning"), std::string::npos) << r.err;
 }
+
+// `pattern --out` inside the frames folder: a PGM there is read as a frame by the next replay
+// or pattern, and one named like a frame overwrote the recording (found probing: the first
+// frame became the 128² pattern). Refused by name, nothing written.
+TEST(CliFaults, PatternIsNotWrittenIntoTheFramesFolder) {
+  const std::string dir = work_dir() + "/into";
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 2));
+  const auto before = fs::file_size(dir + "/rec/frame_000000.pgm");
+  for (const std::string& out : {dir + "/rec/frame_000000.pgm", dir + "/rec/./p.pgm"}) {
+    const Outcome r =
+        run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--out", out}, 60);
+    EXPECT_EQ(r.code, 2) << out << ": " << r.err;
+    EXPECT_NE(r.err.find("is in the frames folder"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(fs::file_size(dir + "/rec/frame_000000.pgm"), before) << "a frame of the recording was overwritten";
+  EXPECT_FALSE(fs::exists(dir + "/rec/p.pgm"));
+}
