@@ -128,7 +128,23 @@ int sempose::cli::sim(int argc, char** argv) {
     return 2;
   }
   {
+    // Frames of an earlier, longer recording would stay beside the new ones (the next replay
+    // then fails on a frame without a time stamp, or a pattern averages both): an existing
+    // recording is not written over.
     std::error_code ec;
+    std::size_t old_frames = 0;
+    bool old_csv = false;
+    if (std::filesystem::is_directory(out_dir, ec)) {
+      for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
+        old_frames += e.path().extension() == ".pgm" ? 1 : 0;
+        old_csv = old_csv || e.path().filename() == "frames.csv" || e.path().filename() == "ground_truth.csv";
+      }
+    }
+    if (old_frames > 0 || old_csv) {
+      std::fprintf(stderr, "sempose sim: --out '%s' already holds a recording (%zu PGM frames%s); remove it or choose another folder\n",
+                   out_dir.c_str(), old_frames, old_csv ? ", frames.csv / ground_truth.csv" : "");
+      return 2;
+    }
     std::filesystem::create_directories(out_dir, ec);
     if (ec || !std::filesystem::is_directory(out_dir)) {
       std::fprintf(stderr, "sempose sim: --out '%s': cannot make it a folder of frames (%s)\n", out_dir.c_str(),
