@@ -75,6 +75,8 @@ void read_tracker(Section& s, TrackerConfig& c) {
   if (const SettingProblem problem = check_tracker_sizes(c, c.pattern_size_px)) s.error(problem.key.c_str(), problem.message);
 }
 
+constexpr std::size_t kMaxPatternSets = 16;  // ipc::kMaxPatternSets (config does not depend on ipc)
+
 void read_targets(Section& root, std::vector<TargetConfig>& out) {
   std::vector<Section> list = root.children("targets");
   if (list.empty()) return;
@@ -98,6 +100,12 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
       tc.pattern_sets.push_back(p);
     }
     if (tc.pattern_sets.empty()) t.error("pattern_sets", "a target needs at least one pattern set ({file, nm_per_px})");
+    // SELECT's argument and the heartbeat's pattern_set are 4 bits (ipc::kMaxPatternSets): a
+    // 17th set could never be selected or reported.
+    if (tc.pattern_sets.size() > kMaxPatternSets) {
+      t.error("pattern_sets", std::to_string(tc.pattern_sets.size()) + " pattern sets; at most " +
+                                  std::to_string(kMaxPatternSets) + " (the CAN SELECT command and heartbeat carry 4 bits)");
+    }
     out.push_back(std::move(tc));
   }
 }

@@ -129,6 +129,20 @@ TEST(AppConfig, MissingRequiredKey) {
   EXPECT_NE(e.find(path + ":4:"), std::string::npos) << e;
 }
 
+// SELECT names a pattern set in 4 bits: 16 sets can be selected, a 17th could not.
+TEST(AppConfig, AtMostSixteenPatternSetsPerTarget) {
+  std::string sets16, sets17;
+  for (int i = 0; i < 16; ++i) sets16 += std::string(i ? ", " : "") + "{file: p.pgm}";
+  sets17 = sets16 + ", {file: p.pgm}";
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(write_yaml("sets17.yaml", "targets:\n  - {name: a, pattern_sets: [" + sets17 + "]}\n"), c, e));
+  EXPECT_NE(e.find("targets[0].pattern_sets: 17 pattern sets; at most 16"), std::string::npos) << e;
+  e.clear();
+  load_app_config(write_yaml("sets16.yaml", "targets:\n  - {name: a, pattern_sets: [" + sets16 + "]}\n"), c, e);
+  EXPECT_EQ(e.find("pattern sets; at most"), std::string::npos) << e;
+}
+
 TEST(AppConfig, TargetNamesAreOneWordAndUnique) {
   // The status lines, the summary and the logs name targets as whitespace-separated fields.
   const auto path = write_yaml("names.yaml",
