@@ -1,6 +1,6 @@
 // `sempose run`: the controller. Loads and validates the config (exit 2 on errors), builds
 // the scan source, trackers, sinks and pipeline, locks memory, holds /dev/cpu_dma_latency,
-// runs the RT stages until SIGINT/SIGTERM or --duration, drains, dumps histograms and prints
+// runs the RT stages until SIGINT/SIGTERM/SIGHUP or --duration, drains, dumps histograms and prints
 // a summary whose LAST line is machine-readable. SIGUSR1 dumps histograms while running.
 //
 // Signals are blocked in every thread (the mask is inherited by the RT threads) and taken
@@ -10,6 +10,7 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <iterator>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -53,7 +54,7 @@ int usage(std::FILE* out) {
   std::fprintf(out,
                "usage: sempose run --config FILE [--duration S] [--strict-rt] [--hist-dir DIR] [--can-log FILE]\n"
                "  --config FILE    application config (YAML; see config/default.yaml)\n"
-               "  --duration S     stop after S seconds (default: run until SIGINT/SIGTERM)\n"
+               "  --duration S     stop after S seconds (default: run until SIGINT/SIGTERM/SIGHUP)\n"
                "  --strict-rt      refuse to start without SCHED_FIFO, affinity and locked memory\n"
                "  --hist-dir DIR   write latency histograms (cyclictest layout + JSON) to DIR at exit and on SIGUSR1\n"
                "  --can-log FILE   send the CAN frames to a candump log FILE instead of the configured bus\n");
@@ -116,13 +117,22 @@ bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
   return true;
 }
 
-// A SIGINT/SIGTERM that arrived while setup ran (signals are blocked, so it waits): taken
+// The signals that stop a run cleanly. SIGHUP too: an operator's ssh session or terminal
+// closing used to kill `sempose run` with the default action, mid-line in the CSV and with the
+// candump log and histograms unwritten.
+constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
+
+bool is_stop_signal(int sig) { return std::find(std::begin(kStopSignals), std::end(kStopSignals), sig) != std::end(kStopSignals); }
+
+const char* signal_name(int sig) { return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : sig == SIGHUP ? "SIGHUP" : "a signal"; }
+
+// A stop signal that arrived while setup ran (signals are blocked, so it waits): taken
 // here so a stop request during a long setup is honoured between phases, not after start.
 int pending_stop_signal(const sigset_t& signals) {
   sigset_t pending;
   sigemptyset(&pending);
   if (sigpending(&pending) != 0) return 0;
-  for (int sig : {SIGINT, SIGTERM}) {
+  for (int sig : kStopSignals) {
     if (sigismember(&pending, sig) == 1 && sigismember(&signals, sig) == 1) {
       const timespec zero{0, 0};
       sigset_t one;
@@ -154,11 +164,10 @@ int sempose::cli::run(int argc, char** argv) {
   if (!parse(argc, argv, opt)) return usage(stderr);
 
   // Signals: blocked from the very start and everywhere (threads inherit the mask), taken
-  // with sigtimedwait, so a SIGINT/SIGTERM in any phase of start-up is a clean stop.
+  // with sigtimedwait, so a SIGINT/SIGTERM/SIGHUP in any phase of start-up is a clean stop.
   sigset_t signals;
   sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
+  for (int sig : kStopSignals) sigaddset(&signals, sig);
   sigaddset(&signals, SIGUSR1);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
@@ -199,7 +208,7 @@ int sempose::cli::run(int argc, char** argv) {
   }
 
   if (const int sig = pending_stop_signal(signals)) {
-    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    std::printf("stopped by %s during setup (no output written)\n", signal_name(sig));
     return 0;
   }
   // ---- setup: everything that allocates (session::RunSetup), inputs first
@@ -209,10 +218,10 @@ int sempose::cli::run(int argc, char** argv) {
     std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
     return 2;
   }
-  // Setup is done up to the outputs: a SIGINT/SIGTERM that came meanwhile stops here, before
+  // Setup is done up to the outputs: a stop signal that came meanwhile stops here, before
   // any output file is created or truncated.
   if (const int sig = pending_stop_signal(signals)) {
-    std::printf("stopped by %s during setup (no output written)\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    std::printf("stopped by %s during setup (no output written)\n", signal_name(sig));
     return 0;
   }
   st = session::build_outputs(cfg, opt.can_log, run);
@@ -255,7 +264,7 @@ int sempose::cli::run(int argc, char** argv) {
     if (!st.message.empty()) std::printf("warning: %s\n", st.message.c_str());
   }
   if (const int sig = pending_stop_signal(signals)) {
-    std::printf("stopped by %s during setup\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+    std::printf("stopped by %s during setup\n", signal_name(sig));
     return 0;
   }
   // rt_allocs: heap calls on armed (RT) threads from here on; setup may allocate freely.
@@ -314,7 +323,7 @@ int sempose::cli::run(int argc, char** argv) {
     const std::int64_t until = std::min(next_status, watchdog.next_due_ns());
     const timespec wait = rt::to_timespec(std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, until - now)));
     const int sig = sigtimedwait(&signals, nullptr, &wait);
-    if (sig == SIGINT || sig == SIGTERM) {
+    if (is_stop_signal(sig)) {
       stop_signal = sig;
       break;
     }
@@ -364,7 +373,7 @@ int sempose::cli::run(int argc, char** argv) {
   pipe->join();
   run.sink->flush();
   const bool csv_ok = run.csv ? run.csv->close() : true;
-  if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
+  if (stop_signal != 0) std::printf("stopped by %s\n", signal_name(stop_signal));
   if (pipe->source_ended()) std::printf("the source ended\n");
   const bool hist_ok = dump_histograms(hist_dir, *pipe);
 

@@ -259,6 +259,27 @@ TEST(CliFaults, SigtermDuringEachPhaseOfStartUp) {
   }
 }
 
+// SIGHUP (the operator's ssh session or terminal closing) stops a run as SIGTERM does: it
+// used to kill it with the default action, mid-line in the CSV, the candump log unflushed.
+TEST(CliFaults, SighupStopsARunCleanly) {
+  const std::string dir = work_dir() + "/hup";
+  fs::create_directories(dir);
+  const std::string csv = dir + "/poses.csv";
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + dir + "/hup.log}\n");
+  for (int delay_ms : {1500, kWhenRunning}) {
+    fs::remove(csv);
+    const Outcome r = run({"run", "--config", cfg, "--duration", "60"}, 30, delay_ms, SIGHUP);
+    ASSERT_FALSE(r.hung) << "hung after SIGHUP at " << delay_ms << " ms";
+    EXPECT_TRUE(r.exited && r.code == 0) << "SIGHUP at " << delay_ms << " ms: signal " << r.signal << "\n" << r.out << r.err;
+    EXPECT_NE(r.out.find("stopped by SIGHUP"), std::string::npos) << r.out;
+    if (delay_ms == kWhenRunning) {
+      EXPECT_NE(r.out.find("summary: "), std::string::npos) << r.out;
+      const std::string text = slurp(csv);
+      EXPECT_TRUE(!text.empty() && text.back() == '\n') << "CSV missing or cut mid-line after SIGHUP";
+    }
+  }
+}
+
 TEST(CliFaults, NegativeOrHugeFrameInFramesCsvIsANamedError) {
   const std::string dir = work_dir() + "/frames_bad";
   fs::create_directories(dir);
