@@ -66,10 +66,6 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
   // The frame is low-passed the same way (Prefilter); filtering before rotating is the same
   // as after for this near-isotropic kernel and keeps one interpolation for all angles.
   prefilter_pattern(src.data(), n, spec.prefilter_passes);
-  // Every copy (0° too) is the band-limited rotation: Keys on the pattern's own grid smooths
-  // by the sample phase (not at all at 0/90/180/270°), an angle-dependent bias of the copies
-  // (README: Pattern bank).
-  const PatternRotator rotator(src.data(), n);
   spatial_.assign(static_cast<std::size_t>(angles_) * n * n, 0.0f);
   spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len_ * angles_)), FftwFree{});
   coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)), FftwFree{});
@@ -96,7 +92,7 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
   support_count_.clear();
   for (int j = 0; j < angles_; ++j) {
     float* p = spatial_.data() + static_cast<std::size_t>(j) * n * n;
-    rotator.rotate(j * step_deg, raw.data());
+    rotate_pattern(src.data(), n, j * step_deg, raw.data());
     std::copy(raw.begin(), raw.end(), p);
     downsample_pattern(raw.data(), n, 2, halved.data());
     // The shape mask applies to the exact full-resolution scores (the fit); the binned and
@@ -132,7 +128,7 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
     half.make_spectrum(halved.data(), spectra_.get() + static_cast<std::size_t>(j) * spectrum_len_);
   }
   for (int k = 0; k < coarse_angles_; ++k) {
-    rotator.rotate(k * coarse_step_deg, raw.data());
+    rotate_pattern(src.data(), n, k * coarse_step_deg, raw.data());
     downsample_pattern(raw.data(), n, factor, small.data());
     if (!normalize_pattern(small.data(), coarse_mask)) {
       why = "the pattern is flat after downsampling by search_downsample";
@@ -167,13 +163,12 @@ void PatternBank::model_pattern_noise(const PatternImage& pattern, int prefilter
     }
   }
   prefilter_pattern(field.data(), n, prefilter_passes);
-  const PatternRotator rotator(field.data(), n);  // turned like the pattern's copies
   // Angle k's noise copy as the σ stage sees the bank's copy: turned, inside k's support,
   // scaled like the copy (the support mean the copy loses is ~1/√support of the noise: left in).
   const std::size_t nn = static_cast<std::size_t>(n) * n;
   auto copy_of = [&](int k, std::vector<float>& out, std::vector<std::uint8_t>& in) {
     k = ((k % angles_) + angles_) % angles_;
-    rotator.rotate(k * (360.0 / angles_), out.data());
+    rotate_pattern(field.data(), n, k * (360.0 / angles_), out.data());
     std::fill(in.begin(), in.end(), std::uint8_t{0});
     for (std::size_t b = support_begin_[static_cast<std::size_t>(k)]; b < support_begin_[static_cast<std::size_t>(k) + 1]; ++b) {
       const MaskBand& band = support_[b];

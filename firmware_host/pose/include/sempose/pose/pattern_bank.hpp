@@ -1,11 +1,10 @@
 // The rotated pattern bank of one pattern set, built once from a PatternBankSpec and immutable
-// after: every angle step's rotated copy (one interpolation for every angle including 0°: the
-// band-limited PatternRotator, whose smoothing does not depend on the angle), prefiltered,
-// masked, zero-mean, unit norm, kept at full resolution for the exact scorer; the same copy
-// 2×2-binned with its spectrum at the half-resolution FFT size (where the whole ROI is
-// correlated); plus the coarse copies (box ×search_downsample) and their spectra for the start
-// search (one set per coarse FFT size: the scanned field's, and the enlarged one of the
-// search's levels below 1 when it differs).
+// after: every angle step's rotated copy (one interpolation — bicubic, Keys a = −0.5 — for
+// every angle including 0°), prefiltered, masked, zero-mean, unit norm, kept at full
+// resolution for the exact scorer; the same copy 2×2-binned with its spectrum at the
+// half-resolution FFT size (where the whole ROI is correlated); plus the coarse copies (box
+// ×search_downsample) and their spectra for the start search (one set per coarse FFT size:
+// the scanned field's, and the enlarged one of the search's levels below 1 when it differs).
 // With a shape mask (the target's own pixels, e.g. a needle without the background around
 // it), every full-resolution copy's support is the mask turned with it, inside the circle:
 // static clutter under the pattern's rim then stays out of the exact scores and the fit (it
