@@ -394,9 +394,10 @@ int sempose::cli::run(int argc, char** argv) {
                 static_cast<unsigned long long>(tc.searches.get()));
     if (cfg.tracker.appearance.enabled) {
       const pose::Tracker::AppearanceStatus a = run.trackers.trackers[static_cast<std::size_t>(t)]->appearance_status();
-      std::printf("appearance %d %s: updates=%u rejected=%u deferred=%u support_fraction=%.2f\n", t,
-                  run.trackers.names[static_cast<std::size_t>(t)].c_str(), a.accepted, a.rejected, a.deferred,
-                  a.support_fraction);
+      std::printf("appearance %d %s: updates=%u rejected=%u deferred=%u support_fraction=%.2f template_updates=%u "
+                  "template_weight=%.2f\n",
+                  t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), a.accepted, a.rejected, a.deferred,
+                  a.support_fraction, a.template_updates, a.template_weight);
     }
   }
   if (hist_dir.empty()) {

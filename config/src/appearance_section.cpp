@@ -15,6 +15,11 @@ void read_appearance(Section& s, AppearanceConfig& c) {
   s.opt("min_consistency", c.min_consistency, 0.0, 1.0);
   s.opt("max_drift_px", c.max_drift_px, 0.05, 8.0);
   s.opt("min_support_fraction", c.min_support_fraction, 0.05, 1.0);
+  s.opt("refine_template", c.refine_template);
+  // 1 would let the recorded pattern drop out entirely (nothing anchors the pose frame).
+  s.opt("refine_max_weight", c.refine_max_weight, 0.0, 0.99);
+  s.opt("refine_min_motion_px", c.refine_min_motion_px, 0.0, 100.0);
+  s.opt("max_drift_deg", c.max_drift_deg, 0.05, 30.0);
 }
 
 }  // namespace sempose::config

@@ -69,6 +69,33 @@ TEST(AppConfig, AppearanceKeysAreReadAndChecked) {
   EXPECT_NE(e.find("tracker.appearance.blok_px: unknown key"), std::string::npos) << e;
 }
 
+TEST(AppConfig, AppearanceTemplateRefinementKeysAreReadAndChecked) {
+  const auto good = write_yaml("appearance_refine.yaml",
+                               "tracker:\n  appearance:\n    enabled: true\n    refine_template: true\n"
+                               "    refine_max_weight: 0.7\n    refine_min_motion_px: 3.5\n    max_drift_deg: 0.5\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_TRUE(load_app_config(good, c, e)) << e;
+  EXPECT_TRUE(c.tracker.appearance.refine_template);
+  EXPECT_DOUBLE_EQ(c.tracker.appearance.refine_max_weight, 0.7);
+  EXPECT_DOUBLE_EQ(c.tracker.appearance.refine_min_motion_px, 3.5);
+  EXPECT_DOUBLE_EQ(c.tracker.appearance.max_drift_deg, 0.5);
+  AppConfig dflt;
+  EXPECT_FALSE(dflt.tracker.appearance.refine_template) << "off by default";
+  const auto bad = write_yaml("appearance_refine_bad.yaml",
+                              "tracker:\n  appearance:\n    refine_template: maybe\n    refine_max_weight: 1.0\n"
+                              "    refine_min_motion_px: -1\n    max_drift_deg: 0\n");
+  AppConfig d;
+  e.clear();
+  EXPECT_FALSE(load_app_config(bad, d, e));
+  EXPECT_NE(e.find("tracker.appearance.refine_template"), std::string::npos) << e;
+  EXPECT_NE(e.find("tracker.appearance.refine_max_weight: 1.0 is outside the allowed range [0, 0.99]"), std::string::npos)
+      << e;
+  EXPECT_NE(e.find("tracker.appearance.refine_min_motion_px: -1 is outside the allowed range [0, 100]"), std::string::npos)
+      << e;
+  EXPECT_NE(e.find("tracker.appearance.max_drift_deg: 0 is outside the allowed range [0.05, 30]"), std::string::npos) << e;
+}
+
 TEST(AppConfig, RefineKeysAreReadAndChecked) {
   const auto good = write_yaml("refine.yaml",
                                "tracker:\n  refine:\n    enabled: true\n    source: raw\n    max_iterations: 4\n"

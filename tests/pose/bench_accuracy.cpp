@@ -357,6 +357,7 @@ int main(int argc, char** argv) {
   // --sigma-pattern-noise on|off: tracker.sigma_pattern_noise (the recorded pattern's noise taken out of JᵀJ).
   config::TrackerConfig tc;
   int appearance = -1;
+  int refine_template = -1;
   int sigma_tile = 0;         // --sigma-tile N: tracker.sigma_tile_px (0: the default)
   double sigma_cal = -1;      // --sigma-calibration K: tracker.sigma_calibration (< 0: the default)
   bool decompose = false;  // --decompose: per row, sempose's bias and noise parts and the two oracles (slow)
@@ -385,6 +386,7 @@ int main(int argc, char** argv) {
       tc.search_scale_max = std::atof(argv[++i]);
     }
     else if (a == "--appearance" && i + 1 < argc) appearance = std::string(argv[++i]) == "on" ? 1 : 0;
+    else if (a == "--refine-template" && i + 1 < argc) refine_template = std::string(argv[++i]) == "on" ? 1 : 0;
     else if (a == "--refine" && i + 1 < argc) tc.refine.enabled = std::string(argv[++i]) == "on";
     else if (a == "--refine-iterations" && i + 1 < argc) tc.refine.max_iterations = std::atoi(argv[++i]);
     else if (a == "--refine-scale" && i + 1 < argc) tc.refine.fit_scale = std::string(argv[++i]) == "on";
@@ -407,11 +409,12 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off]\n", argv[0]);
       return 2;
     }
   }
   if (appearance >= 0) tc.appearance.enabled = appearance == 1;
+  if (refine_template >= 0) tc.appearance.refine_template = refine_template == 1;
   if (sigma_tile > 0) tc.sigma_tile_px = sigma_tile;
   if (sigma_cal >= 0) tc.sigma_calibration = sigma_cal;
   if (const char* dump = std::getenv("POSE_DUMP")) g_dump = std::fopen(dump, "w");
@@ -445,7 +448,7 @@ int main(int argc, char** argv) {
                                std::to_string(tc.refine.max_iterations) + " passes)";
   std::printf(
       "accuracy against the single-frame Cramér–Rao bound and ViSP: 640x480 field, pattern %d², ROI %d², 250 ns dwell,\n"
-      "%d frames per run, bits 8 (warped: 16, Poisson only); learned appearance %s, refinement %s\n"
+      "%d frames per run, bits 8 (warped: 16, Poisson only); learned appearance %s%s, refinement %s\n"
       "targets: needle_tip = needle_contact_eb.pgm crop 552,430 120x160 at 90x120 (threshold mask);\n"
       "         lamella_post = lamella_on_post_eb.pgm crop 420,460 180x180 at 100x100; lamella = procedural 100x64;\n"
       "         warped = lamella_on_post_eb.pgm moved rigidly (σ 1 px PSF, exact crop as pattern); gripper = procedural 110x84\n"
@@ -460,7 +463,8 @@ int main(int argc, char** argv) {
       "  <= 10 deg (RMS over those); false = valid but > 3 px or > 10 deg; recov = frames from a jump to a valid pose < 1 px\n"
       "ViSP 3.5: vpTemplateTrackerZNCCInverseCompositional + vpTemplateTrackerWarpSRT, %d pyramid levels, same pattern and\n"
       "  circle (r %.0f px), 256² crop on its last estimate, started at the truth on the first frame\n",
-      tc.pattern_size_px, tc.roi_size_px, frames, tc.appearance.enabled ? "on" : "off", refine_label.c_str(), visp_levels, zone_r);
+      tc.pattern_size_px, tc.roi_size_px, frames, tc.appearance.enabled ? "on" : "off",
+      tc.appearance.enabled && tc.appearance.refine_template ? " (refined template)" : "", refine_label.c_str(), visp_levels, zone_r);
   std::printf("%-12s %-12s %4s | %5s %5s %5s %6s %7s %5s %5s %7s | %5s %5s %5s %6s %7s %5s %5s %7s | %7s %7s\n", "target",
               "case", "dose", "trk%", "false", "recov", "rms_px", "rms_deg", "x_px", "x_deg", "us/pose", "ok%", "false",
               "recov", "rms_px", "rms_deg", "x_px", "x_deg", "ms/frm", "bnd_px", "bnd_deg");

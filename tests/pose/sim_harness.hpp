@@ -44,6 +44,7 @@ struct Scenario {
   bool drift = true;  // the simulator's slow image drift and beam lag
   bool background = true;  // false: a flat background (no static clutter under the pattern)
   bool shape_mask = false;  // give the tracker the target's shape mask with its pattern (opt-in, see README)
+  int pattern_frames = 10;  // frames averaged into the recorded pattern (its own noise: 1/√ of a frame's)
   // Effects (issue 13's hard cases), all off by default:
   double scale_from = 1.0;        // the target's scale ramps from this ...
   double scale_to = 1.0;          // ... to this over the run (equal: a constant scale)
@@ -234,7 +235,7 @@ class SimHarness {
       pat_cfg.targets[0].y_px = s.field_h / 2.0;
       pat_cfg.targets[0].scale = config::TimeProfile::constant(1.0);  // recorded at the pattern's own size
       if (s.jaws_open_px != 0) pat_cfg.targets[0].jaws = config::TimeProfile::constant(0.0);  // recorded closed
-      pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, 10, s.dwell_ns, 777);
+      pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, s.pattern_frames, s.dwell_ns, 777);
       if (s.shape_mask)
         sets[0].mask = pipeline::to_pattern_image(hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px));
       sim_ = std::make_unique<hal::SimSource>(limits_, sim_cfg_);

@@ -5,6 +5,63 @@
 
 namespace sempose::pose {
 
+namespace {
+
+// Keys' cubic (a = −0.5), the bank's own interpolation (bicubic_rotate.cpp), at (x, y) of an
+// n×n image; samples outside clamped to the border.
+double keys(double t) {
+  t = std::abs(t);
+  if (t < 1) return (1.5 * t - 2.5) * t * t + 1;
+  if (t < 2) return ((-0.5 * t + 2.5) * t - 4) * t + 2;
+  return 0;
+}
+
+template <class T>
+double bicubic(const T* img, int n, double x, double y) {
+  const int ix = static_cast<int>(std::floor(x)), iy = static_cast<int>(std::floor(y));
+  const double fx = x - ix, fy = y - iy;
+  double wx[4], wy[4];
+  for (int k = 0; k < 4; ++k) {
+    wx[k] = keys(fx - (k - 1));
+    wy[k] = keys(fy - (k - 1));
+  }
+  double s = 0;
+  for (int k = 0; k < 4; ++k) {
+    const int yy = std::clamp(iy + k - 1, 0, n - 1);
+    double r = 0;
+    for (int l = 0; l < 4; ++l) r += wx[l] * img[static_cast<std::size_t>(yy) * n + std::clamp(ix + l - 1, 0, n - 1)];
+    s += wy[k] * r;
+  }
+  return s;
+}
+
+// Solves the m×m system A x = b in place (Gaussian elimination, partial pivoting). False if singular.
+bool solve(double* a, double* b, int m) {
+  for (int c = 0; c < m; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < m; ++r)
+      if (std::abs(a[r * m + c]) > std::abs(a[piv * m + c])) piv = r;
+    if (!(std::abs(a[piv * m + c]) > 1e-12)) return false;
+    if (piv != c) {
+      for (int k = 0; k < m; ++k) std::swap(a[c * m + k], a[piv * m + k]);
+      std::swap(b[c], b[piv]);
+    }
+    for (int r = c + 1; r < m; ++r) {
+      const double f = a[r * m + c] / a[c * m + c];
+      for (int k = c; k < m; ++k) a[r * m + k] -= f * a[c * m + k];
+      b[r] -= f * b[c];
+    }
+  }
+  for (int c = m - 1; c >= 0; --c) {
+    double v = b[c];
+    for (int k = c + 1; k < m; ++k) v -= a[c * m + k] * b[k];
+    b[c] = v / a[c * m + c];
+  }
+  return true;
+}
+
+}  // namespace
+
 AppearanceModel::AppearanceModel(const config::AppearanceConfig& cfg, int n, const std::uint8_t* circle,
                                  std::vector<std::vector<float>> references,
                                  std::vector<std::vector<float>> priors)
@@ -23,6 +80,179 @@ AppearanceModel::AppearanceModel(const config::AppearanceConfig& cfg, int n, con
     grad2_.push_back(std::move(g2));
     sums_.emplace_back(n_);
   }
+  pattern_var_.assign(refs_.size(), 0.0);
+  grad_var_.assign(refs_.size(), 0.0);
+  tsum_.assign(refs_.size(), std::vector<double>(circle_.size(), 0.0));
+  thits_.assign(refs_.size(), std::vector<double>(circle_.size(), 0.0));
+  tnoise_.assign(refs_.size(), 0.0);
+  tframes_.assign(refs_.size(), 0);
+}
+
+void AppearanceModel::set_pattern_noise(std::uint8_t set, double var, double grad_var) {
+  if (set >= pattern_var_.size()) return;
+  pattern_var_[set] = std::max(0.0, var);
+  grad_var_[set] = std::max(0.0, grad_var);
+}
+
+bool AppearanceModel::align(const std::vector<double>& obs, const std::vector<double>& weight, std::uint8_t set,
+                            double p[3], double& gain, double& offset) const {
+  const std::vector<float>& t = refs_[set];
+  const double c = (n_ - 1) / 2.0;
+  // Gradients of the reference (central differences), sampled at the warp like t itself.
+  std::vector<float> gxs(t.size(), 0.0f), gys(t.size(), 0.0f);
+  for (int y = 0; y < n_; ++y)
+    for (int x = 0; x < n_; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
+      const int xm = std::max(0, x - 1), xp = std::min(n_ - 1, x + 1), ym = std::max(0, y - 1), yp = std::min(n_ - 1, y + 1);
+      gxs[i] = static_cast<float>((t[static_cast<std::size_t>(y) * n_ + xp] - t[static_cast<std::size_t>(y) * n_ + xm]) /
+                                  std::max(1, xp - xm));
+      gys[i] = static_cast<float>((t[static_cast<std::size_t>(yp) * n_ + x] - t[static_cast<std::size_t>(ym) * n_ + x]) /
+                                  std::max(1, yp - ym));
+    }
+  p[0] = p[1] = p[2] = 0;
+  gain = 1;
+  offset = 0;
+  constexpr int K = 5;
+  for (int it = 0; it < 12; ++it) {
+    const double th = p[2] * M_PI / 180.0, cs = std::cos(th), sn = std::sin(th);
+    double h[K * K] = {}, g[K] = {}, nz[K * K] = {};  // nz: the reference noise's share of h
+    double count = 0;
+    const double gv = grad_var_[set] * gain * gain, tv = pattern_var_[set];
+    for (int y = 0; y < n_; ++y)
+      for (int x = 0; x < n_; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
+        if (!(weight[i] > 0)) continue;
+        const double u = x - c, v = y - c;
+        const double wx = c + cs * u - sn * v + p[0], wy = c + sn * u + cs * v + p[1];
+        if (wx < 1 || wy < 1 || wx > n_ - 2 || wy > n_ - 2) continue;
+        const double tw = bicubic(t.data(), n_, wx, wy);
+        const double gx = bicubic(gxs.data(), n_, wx, wy), gy = bicubic(gys.data(), n_, wx, wy);
+        // ∂W/∂φ (per degree): R'(φ)(x − c).
+        const double dwx = (-sn * u - cs * v) * M_PI / 180.0, dwy = (cs * u - sn * v) * M_PI / 180.0;
+        const double j[K] = {gain * gx, gain * gy, gain * (gx * dwx + gy * dwy), tw, 1.0};
+        const double r = obs[i] - gain * tw - offset;
+        const double w = weight[i];
+        for (int a = 0; a < K; ++a) {
+          g[a] += w * j[a] * r;
+          for (int b = 0; b < K; ++b) h[a * K + b] += w * j[a] * j[b];
+        }
+        // E[∂n ∂n] of the reference's noise (isotropic, x and y uncorrelated), E[n²] for the gain.
+        nz[0 * K + 0] += w * gv;
+        nz[1 * K + 1] += w * gv;
+        nz[2 * K + 2] += w * gv * (dwx * dwx + dwy * dwy);
+        nz[0 * K + 2] += w * gv * dwx;
+        nz[1 * K + 2] += w * gv * dwy;
+        nz[3 * K + 3] += w * tv;
+        count += 1;
+      }
+    // H_c = H − N, each diagonal kept at ≥ 20 % (a reference that is mostly noise).
+    nz[2 * K + 0] = nz[0 * K + 2];
+    nz[2 * K + 1] = nz[1 * K + 2];
+    for (int a = 0; a < K; ++a) {
+      const double f = h[a * K + a] > 0 ? std::min(1.0, 0.8 * h[a * K + a] / std::max(1e-300, nz[a * K + a])) : 0.0;
+      for (int b = 0; b < K; ++b) h[a * K + b] -= (nz[a * K + a] > 0 ? f : 1.0) * nz[a * K + b];
+    }
+    if (count < 64 || !solve(h, g, K)) return false;
+    p[0] += g[0];
+    p[1] += g[1];
+    p[2] += g[2];
+    gain += g[3];
+    offset += g[4];
+    if (!(gain > 0) || !std::isfinite(p[0] + p[1] + p[2]) || std::abs(p[0]) > 4 || std::abs(p[1]) > 4 ||
+        std::abs(p[2]) > 20)
+      return false;
+    if (std::abs(g[0]) < 1e-4 && std::abs(g[1]) < 1e-4 && std::abs(g[2]) < 1e-4) break;
+  }
+  return true;
+}
+
+void AppearanceModel::refine_template(const AppearanceStats& batch, const std::vector<std::uint8_t>& support,
+                                      AppearanceDecision& d) {
+  const std::uint8_t set = batch.set;
+  const std::vector<float>& t = refs_[set];
+  const std::size_t nn = circle_.size();
+  const double c = (n_ - 1) / 2.0;
+  // The gate: a batch that did not move over the background would write that one patch of
+  // background into the rim (RMS radius of the circle: R/√2).
+  d.motion_px = batch.motion_spread_px(c / std::sqrt(2.0));
+  if (d.motion_px < cfg_.refine_min_motion_px) {
+    d.template_why = "the batch moved " + std::to_string(d.motion_px) + " px over the background (< " +
+                     std::to_string(cfg_.refine_min_motion_px) + ")";
+  } else {
+    // The batch's mean aligned observation, aligned to the recorded pattern over the support
+    // (Matthews–Ishikawa–Baker: the anchor is the recorded pattern, never the last template).
+    std::vector<double> obs(nn, 0.0), weight(nn, 0.0);
+    for (std::size_t i = 0; i < nn; ++i)
+      if (circle_[i] && batch.hits[i] > 0) {
+        obs[i] = batch.sum_obs[i] / batch.hits[i];
+        if (support[i]) weight[i] = batch.hits[i];
+      }
+    double p[3], gain = 1, offset = 0;
+    if (!align(obs, weight, set, p, gain, offset)) {
+      d.template_why = "the batch's mean observation could not be aligned to the recorded pattern";
+    } else {
+      d.align_dx = p[0];
+      d.align_dy = p[1];
+      d.align_dphi_deg = p[2];
+      if (std::hypot(p[0], p[1]) > cfg_.max_drift_px || std::abs(p[2]) > cfg_.max_drift_deg) {
+        d.template_why = "the batch's mean observation lies (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) +
+                         ") px, " + std::to_string(p[2]) + " deg from the recorded pattern (limits " +
+                         std::to_string(cfg_.max_drift_px) + " px, " + std::to_string(cfg_.max_drift_deg) + " deg)";
+      } else {
+        // Corrected: O(W⁻¹(y)), the observation where it exists, gain·t + offset elsewhere (so
+        // the interpolation near the circle's edge mixes in the pattern, not zeros), back in the
+        // reference's photometry. The hits follow by nearest neighbour.
+        std::vector<double> full(nn);
+        for (std::size_t i = 0; i < nn; ++i) full[i] = batch.hits[i] > 0 && circle_[i] ? obs[i] : gain * t[i] + offset;
+        const double th = p[2] * M_PI / 180.0, cs = std::cos(th), sn = std::sin(th);
+        std::vector<double>& ts = tsum_[set];
+        std::vector<double>& th_ = thits_[set];
+        for (int y = 0; y < n_; ++y)
+          for (int x = 0; x < n_; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * n_ + x;
+            if (!circle_[i]) continue;
+            const double u = x - c - p[0], v = y - c - p[1];
+            const double sx = c + cs * u + sn * v, sy = c - sn * u + cs * v;  // R(−φ)
+            const int nx = static_cast<int>(std::lround(sx)), ny = static_cast<int>(std::lround(sy));
+            if (nx < 0 || ny < 0 || nx >= n_ || ny >= n_) continue;
+            const std::size_t k = static_cast<std::size_t>(ny) * n_ + nx;
+            if (!circle_[k] || batch.hits[k] == 0) continue;
+            const double o = (bicubic(full.data(), n_, sx, sy) - offset) / gain;
+            ts[i] += batch.hits[k] * o;
+            th_[i] += batch.hits[k];
+          }
+        tnoise_[set] += batch.sum_noise_var / (gain * gain);
+        tframes_[set] += batch.frames;
+        d.template_updated = true;
+      }
+    }
+  }
+  // The refined template from everything that entered so far: per pixel the minimum-variance
+  // blend of the recorded pattern (variance v_rec) and the mean corrected observation
+  // (v_obs = per-frame noise / hits), the observations' weight capped at refine_max_weight.
+  if (tframes_[set] <= 0 || !(pattern_var_[set] > 0)) {
+    if (d.template_why.empty()) d.template_why = "the recorded pattern's noise is not known";
+    return;
+  }
+  const double v_rec = pattern_var_[set], v_frame = tnoise_[set] / tframes_[set];
+  d.refined.assign(t.begin(), t.end());
+  double nf = 0, wsum = 0, cnt = 0;
+  for (std::size_t i = 0; i < nn; ++i) {
+    const double hits = thits_[set][i];
+    double w = 0, v_obs = 0;
+    if (circle_[i] && hits > 0) {
+      v_obs = v_frame / hits;
+      w = std::min(cfg_.refine_max_weight, v_rec / (v_rec + v_obs));
+      d.refined[i] = static_cast<float>((1 - w) * t[i] + w * tsum_[set][i] / hits);
+    }
+    if (support[i]) {
+      nf += ((1 - w) * (1 - w) * v_rec + w * w * v_obs) / v_rec;
+      wsum += w;
+      cnt += 1;
+    }
+  }
+  d.template_noise_factor = cnt > 0 ? nf / cnt : 1.0;
+  d.template_weight = cnt > 0 ? wsum / cnt : 0.0;
 }
 
 std::vector<std::uint8_t> AppearanceModel::support_of(const AppearanceStats& s, std::uint8_t set) const {
@@ -167,6 +397,7 @@ AppearanceDecision AppearanceModel::update(const AppearanceStats& batch) {
   if (!consistent(candidate, d.support, set, d)) return d;
   sums_[set] = std::move(candidate);
   d.accepted = true;
+  if (cfg_.refine_template) refine_template(batch, d.support, d);
   return d;
 }
 

@@ -20,6 +20,16 @@ void AppearanceStats::clear() noexcept {
   std::fill(sum_r2.begin(), sum_r2.end(), 0.0);
   std::fill(sum_obs.begin(), sum_obs.end(), 0.0);
   std::fill(hits.begin(), hits.end(), 0u);
+  sum_fx = sum_fy = sum_fxx = sum_fyy = sum_dphi = sum_dphi2 = phi0_deg = 0;
+}
+
+double AppearanceStats::motion_spread_px(double radius_px) const noexcept {
+  if (frames <= 1) return 0.0;
+  const double k = frames;
+  const double vx = std::max(0.0, sum_fxx / k - (sum_fx / k) * (sum_fx / k));
+  const double vy = std::max(0.0, sum_fyy / k - (sum_fy / k) * (sum_fy / k));
+  const double vphi = std::max(0.0, sum_dphi2 / k - (sum_dphi / k) * (sum_dphi / k));
+  return std::sqrt(vx + vy) + std::sqrt(vphi) * (M_PI / 180.0) * radius_px;
 }
 
 void AppearanceStats::add(const AppearanceStats& o) noexcept {
@@ -27,6 +37,13 @@ void AppearanceStats::add(const AppearanceStats& o) noexcept {
   set = o.set;
   frames += o.frames;
   sum_noise_var += o.sum_noise_var;
+  // The motion sums are the batch's own (a running total's spread is not read).
+  sum_fx += o.sum_fx;
+  sum_fy += o.sum_fy;
+  sum_fxx += o.sum_fxx;
+  sum_fyy += o.sum_fyy;
+  sum_dphi += o.sum_dphi;
+  sum_dphi2 += o.sum_dphi2;
   for (std::size_t i = 0; i < sum_r2.size(); ++i) {
     sum_r2[i] += o.sum_r2[i];
     sum_obs[i] += o.sum_obs[i];
@@ -57,7 +74,8 @@ double AppearanceObserver::window_noise_var(const std::uint16_t* raw, std::ptrdi
 }
 
 bool AppearanceObserver::observe(std::uint8_t set, const float* roi, int w, int h, const std::uint16_t* raw,
-                                 std::ptrdiff_t raw_stride, int bits, double cx, double cy, double phi_deg) noexcept {
+                                 std::ptrdiff_t raw_stride, int bits, double cx, double cy, double phi_deg,
+                                 double field_x, double field_y) noexcept {
   if (set >= refs_.size() || n_ < 3) return false;
   AppearanceStats& acc = buf_[filling_];
   if (acc.frames > 0 && acc.set != set) discard();
@@ -132,6 +150,17 @@ bool AppearanceObserver::observe(std::uint8_t set, const float* roi, int w, int 
   }
   phase_ = (phase_ + 1) % kRowPhases;
   acc.set = set;
+  if (acc.frames == 0) acc.phi0_deg = phi_deg;
+  {
+    const double fx = std::isfinite(field_x) ? field_x : cx, fy = std::isfinite(field_y) ? field_y : cy;
+    const double dphi = std::remainder(phi_deg - acc.phi0_deg, 360.0);
+    acc.sum_fx += fx;
+    acc.sum_fy += fy;
+    acc.sum_fxx += fx * fx;
+    acc.sum_fyy += fy * fy;
+    acc.sum_dphi += dphi;
+    acc.sum_dphi2 += dphi * dphi;
+  }
   acc.frames += 1;
   acc.sum_noise_var += noise;
   if (acc.frames >= frames_per_batch_ && handed_.load(std::memory_order_acquire) < 0) {

@@ -251,7 +251,8 @@ void PatternBank::model_pattern_noise(const PatternImage& pattern, int prefilter
 }
 
 std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& base,
-                                                            const std::vector<std::uint8_t>& support, std::string& why) {
+                                                            const std::vector<std::uint8_t>& support, std::string& why,
+                                                            const float* refined, double noise_factor) {
   const int n = base.size_;
   if (support.size() != static_cast<std::size_t>(n) * n) {
     why = "the support is not pattern-sized";
@@ -303,6 +304,9 @@ std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& 
         if (in[i]) ss += (p[i] - mean) * (p[i] - mean);
       renorm = ss > 0 ? 1.0 / ss : 0.0;
     }
+    // The learned template turned to angle j (normalised below over the same support; the
+    // Gram's units are taken as base's: the template is the recorded pattern's photometry).
+    if (refined != nullptr) rotate_pattern(refined, n, j * step_deg, p);
     if (count < 64 || !normalize_pattern(p, n, in.data())) {
       why = "the learned support leaves " + std::to_string(count) + " pixels (or a flat pattern) at angle " +
             std::to_string(j * step_deg) + " deg";
@@ -316,14 +320,14 @@ std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& 
     // renormalised copy's units (a learned support is a setup-side option; not re-simulated).
     if (!base.noise_gram_.empty()) {
       if (b.noise_gram_.empty()) b.noise_gram_.assign(base.noise_gram_.size(), 0.0);
-      const double f = renorm * static_cast<double>(count) /
+      const double f = noise_factor * renorm * static_cast<double>(count) /
                        std::max<double>(1.0, static_cast<double>(base.support_count_[static_cast<std::size_t>(j)]));
       constexpr std::size_t K2 = kNoiseParams * kNoiseParams;
       for (std::size_t q = 0; q < K2; ++q)
         b.noise_gram_[static_cast<std::size_t>(j) * K2 + q] = f * base.noise_gram_[static_cast<std::size_t>(j) * K2 + q];
     }
   }
-  b.pattern_noise_var_ = base.pattern_noise_var_;
+  b.pattern_noise_var_ = base.pattern_noise_var_ * noise_factor;
   b.pattern_noise_rho_ = base.pattern_noise_rho_;
   return bank;
 }

@@ -536,7 +536,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       if (learning && e.reason_bits == 0 && e.state == TrackState::kTracking && m.score >= cfg.appearance.min_score) {
         const double c = (pattern_px - 1) / 2.0;
         observer->observe(set, scorer.roi(), scorer.roi_w(), scorer.roi_h(), load_px, load_stride, load_bits, m.ux + m.dx + c,
-                          m.uy + m.dy + c, (m.j + m.dj) * angles.step_deg);
+                          m.uy + m.dy + c, (m.j + m.dj) * angles.step_deg, e.x_px, e.y_px);
       }
       break;
     }

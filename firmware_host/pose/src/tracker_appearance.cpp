@@ -3,6 +3,8 @@
 // thread and the counters.
 #include <atomic>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <string>
 #include <thread>
@@ -29,6 +31,8 @@ const PatternBank& Tracker::Impl::frame_bank(std::uint8_t set) noexcept {
 
 bool Tracker::Impl::maintain_appearance() {
   if (!observer) return false;
+  // SEMPOSE_APPEARANCE_TRACE=1: one line per batch on stderr (what the model decided; not RT).
+  static const bool trace_appearance = std::getenv("SEMPOSE_APPEARANCE_TRACE") != nullptr;
   // The model and the slots have one writer: a second caller (a worker thread and an offline
   // loop at once) returns at once instead of waiting.
   if (maintaining.test_and_set(std::memory_order_acquire)) return false;
@@ -41,6 +45,14 @@ bool Tracker::Impl::maintain_appearance() {
   const std::uint8_t set = batch->set;
   AppearanceDecision d = model->update(*batch);
   observer->give_back();
+  if (trace_appearance)
+    std::fprintf(stderr,
+                 "appearance: set %u frames %d accepted %d support %.3f drift %.3f px%s%s | template %s (moved %.2f px, "
+                 "align %.3f %.3f px %.3f deg, weight %.3f, noise x%.3f)%s%s\n",
+                 set, d.frames, d.accepted ? 1 : 0, d.support_fraction, d.drift_px, d.why.empty() ? "" : ": ",
+                 d.why.c_str(), d.template_updated ? "updated" : "kept", d.motion_px, d.align_dx, d.align_dy,
+                 d.align_dphi_deg, d.template_weight, d.template_noise_factor, d.template_why.empty() ? "" : ": ",
+                 d.template_why.c_str());
   if (!d.accepted) {
     appearance_rejected.fetch_add(1, std::memory_order_relaxed);
     return false;
@@ -54,7 +66,11 @@ bool Tracker::Impl::maintain_appearance() {
   }
   const int next = cur == 0 ? 1 : 0;
   std::string why;
-  std::unique_ptr<const PatternBank> bank = PatternBank::with_support(*banks[set], d.support, why);
+  // With tracker.appearance.refine_template, the copies are the refined template's (drift-
+  // corrected, blended with the recorded pattern: appearance_model.cpp), else base's.
+  const bool refined = !d.refined.empty();
+  std::unique_ptr<const PatternBank> bank = PatternBank::with_support(
+      *banks[set], d.support, why, refined ? d.refined.data() : nullptr, refined ? d.template_noise_factor : 1.0);
   if (!bank) {
     appearance_rejected.fetch_add(1, std::memory_order_relaxed);
     return false;
@@ -64,6 +80,8 @@ bool Tracker::Impl::maintain_appearance() {
   l.published.store(next, std::memory_order_release);
   appearance_accepted.fetch_add(1, std::memory_order_relaxed);
   appearance_support.store(d.support_fraction, std::memory_order_relaxed);
+  if (d.template_updated) appearance_template_updates.fetch_add(1, std::memory_order_relaxed);
+  appearance_template_weight.store(d.template_weight, std::memory_order_relaxed);
   return true;
 }
 
@@ -88,6 +106,8 @@ Tracker::AppearanceStatus Tracker::appearance_status() const noexcept {
   s.rejected = t.appearance_rejected.load(std::memory_order_relaxed);
   s.deferred = t.appearance_deferred.load(std::memory_order_relaxed);
   s.support_fraction = t.appearance_support.load(std::memory_order_relaxed);
+  s.template_updates = t.appearance_template_updates.load(std::memory_order_relaxed);
+  s.template_weight = t.appearance_template_weight.load(std::memory_order_relaxed);
   return s;
 }
 

@@ -160,6 +160,12 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
       priors.push_back(std::move(prior));
     }
     t.model = std::make_unique<AppearanceModel>(cfg.appearance, n, t.fine_mask.bitmap(), std::move(refs), std::move(priors));
+    // The template blend's weights: the recorded pattern's noise (measured by the bank on the
+    // raw pattern) through the prefilter, per pixel, like the observer's frame noise.
+    for (std::size_t i = 0; i < t.banks.size(); ++i)
+      t.model->set_pattern_noise(static_cast<std::uint8_t>(i), t.banks[i]->pattern_noise_var() * t.prefilter_noise_gain,
+                                 t.banks[i]->pattern_noise_var() * t.prefilter_noise_gain *
+                                     (1.0 - t.prefilter_noise.lag(2) / t.prefilter_noise.lag(0)) / 2.0);
     t.learned = std::make_unique<Impl::LearnedBanks[]>(sets.size());
   }
   t.calibrate_noise_floors(limits);

@@ -118,6 +118,8 @@ struct Tracker::Impl {
   float floor_scale_now = 1.0f;
   std::atomic<std::uint32_t> appearance_accepted{0}, appearance_rejected{0}, appearance_deferred{0};
   std::atomic<double> appearance_support{1.0};
+  std::atomic<std::uint32_t> appearance_template_updates{0};
+  std::atomic<double> appearance_template_weight{0.0};
   std::thread worker;
   std::atomic<bool> worker_stop{false};
   std::atomic_flag maintaining = ATOMIC_FLAG_INIT;  // one maintain_appearance() at a time (non-RT callers)

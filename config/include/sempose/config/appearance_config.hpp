@@ -37,6 +37,20 @@ struct AppearanceConfig {
   double min_consistency = 0.6;
   double max_drift_px = 1.0;
   double min_support_fraction = 0.25;
+  // Refined template (Matthews–Ishikawa–Baker's template update with drift correction): each
+  // accepted batch's mean aligned observation is aligned to the recorded pattern over the
+  // learned support (sub-pixel shift and sub-degree angle, Gauss–Newton), corrected by that
+  // warp, refused when the correction exceeds max_drift_px / max_drift_deg, and averaged into
+  // a running mean; the bank's copies are rebuilt from the recorded pattern blended with it,
+  // per pixel by the two noise variances (minimum variance), the observations' weight capped
+  // at refine_max_weight (the recorded pattern always keeps the rest: the pose frame's
+  // anchor). A batch whose poses spread less than refine_min_motion_px across the background
+  // (RMS of the field positions, plus the angle's RMS × the circle's radius) does not enter
+  // the template: a target standing still would freeze its background into the rim.
+  bool refine_template = false;
+  double refine_max_weight = 0.9;
+  double refine_min_motion_px = 2.0;
+  double max_drift_deg = 1.0;
 };
 
 // Reads a `appearance:` mapping (tracker.appearance); config/src/appearance_section.cpp.

@@ -29,6 +29,17 @@ struct AppearanceDecision {
   double consistency = 0;             // ZNCC of the mean observation with the recorded pattern
   double drift_px = 0;                // sub-pixel offset of that match
   int frames = 0;                     // frames in the running sums, this batch included
+  // Template refinement (cfg.refine_template; only for an accepted batch): the refined template
+  // (size_px², prefiltered, the pattern's own frame; empty: no observation has entered yet),
+  // the batch's alignment against the recorded pattern (the correction applied to it) and
+  // whether it entered the template (template_why: why not).
+  std::vector<float> refined;
+  double template_noise_factor = 1;   // the refined template's noise variance / the recorded one's (support mean)
+  double template_weight = 0;         // the observations' mean weight over the support
+  double align_dx = 0, align_dy = 0, align_dphi_deg = 0;
+  double motion_px = 0;               // the batch's spread over the background
+  bool template_updated = false;
+  std::string template_why;
 };
 
 class AppearanceModel {
@@ -47,6 +58,18 @@ class AppearanceModel {
   bool consistent(const AppearanceStats& sums, const std::vector<std::uint8_t>& support, std::uint8_t set,
                   AppearanceDecision& d) const;
   const AppearanceStats& sums(std::uint8_t set) const { return sums_[set]; }
+  // Setup: set k's recorded pattern's noise variance per pixel, prefiltered, in the reference's
+  // units (the template blend's weight; 0: unknown, the observations are never blended in), and
+  // the variance of its central-difference gradient along x or y (what the noise adds to the
+  // alignment's JᵀJ: taken out, else the alignment's shift shrinks by H_c / (H_c + N), the
+  // errors-in-variables attenuation of fitting against a noisy reference).
+  void set_pattern_noise(std::uint8_t set, double var, double grad_var);
+  // The warp p = (dx, dy, dφ in degrees) and photometry (gain, offset) with which `obs` (size_px²,
+  // pattern units) ≈ gain · t(W(x; p)) + offset over the pixels with valid[i] != 0, t set k's
+  // recorded pattern and W(x; p) = c + R(dφ)(x − c) + (dx, dy) (Gauss–Newton, bicubic,
+  // weighted by `weight`). False when it did not converge (singular, gain ≤ 0).
+  bool align(const std::vector<double>& obs, const std::vector<double>& weight, std::uint8_t set, double p[3],
+             double& gain, double& offset) const;
 
  private:
   config::AppearanceConfig cfg_;
@@ -57,6 +80,13 @@ class AppearanceModel {
   std::vector<std::vector<float>> grad2_;  // |∇t|² of each reference
   std::vector<std::vector<float>> priors_;  // 1.0 = may be the target; empty = the circle
   std::vector<AppearanceStats> sums_;
+  // Template refinement: per set, the recorded pattern's noise variance, and the running sums
+  // of the drift-corrected observations (Σ hits·o, Σ hits) and of their per-frame noise.
+  void refine_template(const AppearanceStats& batch, const std::vector<std::uint8_t>& support, AppearanceDecision& d);
+  std::vector<double> pattern_var_, grad_var_;
+  std::vector<std::vector<double>> tsum_, thits_;
+  std::vector<double> tnoise_;
+  std::vector<int> tframes_;
 };
 
 }  // namespace sempose::pose

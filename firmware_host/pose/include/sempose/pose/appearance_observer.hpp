@@ -15,6 +15,7 @@
 #pragma once
 
 #include <atomic>
+#include <limits>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -30,8 +31,14 @@ struct AppearanceStats {
   std::vector<double> sum_r2;      // Σ (f − a·t − b)² / a² per pixel
   std::vector<double> sum_obs;     // Σ (f − b) / a per pixel: the aligned observation
   std::vector<std::uint32_t> hits; // frames that saw the pixel
+  // The batch's poses on the background (field pixels; the angle relative to the batch's first
+  // frame, wrapped): how far the target moved over it (the template refinement's gate).
+  double sum_fx = 0, sum_fy = 0, sum_fxx = 0, sum_fyy = 0, sum_dphi = 0, sum_dphi2 = 0, phi0_deg = 0;
 
   explicit AppearanceStats(int n = 0);
+  // RMS spread of the frames' field positions about their mean, plus the angle's RMS spread
+  // (radians) × radius_px, the movement of a point at that radius (pixels).
+  double motion_spread_px(double radius_px) const noexcept;
   void clear() noexcept;
   // Adds another batch of the same size (the worker's running total).
   void add(const AppearanceStats& o) noexcept;
@@ -48,10 +55,12 @@ class AppearanceObserver {
 
   // RT: one good frame. roi: prefiltered ROI minus its mean (w×h, stride w); raw: the same
   // ROI's pixels (stride raw_stride, `bits` bits); (cx, cy): the pattern centre in ROI pixels,
-  // phi_deg its angle. False when the frame was not used (pattern outside the ROI, flat,
-  // inverted contrast).
+  // phi_deg its angle; (field_x, field_y): the same centre in the scan field (how far it moved
+  // over the background; NaN: the ROI's (cx, cy)). False when the frame was not used (pattern
+  // outside the ROI, flat, inverted contrast).
   bool observe(std::uint8_t set, const float* roi, int w, int h, const std::uint16_t* raw, std::ptrdiff_t raw_stride,
-               int bits, double cx, double cy, double phi_deg) noexcept;
+               int bits, double cx, double cy, double phi_deg, double field_x = std::numeric_limits<double>::quiet_NaN(),
+               double field_y = std::numeric_limits<double>::quiet_NaN()) noexcept;
   // RT: the target was lost or the pattern set changed: the batch being filled is dropped.
   void discard() noexcept;
 

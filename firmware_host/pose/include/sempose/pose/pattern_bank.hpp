@@ -66,8 +66,14 @@ class PatternBank {
   // renormalised over the new support (ZNCC normalisation is affine, so renormalising base's
   // copies equals normalising the raw rotations). The binned and coarse spectra are base's,
   // shared. nullptr (and why) when an angle keeps under 64 pixels or is flat.
+  // With `refined` (size_px², prefiltered, the pattern's own frame: the learned template), every
+  // angle's copy is that template turned (the bank's bicubic, 360 rotations: ~0.1–0.3 s, worker
+  // side) instead of base's, normalised over the same support; the pattern-noise Gram and
+  // variance are base's × noise_factor (the refined template's noise variance over the
+  // recorded one's). The binned and coarse spectra stay base's (they only locate the peak).
   static std::unique_ptr<const PatternBank> with_support(const PatternBank& base, const std::vector<std::uint8_t>& support,
-                                                         std::string& why);
+                                                         std::string& why, const float* refined = nullptr,
+                                                         double noise_factor = 1.0);
   // Mean pixel count of the angles' supports.
   double mean_support_count() const noexcept;
 

@@ -39,6 +39,8 @@ class PrefilterNoiseGain {
   PrefilterNoiseGain() : PrefilterNoiseGain(0) {}
   explicit PrefilterNoiseGain(int passes);  // setup: the kernel's autocorrelation
   double white() const noexcept { return lag_[0] * lag_[0]; }
+  // Σ_i k_i k_(i+d) of the 1-D kernel (all passes); 0 beyond its length.
+  double lag(std::size_t d) const noexcept { return d < lag_.size() ? lag_[d] : 0.0; }
   // RT: the gain for noise whose lag-1 correlation along x is rho (and 0 across lines).
   double line_correlated(double rho) const noexcept {
     double along = lag_[0], rho_d = 1.0;

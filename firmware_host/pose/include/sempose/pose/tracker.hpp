@@ -106,6 +106,8 @@ class Tracker {
     std::uint32_t rejected = 0;  // batches the drift or support check refused
     std::uint32_t deferred = 0;  // swaps skipped because update() had not picked up the last one
     double support_fraction = 1.0;  // of the pattern circle, the last accepted update's
+    std::uint32_t template_updates = 0;  // batches that entered the refined template (refine_template)
+    double template_weight = 0;          // the observations' mean weight in the last refined template
   };
   AppearanceStatus appearance_status() const noexcept;
   // Bank + spectra + FFT buffers, bytes (printed at start).
