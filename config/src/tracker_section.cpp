@@ -63,6 +63,8 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("search_scale_min", c.search_scale_min, 0.7, 1.0);
   s.opt("search_scale_max", c.search_scale_max, 1.0, 1.45);
   s.opt("predict_velocity", c.predict_velocity);
+  s.opt("predict_rate_poses", c.predict_rate_poses, 2, 8);
+  s.opt("attainable_pattern_noise", c.attainable_pattern_noise);
   s.opt_choice("subpixel", c.subpixel, {"gaussian", "quadratic"});
   s.opt("fit_noise_correction", c.fit_noise_correction);
   s.opt("sigma_tile_px", c.sigma_tile_px, 1, 64);

@@ -355,6 +355,8 @@ int main(int argc, char** argv) {
   // --sigma-tile N, --sigma-calibration K, --sigma-floor PX DEG, --sigma-noise-factor F: the σ
   // stage's tile side, sandwich factor, model-error floor and white-noise factor (to try them; the defaults are tracker.sigma_*).
   // --sigma-pattern-noise on|off: tracker.sigma_pattern_noise (the recorded pattern's noise taken out of JᵀJ).
+  // --rate-poses N: tracker.predict_rate_poses (2: the velocity from the last two poses).
+  // --attainable-pattern-noise on|off: tracker.attainable_pattern_noise.
   config::TrackerConfig tc;
   int appearance = -1;
   int refine_template = -1;
@@ -400,6 +402,8 @@ int main(int argc, char** argv) {
     else if (a == "--sigma-noise-factor" && i + 1 < argc) tc.sigma_noise_factor = std::atof(argv[++i]);
     else if (a == "--sigma-angle-factor" && i + 1 < argc) tc.sigma_angle_factor = std::atof(argv[++i]);
     else if (a == "--sigma-pattern-noise" && i + 1 < argc) tc.sigma_pattern_noise = std::string(argv[++i]) != "off";
+    else if (a == "--rate-poses" && i + 1 < argc) tc.predict_rate_poses = std::atoi(argv[++i]);
+    else if (a == "--attainable-pattern-noise" && i + 1 < argc) tc.attainable_pattern_noise = std::string(argv[++i]) != "off";
     else if (a == "--sigma-floor" && i + 2 < argc) {
       tc.sigma_floor_px = std::atof(argv[++i]);
       tc.sigma_floor_deg = std::atof(argv[++i]);
@@ -409,7 +413,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off]\n", argv[0]);
       return 2;
     }
   }

@@ -58,6 +58,11 @@ struct Scenario {
   int vanish_after = -1;         // >= 0: the target is gone from this frame on (background only)
   bool target_in_field = true;   // false: the target sits far outside the field from the start
   enum class Frames { kScene, kBlank, kSaturated } frames_kind = Frames::kScene;  // blank/saturated: every pixel 0 / full scale
+  // Target "warped" only: on frame kick_frame the target is moved off its trajectory by this
+  // much for that frame alone (a pose off the line, as a noisy measurement would be; the truth
+  // follows it).
+  int kick_frame = -1;
+  double kick_x_px = 0, kick_y_px = 0, kick_phi_deg = 0;
 };
 
 // The warped real SEM target: lamella_on_post_eb.pgm seen through a σ 1 px PSF; the pattern is
@@ -264,7 +269,10 @@ class SimHarness {
     out_.resize(static_cast<std::size_t>(s.frames));
     truth_.resize(static_cast<std::size_t>(s.frames));
     records_.resize(static_cast<std::size_t>(s.frames));
+    next_rois_.resize(static_cast<std::size_t>(s.frames));
   }
+  // The ROI the tracker asked for after frame f (centred on its prediction for frame f + 1).
+  const std::vector<pose::Roi>& next_rois() const { return next_rois_; }
   const hal::Image& pattern() const { return pattern_; }
   const hal::ScanLimits& limits() const { return limits_; }
   const config::SimConfig& sim_config() const { return sim_cfg_; }
@@ -287,7 +295,12 @@ class SimHarness {
       return;
     }
     // Test helper: WarpScene::render allocates its output (warp_out_ keeps its capacity).
-    const hal::Pose2 p = trajectory_.at(mid);
+    hal::Pose2 p = trajectory_.at(mid);
+    if (static_cast<long long>(seq) == s_.kick_frame) {
+      p.x_px += s_.kick_x_px;
+      p.y_px += s_.kick_y_px;
+      p.phi_deg += s_.kick_phi_deg;
+    }
     warped_scene().render(kWarpCx, kWarpCy, p.x_px, p.y_px, p.phi_deg, s_.field_w, s_.field_h, warp_out_,
                           s_.noise ? s_.dose_e : 0.0, s_.seed * 7919 + seq, roi);
     std::copy(warp_out_.begin(), warp_out_.end(), out);
@@ -344,8 +357,7 @@ class SimHarness {
         rt::alloc::ScopedArm arm;
         const std::uint64_t before = rt::alloc::this_thread_allocations();
         out_[static_cast<std::size_t>(f)] = tracker_->update(pipeline::to_pose_frame(meta, pixels_.data()));
-        const pose::Roi next = tracker_->next_roi();
-        (void)next;
+        next_rois_[static_cast<std::size_t>(f)] = tracker_->next_roi();
         tracker_allocations_ += rt::alloc::this_thread_allocations() - before;
       }
       compute_ns_[static_cast<std::size_t>(f) % compute_ns_.size()] = rt::now_ns() - t0;
@@ -423,6 +435,7 @@ class SimHarness {
   std::vector<hal::Pixel> warp_out_;
   hal::Image pattern_;
   std::vector<FrameRecord> records_;
+  std::vector<pose::Roi> next_rois_;
   std::unique_ptr<hal::SimSource> sim_gone_;  // the same scene without the target (vanish_after)
   std::unique_ptr<Tracker> tracker_;
   rt::Status status_;

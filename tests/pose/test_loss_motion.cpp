@@ -7,6 +7,7 @@
 
 #include "sempose/pose/loss_policy.hpp"
 #include "sempose/pose/motion_model.hpp"
+#include "sempose/rt/angle.hpp"
 #include "sempose/pose/track_state.hpp"
 
 using namespace sempose;
@@ -288,6 +289,68 @@ TEST(MotionModel, PoseNoiseFromTheInnovations) {
   after.accept(53, 0, 0, false);
   ASSERT_TRUE(after.pose_noise_known());
   EXPECT_LT(after.pose_noise_px(), 0.5);
+}
+
+// The rate fitted over the last three or four poses (tracker.predict_rate_poses, 3 by default): a
+// constant velocity is predicted exactly, one pose off the line passes into the next prediction
+// 4/3 times (weights 4/3, 1/3, −2/3 newest first) or once (four: 1, 0.5, 0, −0.5) where the
+// two-pose rate doubled it, the angle across the wrap, and the pose noise (learnt from the
+// two-pose prediction's innovations whatever the rate) means the same.
+TEST(MotionModel, RateOverMorePosesDoesNotDoubleOnePosesError) {
+  for (int rate : {2, 3, 4}) {
+    MotionModel mm(true, rate);
+    mm.accept(0, 0, 170, true);
+    for (int k = 1; k <= 6; ++k) mm.accept(3.0 * k, -1.0 * k, 170 + 2.0 * k, false);
+    EXPECT_NEAR(mm.predicted_x_px(), 21, 1e-9);
+    EXPECT_NEAR(mm.predicted_phi_deg(), -176, 1e-9);  // 184° across the wrap
+    const double share = rate == 2 ? 5.0 : rate == 3 ? 21.0 / 9.0 : 1.5;  // Σ w²
+    EXPECT_NEAR(mm.prediction_variance_share(), share, 1e-9);
+    mm.accept(21 + 2.0, -7, -176 + 3.0, false);  // 2 px and 3° off the line
+    const double passed = rate == 2 ? 2.0 : rate == 3 ? 4.0 / 3.0 : 1.0;  // the newest pose's weight
+    EXPECT_NEAR(mm.predicted_x_px() - 24, passed * 2.0, 1e-9) << rate << " poses";
+    EXPECT_NEAR(rt::wrap_deg(mm.predicted_phi_deg() - (-174)), passed * 3.0, 1e-9) << rate << " poses";
+  }
+  // Right after a search the search's pose and the first ROI pose give the rate (as with two),
+  // and the search's pose leaves the row once two ROI poses follow it.
+  MotionModel after(true, 3);
+  after.accept(0, 0, 0, true);
+  after.accept(50, 0, 0, false);
+  EXPECT_NEAR(after.predicted_x_px(), 100, 1e-9);
+  after.accept(51, 0, 0, false);
+  EXPECT_NEAR(after.predicted_x_px(), 52, 1e-9) << "the search's pose is out of the row";
+  // A bounce (a pose the motion so far does not explain, accepted): the line is broken, the next
+  // rate is the last two poses' (fitted over three it would still point 5 px the old way).
+  MotionModel bounce(true, 3);
+  bounce.accept(0, 0, 0, true);
+  for (int k = 1; k <= 8; ++k) bounce.accept(4.0 * k, 0, 0, false);
+  EXPECT_NEAR(bounce.predicted_x_px(), 36, 1e-9);
+  bounce.accept(28, 0, 0, false);
+  EXPECT_NEAR(bounce.predicted_x_px(), 24, 1e-9);
+  // White pose noise of SD s: the learnt pose noise is about s with either rate.
+  std::uint64_t st = 777;
+  auto gauss = [&st]() {
+    auto u = [&st]() {
+      st = st * 6364136223846793005ull + 1442695040888963407ull;
+      return ((st >> 11) + 0.5) / 9007199254740992.0;
+    };
+    const double a = u(), b = u();
+    return std::sqrt(-2.0 * std::log(a)) * std::cos(6.283185307179586 * b);
+  };
+  for (int rate : {2, 3, 4}) {
+    MotionModel mm(true, rate);
+    double sum2 = 0;
+    int n = 0;
+    mm.accept(100, 100, 0, true);
+    for (int k = 1; k < 4000; ++k) {
+      mm.accept(100 + 0.7 * k + 0.5 * gauss(), 100 - 0.3 * k + 0.5 * gauss(), 0.5 * k + 1.5 * gauss(), false);
+      if (mm.pose_noise_known()) {
+        sum2 += mm.pose_noise_px() * mm.pose_noise_px();
+        ++n;
+      }
+    }
+    EXPECT_GE(std::sqrt(sum2 / n), 0.97 * 0.5) << rate << " poses";
+    EXPECT_LE(std::sqrt(sum2 / n), 1.15 * 0.5) << rate << " poses";
+  }
 }
 
 // After a loss of the same target the pose noise learnt before it is carried over (a re-acquired

@@ -40,4 +40,18 @@ AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double c
   return a;
 }
 
+double pattern_attainable_factor(const std::uint16_t* px, int n, const WindowNoise& noise,
+                                 const PrefilterNoiseGain& gain) noexcept {
+  if (px == nullptr || n < 4 || !(noise.var > 0)) return 1.0;
+  std::int64_t sum = 0, sum2 = 0;
+  for (int y = 0; y < n; ++y) row_moments(px + static_cast<std::size_t>(y) * n, n, sum, sum2);
+  const double count = static_cast<double>(n) * n;
+  const double mean = static_cast<double>(sum) / count;
+  const double var = std::max(0.0, static_cast<double>(sum2) / count - mean * mean);
+  const double nv = std::min(var, noise.var);
+  const double signal = var - nv;
+  const double left = signal + gain.line_correlated(noise.rho) * nv;
+  return left > 0 ? std::sqrt(signal / left) : 1.0;
+}
+
 }  // namespace sempose::pose

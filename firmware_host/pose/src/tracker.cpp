@@ -30,7 +30,7 @@ float normalised_chi2(double score, double attainable) noexcept {
 // The ZNCC the target itself would reach in the window at (cx, cy) of a frame, given the
 // frame's noise as the detector delivers it (correlated along the line): attainable_score.hpp.
 double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept {
-  return pose::attainable_score(px, w, h, cx, cy, sizes.pattern_px, prefilter_noise).score;
+  return attainable_factor * pose::attainable_score(px, w, h, cx, cy, sizes.pattern_px, prefilter_noise).score;
 }
 
 void Tracker::Impl::forget_everything() noexcept {
@@ -39,7 +39,7 @@ void Tracker::Impl::forget_everything() noexcept {
   search_n = 0;
   loss.forget_target();
   scale = expected_scale.load(std::memory_order_relaxed);
-  motion = MotionModel(cfg.predict_velocity);  // also the last angle a search's tie-break uses
+  motion = MotionModel(cfg.predict_velocity, cfg.predict_rate_poses);  // also the last angle a search's tie-break uses
 }
 
 // Tracking: the predicted angle's FFT peak in the loaded ROI, the walk and the fit; when the
@@ -361,12 +361,12 @@ void Tracker::Impl::go_lost() noexcept {
 // An accepted pose: the motion model and the recent score learn it, then the reported pose
 // goes through the temporal filter (a pass-through unless tracker.filter is on), timed at
 // mid-scan: with a varying dwell the ROI's centre is scanned mid-frame.
-void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept {
+void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, double level_cap) noexcept {
   e.state = TrackState::kTracking;
   held_frames = 0;
   loss.set_held(false);
   motion.accept(e.x_px, e.y_px, e.phi_deg, fresh, frame_dwell_ns, e.score);
-  loss.accepted(e.score);
+  loss.accepted(static_cast<float>(std::min<double>(e.score, level_cap)));
   tracking = true;
   if (fresh) filter.reset();
   const double t_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
@@ -396,6 +396,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     return e;
   }
   const PatternBank& bank = frame_bank(set);
+  attainable_factor = set < pattern_factor.size() ? pattern_factor[set] : 1.0;
   const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
     go_lost();
@@ -450,7 +451,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       e.state = TrackState::kUncertain;
       go_lost();
     } else if (loss.found(m, attainable)) {
-      accept(e, frame, true);
+      // The target's level from a search frame at most the attainable score: a score above it
+      // shares the frame's noise with the pattern (a pattern cut from this very frame scores
+      // 0.95 there and 0.55-0.6 on every later frame, read as a fall to a look-alike).
+      accept(e, frame, true, cfg.attainable_pattern_noise && attainable > 0 ? attainable : 1.0);
       scale = e.scale;  // tracking starts at the scale the search found
       scale_tracked = true;
       open_flip_check(m, prior_known);

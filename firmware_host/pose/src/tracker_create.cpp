@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "sempose/pose/attainable_score.hpp"
 #include "tracker_impl.hpp"
 
 namespace sempose::pose {
@@ -113,6 +114,12 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
       prior_patterns.push_back(ps.image);
       prior_shapes.push_back(ps.mask);
     }
+  {
+    // The noise variance the prefilter keeps: Σk² of its 2-D kernel for white noise (the
+    // appearance observer), more for the detector's line-correlated noise (attainable score).
+    t.prefilter_noise = PrefilterNoiseGain(cfg.prefilter_passes);
+    t.prefilter_noise_gain = t.prefilter_noise.white();
+  }
   for (std::size_t i = 0; i < sets.size(); ++i) {
     PatternBankSpec spec;
     spec.pattern = std::move(sets[i].image);
@@ -127,14 +134,14 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     if (!bank) return fail("pattern set " + std::to_string(i) + ": " + why);
     if (!t.refinement.add_set(*bank, spec.pattern, limits.bits))
       return fail("pattern set " + std::to_string(i) + ": too few pixels for tracker.refine's fit");
+    // The pattern's own noise as the bank measured it for σ (attainable_score.hpp).
+    t.pattern_factor.push_back(cfg.attainable_pattern_noise
+                                   ? pattern_attainable_factor(spec.pattern.pixels.data(), spec.pattern.width,
+                                                               {bank->pattern_noise_var(), bank->pattern_noise_rho()},
+                                                               t.prefilter_noise)
+                                   : 1.0);
     t.banks.push_back(std::move(bank));
     t.nm_per_px.push_back(sets[i].nm_per_px);
-  }
-  {
-    // The noise variance the prefilter keeps: Σk² of its 2-D kernel for white noise (the
-    // appearance observer), more for the detector's line-correlated noise (attainable score).
-    t.prefilter_noise = PrefilterNoiseGain(cfg.prefilter_passes);
-    t.prefilter_noise_gain = t.prefilter_noise.white();
   }
   t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;
   if (cfg.appearance.enabled) {

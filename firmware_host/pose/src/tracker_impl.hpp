@@ -156,7 +156,7 @@ struct Tracker::Impl {
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
                     c.sigma_noise_factor, c.sigma_angle_factor, angles.count, c.sigma_pattern_noise),
         loss(cfg),
-        motion(c.predict_velocity),
+        motion(c.predict_velocity, c.predict_rate_poses),
         filter(c.filter) {
     field.field_w = field_width;
     field.field_h = field_height;
@@ -173,6 +173,13 @@ struct Tracker::Impl {
   std::vector<NoiseFloor> noise_floors;
   double prefilter_noise_gain = 1.0;  // Σk² of the 2-D prefilter kernel (white-noise variance kept)
   PrefilterNoiseGain prefilter_noise;  // the same for noise correlated along the line (attainable score)
+  // Per pattern set, the recorded pattern's own share of signal in its score, √(S/(S+N')) on the
+  // raw pattern with the noise PatternBank measured (N' through the prefilter, as the attainable
+  // score reads a window): the ZNCC of two noisy copies of one signal is the product of each
+  // copy's factor, so the attainable score is multiplied by it (1 when
+  // tracker.attainable_pattern_noise is off). Setup: pattern_attainable_factor().
+  std::vector<double> pattern_factor;
+  double attainable_factor = 1.0;  // the active set's, set at each update()
 
   void use_noise_floors_of(std::uint8_t set) noexcept {
     if (set < noise_floors.size())
@@ -240,7 +247,9 @@ struct Tracker::Impl {
   bool search_settled(const Measurement& m, const PoseEstimate& e) noexcept;
   template <class Place>
   bool settle_flip(const PatternBank& bank, Measurement& m, PoseEstimate& e, const Place& place) noexcept;
-  void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh) noexcept;
+  // level_cap: the most the target's own level learns from this pose (a search frame's
+  // attainable score with tracker.attainable_pattern_noise; 1: the score itself).
+  void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, double level_cap = 1.0) noexcept;
 };
 
 }  // namespace sempose::pose

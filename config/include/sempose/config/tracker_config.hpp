@@ -67,6 +67,13 @@ struct TrackerConfig {
   double search_scale_max = 1.33;
   // Motion model and sub-pixel.
   bool predict_velocity = true;            // constant-velocity prediction of x, y and phi
+  // The velocity is the least-squares line through this many last poses in a row (2: the last
+  // two poses' difference, which doubles one pose's error into the next prediction; 3: the
+  // newest pose weighs 4/3).
+  std::int32_t predict_rate_poses = 3;
+  // The attainable score × the recorded pattern's own √(S/(S+N)) (its noise as PatternBank
+  // measures it for σ), and the target's level at a search frame capped at that attainable score.
+  bool attainable_pattern_noise = true;
   // Sub-pixel / sub-step: one joint quadratic fit in (x, y, φ) over 19 exact scores around
   // the best grid point, on log scores (gaussian) or scores (quadratic).
   std::string subpixel = "gaussian";       // gaussian | quadratic

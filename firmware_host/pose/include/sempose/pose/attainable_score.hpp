@@ -31,4 +31,13 @@ struct AttainableScore {
 AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int p,
                                  const PrefilterNoiseGain& gain) noexcept;
 
+// The recorded pattern's own factor (setup): the score above assumes a noise-free pattern, but
+// the ZNCC of two noisy copies of one signal is the product of each copy's √(S/(S+N')). This
+// is the pattern's: the same formula on the raw n×n pattern px with its noise (PatternBank
+// measures it with line_correlated_noise for σ: pattern_noise_var/rho, not estimated again).
+// 1 when no noise was read. Measured: 0.996-0.998 at 20 e-/px, 0.967-0.985 at 2.5 for the
+// benchmark's averaged patterns, ~0.65 for a 96² crop of one frame.
+double pattern_attainable_factor(const std::uint16_t* px, int n, const WindowNoise& noise,
+                                 const PrefilterNoiseGain& gain) noexcept;
+
 }  // namespace sempose::pose

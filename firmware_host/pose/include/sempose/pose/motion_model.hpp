@@ -1,5 +1,7 @@
-// Where the target will be next: constant velocity in x, y and φ from the last two accepted
-// poses (or the last pose when tracker.predict_velocity is off), and the ROI centred on that
+// Where the target will be next: constant velocity in x, y and φ, the line fitted (least
+// squares) through the last rate_poses accepted poses in a row (tracker.predict_rate_poses; 2:
+// the last two poses' difference) and extrapolated one frame (or the last pose when
+// tracker.predict_velocity is off), and the ROI centred on that
 // prediction, clamped to the field. Also keeps the last tracked angle across a loss (the
 // start search's prior). It also learns how far accepted poses land from their prediction
 // (the innovations), so a pose that lands much farther than the motion seen so far can be
@@ -16,7 +18,17 @@ namespace sempose::pose {
 
 class MotionModel {
  public:
-  explicit MotionModel(bool predict_velocity) noexcept : predict_velocity_(predict_velocity) {}
+  // rate_poses: how many of the last poses in a row the velocity is fitted over (2..kMaxRatePoses).
+  // With two, the prediction is 2·x_k − x_{k−1}: one pose's error is doubled into the next
+  // prediction (a pose 3° off predicts 6° short; the walk from there stopped on a neighbouring
+  // maximum, README Known limitations). With three (tracker.predict_rate_poses' default) the
+  // fitted line's value one frame ahead weighs the poses 4/3, 1/3, −2/3 (newest first; its
+  // variance 2.33σ² against 5σ²), with four 1, 0.5, 0, −0.5 (1.5σ²). A longer fit lags a real
+  // acceleration longer, so a pose the motion so far does not explain (surprising()) that is
+  // accepted breaks the line: the rate restarts from it and the pose before it (a bounce).
+  static constexpr int kMaxRatePoses = 8;
+  explicit MotionModel(bool predict_velocity, int rate_poses = 2) noexcept
+      : predict_velocity_(predict_velocity), rate_poses_(std::clamp(rate_poses, 2, kMaxRatePoses)) {}
 
   // An accepted pose; fresh: the first after a search (no velocity from it). dwell_ns and
   // score: the pixel dwell of the frame it was measured on (0: not known) and its score, learnt
@@ -59,10 +71,11 @@ class MotionModel {
   bool motion_known() const noexcept { return have_velocity_ && innovations_since_fresh_ >= 2; }
 
   // An upper bound of the accepted poses' error SD per axis (px) and in angle (deg), as the
-  // stream itself shows it: for a constant-velocity prediction the innovation is
-  // e_k − 2e_{k−1} + e_{k−2} + the target's acceleration, so with pose errors of SD σ per
+  // stream itself shows it: for a constant-velocity prediction from two poses the innovation
+  // is e_k − 2e_{k−1} + e_{k−2} + the target's acceleration, so with pose errors of SD σ per
   // axis E[|d|²] = 12σ² + |a|² (two axes; angle 6σ² + a²; without velocity prediction a
-  // first difference: 4σ², 2σ²). Unlike a pose's own σ (the fit's local curvature), this sees
+  // first difference: 4σ², 2σ²). Whatever rate the ROI follows (rate_poses), the pose noise is
+  // learnt from the two-pose prediction's innovations, so these figures keep their meaning. Unlike a pose's own σ (the fit's local curvature), this sees
   // poses that wander to a neighbouring maximum for a frame or several (at 1 e-/px the
   // lamellae's poses leave the truth by 3-8 px for 1-4 frames at the target's score). An
   // acceleration only raises it (no pose is trusted more for it). Taking out the acceleration
@@ -108,7 +121,8 @@ class MotionModel {
   // mean d·σm²/(σm² + σp²) and per-axis variance σm²σp²/(σm² + σp²). σp² is the prediction's:
   // for a constant-velocity prediction from two poses measured as this stream's are,
   // 4σ² + σ² = 5σ² (σ = pose_noise, which holds the target's acceleration too); without
-  // velocity prediction σ². A pose that jumped to a neighbouring maximum lands far from the
+  // velocity prediction σ². The innovation is taken against that two-pose prediction
+  // (innovation_px/deg), whatever rate the ROI follows: the rule was calibrated on it. A pose that jumped to a neighbouring maximum lands far from the
   // prediction, and its error given the innovation is centred away from 0: at 1 e⁻/px the
   // first frame of a wander (4 px off, 6 px from the prediction, the stream's noise 0.9 px)
   // has a 3-6 % chance of being > 3 px off given its innovation where its σ alone says 0.4 %.
@@ -120,12 +134,15 @@ class MotionModel {
   };
   // d_px, d_deg: the innovation's size (innovation() before the pose is accepted).
   ErrorGivenInnovation error_given_innovation(double d_px, double d_deg, double sigma_m_px, double sigma_m_deg) const noexcept;
-  // How far a pose lands from the current prediction, in position and in angle.
-  double innovation_px(double x_px, double y_px) const noexcept { return std::hypot(x_px - pred_x_, y_px - pred_y_); }
+  // How far a pose lands from the two-pose prediction (2·x_k − x_{k−1}; the ROI's, when
+  // rate_poses is 2), in position and in angle.
+  double innovation_px(double x_px, double y_px) const noexcept { return std::hypot(x_px - cv_x_, y_px - cv_y_); }
   double innovation_deg(double phi_deg) const noexcept;
   // The prediction for the next frame is made from two ROI poses (a velocity not spanning a
   // full-field scan) and the stream's pose noise is known.
   bool prediction_from_roi_poses() const noexcept { return have_velocity_ && innovations_since_fresh_ >= 1 && pose_noise_known(); }
+  // The current prediction's variance over one pose's, per axis (5 from two poses, 1.5 from four).
+  double prediction_variance_share() const noexcept { return pred_var_share_; }
 
   static constexpr double kSurpriseSigmas = 4.0;
   // Floors: an innovation this small is never a surprise (measurement noise at 1 e⁻/px is
@@ -140,7 +157,19 @@ class MotionModel {
  private:
   void predict() noexcept;
 
+  void push(double x, double y, double phi) noexcept;
+
   bool predict_velocity_;
+  int rate_poses_;
+  // The accepted (or coasted) poses in a row the velocity is fitted over, oldest first; angles
+  // unwrapped along the row. hist_from_search_: the oldest is a search's pose (its interval to
+  // the next spans the full-field scan): dropped once two ROI poses follow it.
+  double hist_x_[kMaxRatePoses] = {}, hist_y_[kMaxRatePoses] = {}, hist_phi_[kMaxRatePoses] = {};
+  int hist_n_ = 0;
+  bool hist_from_search_ = false;
+  // The current prediction's variance over one pose's (per axis: Σ w² of its weights on the poses).
+  double pred_var_share_ = 1.0;
+  double cv_x_ = 0, cv_y_ = 0, cv_phi_ = 0;  // the two-pose prediction (pose noise, innovation)
   bool have_prev_ = false;
   bool have_velocity_ = false;  // the prediction is the model's full one (velocity from two poses in a row)
   // Running mean squares of the innovations of frames predicted with a velocity. Kept across
@@ -156,7 +185,6 @@ class MotionModel {
   bool carried_ = false;   // the pose noise is from the stream before the last loss
   double noise_dwell_ns_ = 0, noise_score_ = 0;
   double x_ = 0, y_ = 0, phi_ = 0;
-  double vx_ = 0, vy_ = 0, vphi_ = 0;
   double pred_x_ = 0, pred_y_ = 0, pred_phi_ = 0;
   AnglePrior last_angle_;
 };
