@@ -73,7 +73,9 @@ struct TrackerConfig {
   std::int32_t predict_rate_poses = 3;
   // The attainable score × the recorded pattern's own √(S/(S+N)) (its noise as PatternBank
   // measures it for σ), and the target's level at a search frame capped at that attainable score.
-  bool attainable_pattern_noise = true;
+  // Off: on, the explained check passed a wander on --full (procedural lamella jump at 2.5
+  // e-/px, frame 81, 3.4 px off) that it refuses off (README: Known limitations).
+  bool attainable_pattern_noise = false;
   // Sub-pixel / sub-step: one joint quadratic fit in (x, y, φ) over 19 exact scores around
   // the best grid point, on log scores (gaussian) or scores (quadratic).
   std::string subpixel = "gaussian";       // gaussian | quadratic
