@@ -435,8 +435,8 @@ TEST(Tracker, TrackingAgainWithinTwoFramesOfAJump) {
 // maximum from a prediction 6° short); the rate fitted over the last three poses passes 4/3 of
 // that pose's offset (measured 3.5 px). The ROI's centre is the prediction rounded to a pixel.
 TEST(Tracker, OnePoseOffTheLineIsNotDoubledIntoThePrediction) {
-  // The default (the rate over four poses) and, to show the case is one, the two-pose rate main had.
-  for (const int rate : {config::TrackerConfig{}.predict_rate_poses, 2}) {
+  // The rate over three poses and, to show the case is one, the two-pose rate (the default).
+  for (const int rate : {3, 2}) {
     Scenario s;
     s.target = "warped";
     s.motion = "fast";

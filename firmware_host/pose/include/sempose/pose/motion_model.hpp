@@ -21,7 +21,7 @@ class MotionModel {
   // rate_poses: how many of the last poses in a row the velocity is fitted over (2..kMaxRatePoses).
   // With two, the prediction is 2·x_k − x_{k−1}: one pose's error is doubled into the next
   // prediction (a pose 3° off predicts 6° short; the walk from there stopped on a neighbouring
-  // maximum, README Known limitations). With three (tracker.predict_rate_poses' default) the
+  // maximum, README Known limitations). With three (not the default: README, Known limitations) the
   // fitted line's value one frame ahead weighs the poses 4/3, 1/3, −2/3 (newest first; its
   // variance 2.33σ² against 5σ²), with four 1, 0.5, 0, −0.5 (1.5σ²). A longer fit lags a real
   // acceleration longer, so a pose the motion so far does not explain (surprising()) that is
