@@ -231,9 +231,15 @@ int sempose::cli::run(int argc, char** argv) {
   }
   pipeline::Pipeline* pipe = run.pipeline.get();
 
-  std::printf("sempose run: config %s, source %s%s%s, %zu target(s)\n", opt.config.c_str(), cfg.source.c_str(),
-              run.clock->real_time() ? "" : " (virtual time)", run.frame_sync ? " + GPIO frame sync" : "",
-              run.trackers.trackers.size());
+  const hal::ScanLimits& field = run.scan->limits();
+  std::printf("sempose run: config %s, source %s%s%s, %dx%d field, %zu target(s)\n", opt.config.c_str(), cfg.source.c_str(),
+              run.clock->real_time() ? "" : " (virtual time)", run.frame_sync ? " + GPIO frame sync" : "", field.field_w,
+              field.field_h, run.trackers.trackers.size());
+  // A recording's frames set the field: a scan.field_w/h that says otherwise is not used.
+  if (field.field_w != cfg.scan.field_w || field.field_h != cfg.scan.field_h) {
+    std::printf("note: the field is the source's %dx%d, not scan.field_w/h %dx%d\n", field.field_w, field.field_h,
+                cfg.scan.field_w, cfg.scan.field_h);
+  }
   const auto* comedi = dynamic_cast<const hal::ComediScanSource*>(run.source.get());
   if (comedi != nullptr) std::printf("comedi: %s\n", comedi->description().c_str());
   for (std::size_t i = 0; i < run.trackers.names.size(); ++i) {

@@ -508,3 +508,22 @@ TEST(CliFaults, SimDoesNotWriteOverARecording) {
   r = run({"sim", "--out", dir + "/empty", "--frames", "2", "--config", cfg}, 60);
   EXPECT_EQ(r.code, 0) << "an existing empty folder is fine: " << r.err;
 }
+
+// `sempose run` on a recording: the frames set the field, whatever scan.field_w/h says; the
+// start-up line gives the field and a note says when the config's differs (it used to be
+// ignored without a word).
+TEST(CliFaults, RunOnARecordingSaysWhichFieldItUses) {
+  const std::string dir = work_dir() + "/field";
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 3));
+  std::ofstream(dir + "/run.yaml") << "scan: {field_w: 640, field_h: 480}\nsource: replay\nreplay: {frames_dir: " << dir
+                                   << "/rec}\ntargets: [{name: a, pattern_sets: [{file: " << dir
+                                   << "/p.pgm}]}]\noutput: {poses_csv: " << dir << "/poses.csv}\ncan: {log_file: " << dir
+                                   << "/can.log}\npipeline: {lock_memory: false, hold_dma_latency: false, acquisition: "
+                                      "{cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0}, output: {cpu: -1, "
+                                      "priority: 0}, non_rt_cpu: -1}\n";
+  const Outcome r = run({"run", "--config", dir + "/run.yaml", "--duration", "5"}, 60);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("source replay (virtual time), 320x240 field"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("note: the field is the source's 320x240, not scan.field_w/h 640x480"), std::string::npos) << r.out;
+}
