@@ -377,7 +377,9 @@ def check_commands(ctx):
     attr_after = [s for t, s in ctx.decoded.get(ID_ATTR, []) if t > times["reacquire"]][:50]
     reacq = [s for s in attr_after if s["state"] in (1, 2)]
     if not reacq:
-        problems.append(f"no ACQUIRING/LOST pose in the 50 poses after REACQUIRE (states {[s['state'] for s in attr_after[:10]]})")
+        before_acq = [s["state"] for t, s in ctx.decoded.get(ID_ATTR, []) if t < times["reacquire"]]
+        problems.append(f"no ACQUIRING/LOST pose in the 50 poses after REACQUIRE (states {[s['state'] for s in attr_after[:10]]}; "
+                        f"{'no TRACKING pose before it' if 0 not in before_acq else 'last state before it ' + str(before_acq[-1])})")
     else:
         s = reacq[0]
         details.append(f"a following pose is {('TRACKING', 'ACQUIRING', 'LOST')[int(s['state'])]} (reason {int(s['reason'])})")

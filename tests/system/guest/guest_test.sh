@@ -324,6 +324,7 @@ run_sempose() {
   bound_or_gone() { ! alive $SP || can_rx_more_than "$base"; }
   requested_or_gone() { ! alive $SP || line_requested $SYNC_LINE; }
   posing_or_gone() { ! alive $SP || file_has "$OUT/candump.log" ' 101#'; }
+  tracking_or_gone() { ! alive $SP || { read v < $SIM/sim_gpio$VALID_LINE/value && [ "$v" = 1 ]; }; }
   wait_for 60000 bound_or_gone
   if can_rx_more_than "$base"; then check sempose_can_bound PASS "sempose's CAN socket bound on $CAN"
   else check sempose_can_bound FAIL "sempose bound no CAN socket on $CAN$(alive $SP || echo ' (sempose exited)')"; fi
@@ -358,6 +359,13 @@ run_sempose() {
     for t in /proc/$SP/task/*; do echo "$(cat $t/stat)"; done > "$OUT/sempose_threads.txt" 2>/dev/null
     grep -E '^(VmLck|VmRSS|Cpus_allowed_list)' /proc/$SP/status > "$OUT/sempose_status.txt" 2>/dev/null
     send_and_await select "$CMD_SELECT" "$HB_SELECT_ACK"
+    # REACQUIRE is to take a target that is being tracked (an ROI frame in flight: ACQUIRING
+    # with reason 32, pose-valid drops and comes back). Sent while the start search still runs
+    # (every scan full-field; under TCG that can last seconds) it only restarts that search
+    # and its pose is the search's: the check would see no ACQUIRING pose and one rise.
+    if ! wait_for 60000 tracking_or_gone; then
+      say "note: no TRACKING pose (pose-valid low) within 60 s of the select; REACQUIRE sent anyway"
+    fi
     send_and_await reacquire "$CMD_REACQUIRE" "$HB_REACQ_ACK"
     send_and_await malformed "$CMD_MALFORMED" "$HB_BAD_COUNTED"
   else
