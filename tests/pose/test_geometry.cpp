@@ -137,6 +137,44 @@ TEST(Geometry, NoisyLamellaHasNoBiasThatTurnsWithTheTarget) {
   }
 }
 
+// A controller's REACQUIRE whose search runs on a full-field frame (no ROI frame was in flight
+// to report ACQUIRING) still shows in the pose stream: the search's pose carries reason 32 and
+// is UNCERTAIN, the next ROI frame confirms it (TRACKING, no reason). sempose's own re-search
+// (commanded = false) is marked by TrackingStep instead (look_alike) and keeps the search's state.
+TEST(Geometry, CommandedReacquireMarksTheSearchsPose) {
+  config::TrackerConfig cfg;
+  cfg.angle_step_deg = 2;
+  Rig rig(kNeedle, cfg);
+  ASSERT_NE(rig.tracker, nullptr);
+  ASSERT_EQ(rig.run(200.3, 150.6, 20.0, 2).state, TrackState::kTracking);
+  auto frame = [&](double x, double y) {
+    hal::FrameMeta meta;
+    meta.roi = rig.tracker->next_roi();
+    meta.field_w = kFieldW;
+    meta.field_h = kFieldH;
+    meta.bits = 16;
+    rig.scene.render(kNeedle.cx, kNeedle.cy, x, y, 20.0, kFieldW, kFieldH, rig.roi, 0, 5, meta.roi);
+    return rig.tracker->update(pipeline::to_pose_frame(meta, rig.roi.data()));
+  };
+  rig.tracker->request_reacquire();
+  ASSERT_EQ(rig.tracker->next_roi().w, kFieldW);
+  const PoseEstimate searched = frame(230.2, 170.7);  // the target moved while it was lost
+  EXPECT_TRUE(searched.searched);
+  EXPECT_EQ(searched.state, TrackState::kUncertain);
+  EXPECT_NE(searched.reason_bits & kReasonCommanded, 0) << "the command's search says so";
+  EXPECT_LT(std::hypot(searched.x_px - 230.2, searched.y_px - 170.7), 0.5);
+  const PoseEstimate confirmed = frame(230.2, 170.7);
+  EXPECT_FALSE(confirmed.searched);
+  EXPECT_EQ(confirmed.state, TrackState::kTracking);
+  EXPECT_EQ(confirmed.reason_bits, 0);
+
+  rig.tracker->request_reacquire(/*commanded=*/false);
+  const PoseEstimate own = frame(230.2, 170.7);
+  EXPECT_TRUE(own.searched);
+  EXPECT_EQ(own.reason_bits & kReasonCommanded, 0) << "sempose's own search is not the controller's";
+  EXPECT_EQ(own.state, TrackState::kTracking);
+}
+
 // A full-field frame arriving while tracking (scanned before the search's result reached the
 // scan plan) is tracked in its crop at the prediction, not searched again.
 TEST(Geometry, FullFieldFrameWhileTrackingIsNotSearchedAgain) {

@@ -373,16 +373,20 @@ def check_commands(ctx):
         problems.append("no heartbeat with last_command_seq=2 after REACQUIRE")
     else:
         details.append("reacquire -> last_command_seq=2")
-    # a pose in ACQUIRING or LOST (reason 32 = commanded) after the re-acquire
+    # The command's effect in the pose stream: a pose with reason 32 (commanded) that is not
+    # TRACKING — ACQUIRING on the ROI frame in flight, or the search's own pose, UNCERTAIN
+    # until the next frame confirms it, when the search ran on the first frame after it.
     attr_after = [s for t, s in ctx.decoded.get(ID_ATTR, []) if t > times["reacquire"]][:50]
-    reacq = [s for s in attr_after if s["state"] in (1, 2)]
+    reacq = [s for s in attr_after if s["state"] != 0 and int(s["reason"]) & 32]
     if not reacq:
         before_acq = [s["state"] for t, s in ctx.decoded.get(ID_ATTR, []) if t < times["reacquire"]]
-        problems.append(f"no ACQUIRING/LOST pose in the 50 poses after REACQUIRE (states {[s['state'] for s in attr_after[:10]]}; "
+        problems.append("no pose with reason 32 (commanded) in the 50 poses after REACQUIRE (state/reason "
+                        f"{[(int(s['state']), int(s['reason'])) for s in attr_after[:10]]}; "
                         f"{'no TRACKING pose before it' if 0 not in before_acq else 'last state before it ' + str(before_acq[-1])})")
     else:
         s = reacq[0]
-        details.append(f"a following pose is {('TRACKING', 'ACQUIRING', 'LOST')[int(s['state'])]} (reason {int(s['reason'])})")
+        details.append(f"a following pose is {('TRACKING', 'ACQUIRING', 'LOST', 'UNCERTAIN')[int(s['state'])]} "
+                       f"(reason {int(s['reason'])})")
     after_mal = hb_after(times["malformed"])
     if not after_mal or after_mal[-1]["bad_commands"] != 1 or after_mal[-1]["last_command_seq"] != 2:
         problems.append("after the malformed command the heartbeat does not show bad_commands=1 with "

@@ -43,7 +43,7 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
     if (o.est.state == pose::TrackState::kTracking) o.est.state = pose::TrackState::kUncertain;
     o.est.look_alike = true;
     if (++same_place_frames_[o.target] >= kSamePlaceFrames) {
-      trackers_[o.target]->request_reacquire();
+      trackers_[o.target]->request_reacquire(/*commanded=*/false);
       own_reacquire_[o.target] = true;
       same_place_frames_[o.target] = 0;
     }

@@ -398,7 +398,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   const PatternBank& bank = frame_bank(set);
   attainable_factor = set < pattern_factor.size() ? pattern_factor[set] : 1.0;
   const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
+  bool commanded_search = false;
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
+    commanded_search = reacquire_commanded.exchange(false, std::memory_order_relaxed);
     go_lost();
     flip_open = false;
     search_n = 0;
@@ -468,6 +470,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       e.reason_bits = m.valid ? static_cast<std::uint8_t>(loss.weak_reasons(m) | kReasonLowScore)
                               : static_cast<std::uint8_t>(kReasonFlatFrame);
       go_lost();
+    }
+    // The search a controller's command started, run on this full-field frame: its pose says
+    // so (reason 32) and waits for the next frame to confirm it, as one on an ROI frame in
+    // flight is ACQUIRING with reason 32. Without the mark a REACQUIRE whose search found the
+    // target at once left no trace in the pose stream (system test, under slow TCG).
+    if (commanded_search) {
+      e.reason_bits |= kReasonCommanded;
+      if (e.state == TrackState::kTracking) e.state = TrackState::kUncertain;
     }
     return e;
   }
@@ -586,6 +596,7 @@ bool Tracker::select_pattern_set(std::uint8_t set, double nm_per_px) noexcept {
   const bool new_size = std::fabs(t.expected_scale.exchange(expected, std::memory_order_relaxed) - expected) > 1e-3;
   if (t.active.exchange(set, std::memory_order_relaxed) != set || new_size) {
     // A new magnification changes the target's size on screen: find it again.
+    t.reacquire_commanded.store(true, std::memory_order_relaxed);
     t.reacquire.store(true, std::memory_order_relaxed);
   }
   return true;
@@ -600,7 +611,11 @@ float Tracker::noise_floor_field(std::size_t set) const noexcept {
 }
 std::uint8_t Tracker::pattern_set() const noexcept { return impl_->active.load(std::memory_order_relaxed); }
 double Tracker::nm_per_px() const noexcept { return impl_->nm_per_px[impl_->active.load(std::memory_order_relaxed)]; }
-void Tracker::request_reacquire() noexcept { impl_->reacquire.store(true, std::memory_order_relaxed); }
+void Tracker::request_reacquire(bool commanded) noexcept {
+  // Sticky: a command and sempose's own request before the same frame still mark it.
+  if (commanded) impl_->reacquire_commanded.store(true, std::memory_order_relaxed);
+  impl_->reacquire.store(true, std::memory_order_relaxed);
+}
 
 std::size_t Tracker::memory_bytes() const noexcept {
   const Impl& t = *impl_;

@@ -99,6 +99,8 @@ struct Tracker::Impl {
   static constexpr double kRescaleFrom = RoiRescaler::kMinChange;
   config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
   std::atomic<bool> reacquire{false};
+  // The pending re-acquisition was commanded (REACQUIRE, SELECT): its search's pose is marked.
+  std::atomic<bool> reacquire_commanded{false};
   std::atomic<std::uint8_t> active{0};
 
   // Learned appearance (only when tracker.appearance.enabled): the observer fills batches on

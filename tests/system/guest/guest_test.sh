@@ -359,10 +359,10 @@ run_sempose() {
     for t in /proc/$SP/task/*; do echo "$(cat $t/stat)"; done > "$OUT/sempose_threads.txt" 2>/dev/null
     grep -E '^(VmLck|VmRSS|Cpus_allowed_list)' /proc/$SP/status > "$OUT/sempose_status.txt" 2>/dev/null
     send_and_await select "$CMD_SELECT" "$HB_SELECT_ACK"
-    # REACQUIRE is to take a target that is being tracked (an ROI frame in flight: ACQUIRING
-    # with reason 32, pose-valid drops and comes back). Sent while the start search still runs
-    # (every scan full-field; under TCG that can last seconds) it only restarts that search
-    # and its pose is the search's: the check would see no ACQUIRING pose and one rise.
+    # REACQUIRE is to take a target that is being tracked: a pose with reason 32 follows (the
+    # ROI frame in flight ACQUIRING, or the search's pose UNCERTAIN), pose-valid drops and comes
+    # back. Sent while the start search still runs (every scan full-field; under TCG that can
+    # last seconds), pose-valid would never have been high before it: one rise only.
     if ! wait_for 60000 tracking_or_gone; then
       say "note: no TRACKING pose (pose-valid low) within 60 s of the select; REACQUIRE sent anyway"
     fi

@@ -90,7 +90,11 @@ class Tracker {
   float noise_floor_field(std::size_t set) const noexcept;
   std::uint8_t pattern_set() const noexcept;
   double nm_per_px() const noexcept;
-  void request_reacquire() noexcept;
+  // Forget the target and search the field again. `commanded` (a controller's REACQUIRE, a
+  // SELECT of a new look): the first pose the search gives carries reason 32 and is at most
+  // UNCERTAIN, so the pose stream shows the command took effect whatever frame ran it;
+  // sempose's own re-search (look-alike, TrackingStep) passes false and marks it itself.
+  void request_reacquire(bool commanded = true) noexcept;
   // Learned appearance (tracker.appearance; README: Learned appearance). Not RT: folds a batch
   // of good frames the RT side completed into the model, checks it against the recorded
   // pattern and, when it passes, builds the bank with the learned support and swaps it in
