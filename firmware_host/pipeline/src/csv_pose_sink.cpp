@@ -1,5 +1,8 @@
 #include "sempose/pipeline/csv_pose_sink.hpp"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
@@ -35,10 +38,13 @@ rt::Status CsvPoseSink::open() {
   if (file_ == nullptr) {
     return rt::Status::failure("output.poses_csv: cannot create '" + path_ + "': " + std::strerror(errno));
   }
-  if (std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale\n", with_target_ ? ",target" : "") < 0 ||
-      std::fflush(file_) != 0) {
-    note_error(errno, 0);
-  }
+  // A regular file can be cut back to its last whole line after a failed write (below); a
+  // pipe or terminal cannot and need not (a pipe takes a line whole or fails with EPIPE).
+  struct stat st{};
+  regular_file_ = ::fstat(::fileno(file_), &st) == 0 && S_ISREG(st.st_mode);
+  good_offset_ = regular_file_ ? std::ftell(file_) : 0;
+  header_written_ = false;
+  write_pending();  // the header, now: a full disk shows at once
   return rt::Status::success();
 }
 
@@ -53,6 +59,21 @@ PublishResult CsvPoseSink::publish(const PoseRecord& pose, std::int64_t t_now_ns
 
 void CsvPoseSink::write_pending() {
   if (file_ == nullptr) return;
+  // Poses the RT side could not keep (ring full: this thread fell behind) are lost lines
+  // too: counted in dropped() and reported as a write error, never silently missing.
+  const std::uint64_t dropped_now = dropped();
+  if (dropped_now != dropped_seen_) {
+    ++write_errors_;
+    last_errno_ = ENOBUFS;
+    dropped_seen_ = dropped_now;
+  }
+  // The header goes out with the first round that can be written (a disk full at open
+  // must not leave a file of pose lines without one).
+  const bool header = !header_written_;
+  if (header) {
+    std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale\n",
+                 with_target_ ? ",target" : "");
+  }
   std::uint64_t lines = 0;
   for (auto batch = ring_.readable(); !batch.empty(); batch = ring_.readable()) {
     for (const PoseRecord& p : batch) {
@@ -71,12 +92,26 @@ void CsvPoseSink::write_pending() {
   }
   // A full disk or an I/O error is found at the flush: the lines of this round are counted
   // as lost (stdio discards what it could not write), the error is kept for the summary.
+  // The kernel may have taken part of the round (up to the last free block, mid-line): the
+  // file is cut back to its last whole line, so once space returns the next lines do not
+  // follow a torn one (measured on a full tmpfs: a 4 KiB-aligned half line glued to the
+  // next round's first line).
   if (std::fflush(file_) != 0 || std::ferror(file_)) {
     note_error(errno, lines);
     std::clearerr(file_);
-  } else {
-    written_ += lines;
+    if (regular_file_ && ::ftruncate(::fileno(file_), good_offset_) == 0) std::fseek(file_, good_offset_, SEEK_SET);
+    return;
   }
+  // Lines written into a file that was deleted meanwhile reach nobody: lost, and said so.
+  struct stat st{};
+  if (regular_file_ && ::fstat(::fileno(file_), &st) == 0 && st.st_nlink == 0) {
+    if (lines > 0 || header || !deleted_noted_) note_error(ENOENT, lines);
+    deleted_noted_ = true;
+    return;
+  }
+  header_written_ = true;
+  written_ += lines;
+  if (regular_file_) good_offset_ = std::ftell(file_);
 }
 
 }  // namespace sempose::pipeline

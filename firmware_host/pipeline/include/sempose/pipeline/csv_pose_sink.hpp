@@ -32,8 +32,10 @@ class CsvPoseSink final : public PoseSink {
   bool close();
 
   std::uint64_t written() const noexcept { return written_; }
-  // Failed writes (a full disk, an I/O error): how often, how many pose lines were lost,
-  // and the last errno (0: none).
+  // Failed writes (a full disk, an I/O error, the file deleted while open: ENOENT, poses the
+  // writer fell too far behind to keep: ENOBUFS, counted in dropped()): how often, how many
+  // pose lines were lost in writing (lost_lines() + dropped() is every missing line), and the
+  // last errno (0: none).
   std::uint64_t write_errors() const noexcept { return write_errors_; }
   std::uint64_t lost_lines() const noexcept { return lost_lines_; }
   int last_errno() const noexcept { return last_errno_; }
@@ -49,6 +51,11 @@ class CsvPoseSink final : public PoseSink {
   std::uint64_t write_errors_ = 0;
   std::uint64_t lost_lines_ = 0;
   int last_errno_ = 0;
+  std::uint64_t dropped_seen_ = 0;  // dropped() already reported as a write error
+  bool regular_file_ = false;       // can be cut back to good_offset_ after a failed write
+  long good_offset_ = 0;            // end of the last whole line written
+  bool header_written_ = false;
+  bool deleted_noted_ = false;      // the file was unlinked while open (noted once when idle)
   void note_error(int err, std::uint64_t lines);
 };
 
