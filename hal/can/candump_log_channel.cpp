@@ -2,6 +2,7 @@
 #include "sempose/hal/can_candump_log.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -118,6 +119,7 @@ CanSendResult CandumpLogChannel::send(const CanFrame& f, std::int64_t t_ns) noex
 void CandumpLogChannel::flush() {
   std::lock_guard<std::mutex> lock(flush_mutex_);
   if (file_ < 0) return;
+  std::uint64_t flushed = 0;
   for (auto pending = ring_.readable(); !pending.empty(); pending = ring_.readable()) {
     const ssize_t w = ::write(file_, pending.data(), pending.size());
     if (w < 0) {
@@ -131,6 +133,15 @@ void CandumpLogChannel::flush() {
     }
     ring_.consume(static_cast<std::size_t>(w));
     written_.fetch_add(static_cast<std::uint64_t>(w), std::memory_order_relaxed);
+    flushed += static_cast<std::uint64_t>(w);
+  }
+  // Written into a file that was deleted meanwhile (an operator cleaning the log folder):
+  // the bytes reach nobody. Counted as lost and as a write error, not taken as written.
+  struct stat st{};
+  if (flushed > 0 && ::fstat(file_, &st) == 0 && st.st_nlink == 0) {
+    write_errors_.fetch_add(1, std::memory_order_relaxed);
+    last_errno_.store(ENOENT, std::memory_order_relaxed);
+    lost_.fetch_add(flushed, std::memory_order_relaxed);
   }
 }
 

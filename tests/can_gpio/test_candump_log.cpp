@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -112,6 +113,27 @@ TEST(CandumpLog, FullRingDropsAndCountsInsteadOfBlocking) {
   const std::string text = read_all(path);
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), sent + 1);
   std::remove(path.c_str());
+}
+
+// The log deleted mid-run (an operator cleaning the output folder): what is written after
+// that reaches nobody and must be a reported loss, not taken as written.
+TEST(CandumpLog, WritingIntoADeletedLogIsAWriteErrorAndCountedLost) {
+  const auto path = temp_path("deleted");
+  sempose::rt::Status st;
+  auto ch = hal::CandumpLogChannel::open({path, "can0", 4096, false, false}, st);
+  ASSERT_TRUE(ch) << st.message;
+  const auto f = frame(0x100, {1, 2, 3, 4, 5, 6, 7, 8});
+  ASSERT_EQ(ch->send(f, 0), hal::CanSendResult::kSent);
+  ch->flush();
+  ASSERT_EQ(ch->write_errors(), 0u);
+  ASSERT_EQ(std::remove(path.c_str()), 0);
+  for (int i = 0; i < 3; ++i) ASSERT_EQ(ch->send(f, 0), hal::CanSendResult::kSent);
+  ch->flush();
+  EXPECT_EQ(ch->write_errors(), 1u);
+  EXPECT_EQ(ch->last_errno(), ENOENT);
+  EXPECT_EQ(ch->bytes_lost_to_deleted_file(), 3u * line(f, 0).size());
+  ch->flush();
+  EXPECT_EQ(ch->write_errors(), 1u) << "nothing new written: no new error";
 }
 
 TEST(CandumpLog, OpenFailureNamesThePath) {

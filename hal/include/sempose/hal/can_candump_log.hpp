@@ -50,6 +50,8 @@ class CandumpLogChannel final : public CanChannel {
   std::uint64_t write_errors() const noexcept { return write_errors_.load(std::memory_order_relaxed); }
   int last_errno() const noexcept { return last_errno_.load(std::memory_order_relaxed); }
   std::uint64_t bytes_pending() const noexcept { return ring_.pending(); }
+  // Bytes written into the file after it was deleted (ENOENT in last_errno()): lost too.
+  std::uint64_t bytes_lost_to_deleted_file() const noexcept { return lost_.load(std::memory_order_relaxed); }
 
  private:
   CandumpLogChannel() = default;
@@ -63,6 +65,7 @@ class CandumpLogChannel final : public CanChannel {
   std::atomic<std::uint64_t> written_{0};
   std::atomic<std::uint64_t> write_errors_{0};
   std::atomic<int> last_errno_{0};
+  std::atomic<std::uint64_t> lost_{0};
   std::mutex flush_mutex_;  // non-RT side only: two non-RT callers of flush() never interleave
 };
 
