@@ -1,5 +1,7 @@
 #include "sempose/session/run_setup.hpp"
 
+#include <signal.h>
+
 #include <exception>
 #include <filesystem>
 
@@ -38,6 +40,13 @@ config::AppConfig replay_config(const config::AppConfig& cfg, const std::string&
 }
 
 rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, RunSetup& out) {
+  // A closed standard output (`sempose run … | head -1`, a reader that went away) must not
+  // kill the controller with SIGPIPE (measured: killed by signal 13 at the first status
+  // flush; CSV and candump log cut, no summary, CAN output gone): writes to it fail with
+  // EPIPE instead, which the CSV writer counts when it writes to "-". systemd services
+  // ignore SIGPIPE by default (IgnoreSIGPIPE=yes): the same behaviour from a shell.
+  // (`sempose replay` does not call this and keeps SIGPIPE: a filter ends with its reader.)
+  ::signal(SIGPIPE, SIG_IGN);
   // Output files may name folders that do not exist yet (out/demo/...): made now, after every
   // check and the input setup, so a refused run leaves nothing behind.
   const std::string can_log = can_log_override.empty() && cfg.can.interface.empty() ? cfg.can.log_file : can_log_override;

@@ -2,7 +2,8 @@
 // a bad input between them leaves no output file behind:
 //   build_inputs   scan source (+ GPIO frame sync), trackers, stage clock — reads files only;
 //   build_outputs  output folders, CAN channel and sink, GPIO outputs, CSV sink, the sink
-//                  chain (GPIO ← tee(CAN, CSV)) and the pipeline — creates the outputs.
+//                  chain (GPIO ← tee(CAN, CSV)) and the pipeline — creates the outputs, and
+//                  ignores SIGPIPE (a closed stdout is an EPIPE, not the end of the run).
 // Allocates; never on an RT thread. Errors name the section and the problem.
 #pragma once
 
