@@ -364,6 +364,10 @@ int main(int argc, char** argv) {
   double sigma_cal = -1;      // --sigma-calibration K: tracker.sigma_calibration (< 0: the default)
   bool decompose = false;  // --decompose: per row, sempose's bias and noise parts and the two oracles (slow)
   bool quick = true, bias_only = false, visp = true, only = false, require_no_false = false, scale_bias_only = false;
+  // --clutter: instead of the accuracy rows, the static-clutter rows (README, Known limitations:
+  // look-alike background): the needle tip recorded over a procedural background of contrast C
+  // at brightness B, still while the start search scans, then stepping (8, 6) px and back.
+  bool clutter = false;
   double only_dose = 0;            // --dose D: the rows at that dose only (dose 1 with --quick too)
   double require_low_dose_tracked = -1;  // --require-low-dose-tracked T
   double require_low_dose = -1;    // --require-low-dose-false F: exit 3 when > F of the poses below 2.5 e-/px are false
@@ -372,6 +376,7 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--full") quick = false;
+    else if (a == "--clutter") clutter = true;
     else if (a == "--quick") quick = true;
     else if (a == "--bias") bias_only = true;
     else if (a == "--scale-bias") scale_bias_only = true;
@@ -413,7 +418,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off]\n", argv[0]);
       return 2;
     }
   }
@@ -493,6 +498,7 @@ int main(int argc, char** argv) {
     bool charging = false, jaws = false;
     bool scaled_start = false;  // at scale_to from the first frame (no SELECT: the start search finds it)
     double tau_ns = 0;  // the detector's line low-pass alone (bandwidth rows)
+    double bg_contrast = -1, brightness = -1;  // --clutter rows: background contrast, target brightness
   };
   std::vector<Row> plan;
   const std::vector<double> doses = only_dose > 0 ? std::vector<double>{only_dose}
@@ -523,6 +529,19 @@ int main(int argc, char** argv) {
   // The detector's bandwidth at its longest (τ = 1 px: lag-1 correlation 0.37 along the line), on
   // a real micrograph's target and the procedural one, at the lowest dose where the rule holds.
   for (const char* target : {"lamella_post", "lamella"}) plan.push_back({target, "smooth", "bandwidth", 2.5, 1.0, false, false, false, 250});
+  if (clutter) {
+    plan.clear();
+    const double cb[][2] = {{0.12, 1.0}, {0.3, 1.0}, {0.3, 0.5}, {0.3, 0.3}, {0.5, 0.5}, {0.5, 0.3}};
+    for (const auto& c : cb)
+      for (double dose : only_dose > 0 ? std::vector<double>{only_dose} : std::vector<double>{20.0, 6.0}) {
+        char label[32];
+        std::snprintf(label, sizeof label, "c%.2gb%.2g", c[0], c[1]);
+        Row r{"needle_tip", "step", label, dose};
+        r.bg_contrast = c[0];
+        r.brightness = c[1];
+        plan.push_back(r);
+      }
+  }
 
   for (const Row& row : plan) {
     if (bias_only) break;
@@ -538,6 +557,16 @@ int main(int argc, char** argv) {
     s.charging_defocus = row.charging;
     s.jaws = row.jaws;
     s.detector_tau_ns = row.tau_ns;
+    if (row.bg_contrast > 0) {
+      // Still at the recording pose (the field's centre, 0°) while the start search scans the
+      // field (77.8 ms), then 10 px away and back every 78 ms (the sim's one-step staircase).
+      s.start_phi_deg = 0;
+      s.background_contrast = row.bg_contrast;
+      s.target_brightness = row.brightness;
+      s.step_x_px = 8;
+      s.step_y_px = 6;
+      s.step_period_s = 0.078;
+    }
     SimHarness h(s, tc);
     if (!h.status().ok) {
       std::printf("tracker setup failed: %s\n", h.status().message.c_str());

@@ -43,6 +43,13 @@ struct Scenario {
   std::string target = "lamella_post";
   bool drift = true;  // the simulator's slow image drift and beam lag
   bool background = true;  // false: a flat background (no static clutter under the pattern)
+  // > 0: the procedural background's granular contrast (the simulator's default otherwise):
+  // static clutter that fills the recorded pattern as much as the target does, or more.
+  double background_contrast = -1;
+  double target_brightness = -1;  // > 0: the target's brightness (its texture's default otherwise)
+  // motion "step": still while the start search scans the field, then steps by (step_x_px,
+  // step_y_px) every step_period_s (the sim's staircase, one step up, one down).
+  double step_x_px = 0, step_y_px = 0, step_period_s = 0.1;
   bool shape_mask = false;  // give the tracker the target's shape mask with its pattern (opt-in, see README)
   int pattern_frames = 10;  // frames averaged into the recorded pattern (its own noise: 1/√ of a frame's)
   // Effects (issue 13's hard cases), all off by default:
@@ -86,6 +93,7 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
   c.beam_current_pa = s.dose_e / (6.24 * (s.dwell_ns * 1e-3) * c.yield);
   c.background.path = "";
   if (!s.background) c.background.contrast = 0;
+  else if (s.background_contrast > 0) c.background.contrast = s.background_contrast;
   if (!s.drift) {
     c.drift.clear();
     c.beam_lag_px = 0;
@@ -125,6 +133,7 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
   } else {
     t.texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
   }
+  if (s.target_brightness > 0) t.brightness = s.target_brightness;
   t.x_px = s.start_x_px;
   t.y_px = s.start_y_px;
   t.phi_deg = s.start_phi_deg;
@@ -146,6 +155,12 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
   } else if (s.motion == "spin") {
     tr.kind = "spin";  // ≈ 4.5° per 192² frame: faster than the paper could follow
     tr.omega_deg_s = 450;
+  } else if (s.motion == "step") {
+    tr.kind = "steps";
+    tr.steps = 1;
+    tr.period_s = s.step_period_s;
+    tr.amplitude_x_px = s.step_x_px;
+    tr.amplitude_y_px = s.step_y_px;
   } else if (s.motion == "jump") {
     tr.kind = "jumps";
     tr.period_s = 0.5;
