@@ -362,3 +362,42 @@ TEST(NoFalseTracking, SpinPastTheRecordedOrientationIsFollowed) {
   EXPECT_EQ(c.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (1 before, frame 148: 11.6 deg behind)";
   EXPECT_GE(c.tracked, s.frames - 10) << "the spin is followed, not rejected (143/150 before)";
 }
+
+// A pattern filled with static clutter (README, Known limitations: look-alike background;
+// heldout_end_to_end's needle recorded over a hole lattice): the needle tip at brightness 0.3
+// recorded over a procedural background of contrast 0.3, still while the start search scans the
+// field, then 10 px away. The clutter, which did not move, holds the first ROI frame's pose
+// where the search found it (9 px off, σ ~0.3 px, score 0.71 after the search's 0.94): its own σ
+// is all that judges it there (the stream's noise is not known yet), and it was TRACKING. Its
+// score fell below the search's level by more than the target's confirmed margin and the
+// detector's noise: UNCERTAIN. (The frames after it, once the stream's noise is known from the
+// still pose, are still TRACKING at the clutter's place: what is not solved, Known limitations.)
+TEST(NoFalseTracking, FirstRoiFrameWhoseScoreFellFromTheSearchIsNotTrusted) {
+  pt::Scenario s;
+  s.target = "needle_tip";
+  s.motion = "step";
+  s.step_x_px = 8;
+  s.step_y_px = 6;
+  s.step_period_s = 0.078;  // after the search's field scan (77.8 ms), before the first ROI frame
+  s.background_contrast = 0.3;
+  s.target_brightness = 0.3;
+  s.dose_e = 20;
+  s.frames = 3;
+  s.start_phi_deg = 0;  // the pattern's recording pose
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  const auto& e0 = h.poses()[0];
+  const auto& e1 = h.poses()[1];
+  const auto& t0 = h.records()[0].truth;
+  const auto& t1 = h.records()[1].truth;
+  const double err0 = std::hypot(e0.x_px - t0.x_px, e0.y_px - t0.y_px), err1 = std::hypot(e1.x_px - t1.x_px, e1.y_px - t1.y_px);
+  std::printf("clutter step: search frame %s %.3f %.1f px; first ROI frame %s %.3f %.1f px (sigma %.2f px)\n",
+              sempose::pose::to_string(e0.state), e0.score, err0, sempose::pose::to_string(e1.state), e1.score, err1,
+              std::max(e1.sigma_x_px, e1.sigma_y_px));
+  ASSERT_TRUE(e0.searched);
+  EXPECT_LE(err0, 3.0) << "the target is still while the field is scanned";
+  ASSERT_FALSE(e1.searched);
+  EXPECT_GT(err1, 3.0) << "the case must hold the pose on the clutter, or it tests nothing";
+  EXPECT_NE(e1.state, TrackState::kTracking) << "TRACKING " << err1 << " px off on its own sigma (it was before)";
+}

@@ -216,6 +216,25 @@ bool Tracker::Impl::trusted_pose(const PoseEstimate& e, const Innovation& innov)
   return loss.trusted(s_px, s_deg);
 }
 
+// Before the stream's own pose noise is known (a first start: the search frame and the three
+// ROI frames after it; not after a loss of the same target, whose noise is carried) a pose
+// scoring at or above the explained bound is judged by its own σ alone, and σ (the fit's
+// curvature) cannot see a pose held in place by a part of the pattern that did not move with the
+// target. heldout_end_to_end's pattern recorded over a hole lattice: the search frame scored
+// 0.86-0.90 at the recording spot, the first ROI frame 0.71-0.72 still there while the needle
+// had moved 11 px on, TRACKING on σ 0.36-0.40 px: its score had fallen by 0.6-1.0 of the
+// room a ZNCC of that level has, 1 - s². A score that is not confirmed (below the level since
+// the search by more than max(3 SD of the scores, 0.1 of that room): the motion check's test of
+// whether a score vouches for a pose) and lies below it by more than the detector's noise
+// explains (significance_z() SDs of a difference of two scores, flip_sd: the below-level
+// test the motion check makes once the motion is known) says the pattern no longer explains
+// the frame as it did: UNCERTAIN (followed, so the stream's noise is learnt as before). On
+// the `--quick` rows the first three ROI frames of a first start fell by at most 0.085 of it.
+bool Tracker::Impl::fell_below_search_level(float score) const noexcept {
+  if (!(cfg.max_false_probability > 0) || loss.calibrating() || motion.pose_noise_known()) return false;
+  const double level = loss.recent_level();
+  return level > 0 && !loss.confirmed(score) && score < level - significance_z() * flip_sd(level);
+}
 
 double Tracker::Impl::significance_z() const noexcept {
   const double p = std::clamp(cfg.max_false_probability, 1e-12, 0.5);
@@ -540,11 +559,12 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       Innovation innov;
       if (!flipped && motion.prediction_from_roi_poses())
         innov = {true, motion.innovation_px(e.x_px, e.y_px), motion.innovation_deg(e.phi_deg)};
+      const bool fell = fell_below_search_level(m.score);  // against the level before this frame
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
-      if (flip_open || rival_within_noise || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
+      if (flip_open || rival_within_noise || fell || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
       // A good frame teaches the appearance model (RT: sums into a preallocated batch). It reads
       // the pixels the walk was scored on (the ROI resampled to the pattern's size if rescaled).
       if (learning && e.reason_bits == 0 && e.state == TrackState::kTracking && m.score >= cfg.appearance.min_score) {

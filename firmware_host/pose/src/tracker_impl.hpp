@@ -208,6 +208,9 @@ struct Tracker::Impl {
     double d_px = 0, d_deg = 0;
   };
   bool trusted_pose(const PoseEstimate& e, const Innovation& innov) const noexcept;
+  // A first start's pose before the stream's noise is known scoring below the level the search
+  // set by more than the detector noise explains: not trusted on its own σ (tracker.cpp).
+  bool fell_below_search_level(float score) const noexcept;
   // The motion check's sweep found a second hypothesis more than the false-pose rule's 3 px /
   // 10° from the pose kept whose score is within the noise of the kept one's (the two differ
   // by less than significance_z() SDs of a difference of two independent scores, flip_sd):
