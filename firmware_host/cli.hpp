@@ -1,11 +1,12 @@
 // The `sempose` subcommands. Each returns the process exit code; argv[0] is the subcommand.
 #pragma once
 
-#include <algorithm>
 #include <cstdio>
-#include <initializer_list>
+#include <filesystem>
 #include <string>
-#include <string_view>
+#include <system_error>
+#include <utility>
+#include <vector>
 
 namespace sempose::config {
 struct AppConfig;
@@ -32,24 +33,35 @@ inline bool refuse_stdout_output(const char* command, const std::string& value, 
   return true;
 }
 
-// An option given twice (`--frames 3 ... --frames 4`) is ambiguous: the later one used to win
-// silently, so an operator's edited command line could run with a value they meant to replace
-// or keep. Every option but the listed repeatable ones (replay's and view's --pattern, --mask)
-// is refused by name when it appears again, before anything is read or written.
-inline bool refuse_repeated_options(const char* command, int argc, char** argv,
-                                    std::initializer_list<std::string_view> repeatable = {}) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view a = argv[i];
-    if (a.size() < 3 || a.substr(0, 2) != "--") continue;
-    if (std::find(repeatable.begin(), repeatable.end(), a) != repeatable.end()) continue;
-    for (int j = 1; j < i; ++j) {
-      if (a == argv[j]) {
-        std::fprintf(stderr, "sempose %s: option %s is given twice; give it once\n", command, argv[i]);
-        return true;
-      }
+// An output that names one of the command's own inputs destroys it (found probing: `replay
+// --out P.pgm` wrote its CSV over its own pattern, `--out REC/frames.csv` over the recording's
+// time stamps, `run --can-log CONFIG` the CAN log over the config; each exited 0). `inputs` are
+// (what, path) pairs; the files of a recording are added with add_recording(). Returns a
+// message naming the output and the input, or "" when the output is none of them.
+struct NamedPath {
+  std::string what;  // "--pattern", "targets[0].pattern_sets[0].file", "frame of --frames"
+  std::string path;
+};
+
+inline void add_recording(std::vector<NamedPath>& inputs, const std::string& what, const std::string& dir) {
+  if (dir.empty()) return;
+  std::error_code ec;
+  inputs.push_back({"the time stamps of " + what, dir + "/frames.csv"});
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    if (it->path().extension() == ".pgm") inputs.push_back({"a frame of " + what, it->path().string()});
+  }
+}
+
+inline std::string output_overwrites_input(const std::string& what, const std::string& out,
+                                           const std::vector<NamedPath>& inputs) {
+  if (out.empty() || out == "-") return "";
+  for (const auto& in : inputs) {
+    std::error_code ec;
+    if (!in.path.empty() && std::filesystem::equivalent(out, in.path, ec) && !ec) {
+      return what + " '" + out + "' is " + in.what + " ('" + in.path + "'): writing it would destroy that input";
     }
   }
-  return false;
+  return "";
 }
 
 }  // namespace sempose::cli

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "cli.hpp"
+#include "cli_options.hpp"
 #include "sempose/check_rt/checks.hpp"
 #include "sempose/config/app_config.hpp"
 
@@ -41,18 +42,9 @@ int sempose::cli::print_rt_checks(const config::AppConfig& cfg, const std::strin
 }
 
 int sempose::cli::check_rt(int argc, char** argv) {
-  if (refuse_repeated_options("check-rt", argc, argv)) return 2;
-  std::string config_path, root = "/";
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--help" || a == "-h") return usage(stdout);
-    if ((a == "--config" || a == "--root") && i + 1 < argc) {
-      (a == "--config" ? config_path : root) = argv[++i];
-    } else {
-      std::fprintf(stderr, "sempose check-rt: unknown or incomplete option '%s'\n", a.c_str());
-      return usage(stderr);
-    }
-  }
+  const ParsedOptions opt = parse_options({text("--config"), text("--root")}, argc, argv);
+  if (const int code = finish_parse("check-rt", opt, usage); code >= 0) return code;
+  const std::string config_path = opt.text("--config"), root = opt.text("--root", "/");
   std::error_code ec;
   if (!std::filesystem::is_directory(root, ec)) {
     std::fprintf(stderr, "sempose check-rt: --root '%s' is not a directory (a system tree with proc/, sys/, dev/)\n",

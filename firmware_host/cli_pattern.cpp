@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_options.hpp"
 #include "pattern_stillness.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
@@ -26,59 +27,21 @@ int usage(std::FILE* out) {
   return out == stdout ? 0 : 2;
 }
 
-bool parse_int(const std::string& s, long& v, long lo, long hi) {
-  char* end = nullptr;
-  v = std::strtol(s.c_str(), &end, 10);
-  return !s.empty() && *end == '\0' && v >= lo && v <= hi;
-}
-
 }  // namespace
 
 int sempose::cli::pattern(int argc, char** argv) {
-  if (refuse_repeated_options("pattern", argc, argv)) return 2;
-  std::string dir, out, center;
-  long size = 128, average = 10;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--help" || a == "-h") return usage(stdout);
-    if (i + 1 >= argc) {
-      std::fprintf(stderr, "sempose pattern: %s needs a value\n", a.c_str());
-      return usage(stderr);
-    }
-    const std::string v = argv[++i];
-    if (a == "--frames") dir = v;
-    else if (a == "--out") out = v;
-    else if (a == "--center") center = v;
-    else if (a == "--size") {
-      if (!parse_int(v, size, 4, 4096)) {
-        std::fprintf(stderr, "sempose pattern: --size '%s' is not a whole number in [4, 4096]\n", v.c_str());
-        return 2;
-      }
-    } else if (a == "--average") {
-      if (!parse_int(v, average, 1, 100000)) {
-        std::fprintf(stderr, "sempose pattern: --average '%s' is not a whole number in [1, 100000]\n", v.c_str());
-        return 2;
-      }
-    } else {
-      std::fprintf(stderr, "sempose pattern: unknown option '%s'\n", a.c_str());
-      return usage(stderr);
-    }
-  }
-  if (dir.empty() || out.empty() || center.empty()) {
-    std::fprintf(stderr, "sempose pattern: --frames, --center and --out are required\n");
-    return usage(stderr);
-  }
+  const ParsedOptions opt = parse_options({text("--frames", true), text("--center", true), text("--out", true),
+                                           whole("--size", 4, 4096), whole("--average", 1, 100000)},
+                                          argc, argv);
+  if (const int code = finish_parse("pattern", opt, usage); code >= 0) return code;
+  const std::string dir = opt.text("--frames"), out = opt.text("--out"), center = opt.text("--center");
+  const long size = static_cast<long>(opt.whole("--size", 128)), average = static_cast<long>(opt.whole("--average", 10));
   if (cli::refuse_stdout_output("pattern", out, "the pattern's PGM file")) return 2;
   double cx = 0, cy = 0;
   {
     const auto comma = center.find(',');
-    char* e1 = nullptr;
-    char* e2 = nullptr;
     const std::string xs = center.substr(0, comma), ys = comma == std::string::npos ? "" : center.substr(comma + 1);
-    cx = std::strtod(xs.c_str(), &e1);
-    cy = std::strtod(ys.c_str(), &e2);
-    if (comma == std::string::npos || xs.empty() || ys.empty() || *e1 != '\0' || *e2 != '\0' || !std::isfinite(cx) ||
-        !std::isfinite(cy)) {
+    if (comma == std::string::npos || !parse_real(xs, cx) || !parse_real(ys, cy)) {
       std::fprintf(stderr, "sempose pattern: --center '%s' is not X,Y (pixels, e.g. 512,384)\n", center.c_str());
       return 2;
     }

@@ -22,7 +22,9 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_options.hpp"
 #include "sempose/config/app_config.hpp"
+#include "sempose/config/reader.hpp"
 #include "sempose/config/target_name.hpp"
 #include "sempose/hal/frames_csv.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
@@ -93,36 +95,32 @@ double percentile(std::vector<double> v, double q) {
 }
 
 int run_replay(int argc, char** argv) {
-  std::string frames_dir, config_path, truth_path, out_path;
+  using cli::OptionValue, cli::ParsedOptions, cli::parse_options, cli::text;
+  const ParsedOptions opt = parse_options({text("--frames", true), text("--config"), text("--truth"), text("--out", true),
+                                           text("--pattern", false, true), text("--mask", false, true)},
+                                          argc, argv);
+  if (const int code = cli::finish_parse("replay", opt, usage); code >= 0) return code;
+  const std::string frames_dir = opt.text("--frames"), config_path = opt.text("--config"), truth_path = opt.text("--truth"),
+                    out_path = opt.text("--out");
   std::vector<std::string> patterns, masks;  // masks[i]: --mask after pattern i ("" = none)
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&](std::string& dst) {
-      if (i + 1 >= argc) throw std::runtime_error(a + " needs a value");
-      dst = argv[++i];
-    };
-    if (a == "--help" || a == "-h") return usage(stdout);
-    if (a == "--frames") value(frames_dir);
-    else if (a == "--config") value(config_path);
-    else if (a == "--truth") value(truth_path);
-    else if (a == "--out") value(out_path);
-    else if (a == "--pattern") {
-      std::string p;
-      value(p);
-      patterns.push_back(p);
+  for (const OptionValue& v : opt.given) {
+    if (v.name == "--pattern") {
+      patterns.push_back(v.text);
       masks.emplace_back();
-    } else if (a == "--mask") {
+    } else if (v.name == "--mask") {
       if (patterns.empty()) {
         std::fprintf(stderr, "sempose replay: --mask must follow the --pattern it belongs to\n");
         return usage(stderr);
       }
-      value(masks.back());
-    } else {
-      std::fprintf(stderr, "sempose replay: unknown option '%s'\n", a.c_str());
-      return usage(stderr);
+      // A second --mask for one pattern used to replace the first without a word.
+      if (!masks.back().empty()) {
+        std::fprintf(stderr, "sempose replay: --mask '%s' and '%s' both follow --pattern '%s': one mask per pattern\n",
+                     masks.back().c_str(), v.text.c_str(), patterns.back().c_str());
+        return 2;
+      }
+      masks.back() = v.text;
     }
   }
-  if (frames_dir.empty() || out_path.empty()) return usage(stderr);
 
   config::AppConfig app;
   app.path = "command line";  // names where the targets came from in errors when there is no --config
@@ -152,6 +150,40 @@ int run_replay(int argc, char** argv) {
   if (app.targets.size() > static_cast<std::size_t>(hal::kMaxTargets)) {
     std::fprintf(stderr, "sempose replay: %zu targets, at most %d\n", app.targets.size(), hal::kMaxTargets);
     return 2;
+  }
+  // A FIFO as --out or --truth blocked in open() (found probing: the process hung); a
+  // directory as --truth was read as a truth of no rows (exit 0, nothing compared).
+  if (const std::string why = config::output_path_problem(out_path); out_path != "-" && !why.empty()) {
+    std::fprintf(stderr, "sempose replay: --out: '%s' cannot be written: it is %s\n", out_path.c_str(), why.c_str());
+    return 2;
+  }
+  if (const std::string why = config::path_kind_problem(truth_path); !truth_path.empty() && !why.empty()) {
+    std::fprintf(stderr, "sempose replay: --truth: '%s' is %s (need a CSV file: frame,x_px,y_px,phi_deg[,target])\n",
+                 truth_path.c_str(), why.c_str());
+    return 2;
+  }
+  {
+    std::vector<cli::NamedPath> inputs = {{"--config", config_path}, {"--truth", truth_path}};
+    for (std::size_t i = 0; i < app.targets.size(); ++i) {
+      for (const auto& ps : app.targets[i].pattern_sets) {
+        inputs.push_back({"the pattern of target " + std::to_string(i), ps.file});
+        inputs.push_back({"the mask of target " + std::to_string(i), ps.mask});
+      }
+    }
+    cli::add_recording(inputs, "--frames", frames_dir);
+    if (const std::string problem = cli::output_overwrites_input("--out", out_path, inputs); !problem.empty()) {
+      std::fprintf(stderr, "sempose replay: %s\n", problem.c_str());
+      return 2;
+    }
+    // A new .pgm in the frames folder is read as a frame by the next replay of it.
+    std::error_code ec;
+    const auto out_dir = std::filesystem::absolute(out_path, ec).parent_path();
+    if (out_path != "-" && std::filesystem::path(out_path).extension() == ".pgm" &&
+        std::filesystem::equivalent(out_dir, frames_dir, ec) && !ec) {
+      std::fprintf(stderr, "sempose replay: --out '%s' is a PGM in the frames folder %s: it would be read as a frame; "
+                   "name the poses' CSV otherwise\n", out_path.c_str(), frames_dir.c_str());
+      return 2;
+    }
   }
   // The recording, served on the virtual clock whatever the config says: offline, as fast as
   // the CPU allows, and the same inputs and time stamps as `sempose run` on it.
@@ -225,7 +257,6 @@ int run_replay(int argc, char** argv) {
 }  // namespace
 
 int sempose::cli::replay(int argc, char** argv) {
-  if (refuse_repeated_options("replay", argc, argv, {"--pattern", "--mask"})) return 2;
   try {
     return run_replay(argc, argv);
   } catch (const std::exception& e) {

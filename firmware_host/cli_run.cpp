@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_options.hpp"
 #include "sempose/session/run_setup.hpp"
 #include "sempose/session/run_summary.hpp"
 #include "sempose/config/app_config.hpp"
@@ -59,42 +60,6 @@ int usage(std::FILE* out) {
                "  --hist-dir DIR   write latency histograms (cyclictest layout + JSON) to DIR at exit and on SIGUSR1\n"
                "  --can-log FILE   send the CAN frames to a candump log FILE instead of the configured bus\n");
   return out == stdout ? 0 : 2;
-}
-
-bool parse(int argc, char** argv, Options& o) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&](std::string& out) {
-      if (i + 1 >= argc) return false;
-      out = argv[++i];
-      return true;
-    };
-    std::string v;
-    if (a == "--config") {
-      if (!value(o.config)) return false;
-    } else if (a == "--duration") {
-      if (!value(v)) return false;
-      char* end = nullptr;
-      o.duration_s = std::strtod(v.c_str(), &end);
-      // NaN would run forever and 1e10 s overflows the nanosecond deadline: a finite number
-      // of seconds up to ten years.
-      if (end == v.c_str() || *end != '\0' || !(o.duration_s >= 0 && o.duration_s <= kMaxDurationS)) {
-        std::fprintf(stderr, "sempose run: --duration: '%s' is not a number of seconds in [0, %.0f]\n", v.c_str(),
-                     kMaxDurationS);
-        return false;
-      }
-    } else if (a == "--strict-rt") {
-      o.strict_rt = true;
-    } else if (a == "--hist-dir") {
-      if (!value(o.hist_dir)) return false;
-    } else if (a == "--can-log") {
-      if (!value(o.can_log)) return false;
-    } else {
-      std::fprintf(stderr, "sempose run: unknown option '%s'\n", a.c_str());
-      return false;
-    }
-  }
-  return !o.config.empty();
 }
 
 // False when a file could not be written in full (a full disk shows only when the buffer is
@@ -156,12 +121,14 @@ void pin_non_rt_thread(int cpu) {
 }  // namespace
 
 int sempose::cli::run(int argc, char** argv) {
-  if (refuse_repeated_options("run", argc, argv)) return 2;
-  Options opt;
-  for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) return usage(stdout);
-  }
-  if (!parse(argc, argv, opt)) return usage(stderr);
+  // --duration: NaN would run forever and 1e10 s overflows the nanosecond deadline: a finite
+  // number of seconds up to ten years (0: until a signal).
+  const ParsedOptions parsed = parse_options({text("--config", true), real("--duration", 0, kMaxDurationS, "seconds"),
+                                              flag("--strict-rt"), text("--hist-dir"), text("--can-log")},
+                                             argc, argv);
+  if (const int code = finish_parse("run", parsed, usage); code >= 0) return code;
+  const Options opt{parsed.text("--config"), parsed.real("--duration", 0), parsed.has("--strict-rt"),
+                    parsed.text("--hist-dir"), parsed.text("--can-log")};
 
   // Signals: blocked from the very start and everywhere (threads inherit the mask), taken
   // with sigtimedwait, so a SIGINT/SIGTERM/SIGHUP in any phase of start-up is a clean stop.
@@ -200,6 +167,33 @@ int sempose::cli::run(int argc, char** argv) {
     if (!opt.hist_dir.empty()) {
       if (const std::string why = config::output_dir_problem(opt.hist_dir); !why.empty())
         bad += "  --hist-dir: '" + opt.hist_dir + "' cannot hold histograms: it is " + why + "\n";
+    }
+    // No output may be one of the run's inputs, nor the other output (two writers on one file).
+    std::vector<NamedPath> inputs = {{"the config", opt.config}};
+    for (std::size_t i = 0; i < cfg.targets.size(); ++i) {
+      for (std::size_t j = 0; j < cfg.targets[i].pattern_sets.size(); ++j) {
+        const std::string key = "targets[" + std::to_string(i) + "].pattern_sets[" + std::to_string(j) + "].";
+        inputs.push_back({key + "file", cfg.targets[i].pattern_sets[j].file});
+        inputs.push_back({key + "mask", cfg.targets[i].pattern_sets[j].mask});
+      }
+    }
+    for (std::size_t i = 0; i < cfg.sim.targets.size(); ++i) {
+      inputs.push_back({"sim.targets[" + std::to_string(i) + "].texture.path", cfg.sim.targets[i].texture.path});
+    }
+    inputs.push_back({"sim.background.path", cfg.sim.background.path});
+    if (cfg.source == "replay") add_recording(inputs, "replay.frames_dir", cfg.replay.frames_dir);
+    const std::string can_log = opt.can_log.empty() && cfg.can.interface.empty() ? cfg.can.log_file : opt.can_log;
+    const char* can_log_key = opt.can_log.empty() ? "can.log_file" : "--can-log";
+    for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
+                                    {can_log_key, can_log}}) {
+      if (const std::string why = output_overwrites_input(key, path, inputs); !why.empty()) bad += "  " + why + "\n";
+    }
+    std::error_code ec1, ec2;
+    if (!can_log.empty() && !cfg.output.poses_csv.empty() &&
+        std::filesystem::weakly_canonical(can_log, ec1) == std::filesystem::weakly_canonical(cfg.output.poses_csv, ec2) &&
+        !ec1 && !ec2) {
+      bad += std::string("  ") + can_log_key + ": '" + can_log + "' is also output.poses_csv: the CAN log and the poses " +
+             "would be written into one file; name two files\n";
     }
     if (!bad.empty()) {
       std::fprintf(stderr, "sempose run: invalid output:\n%s", bad.c_str());

@@ -10,11 +10,13 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_options.hpp"
 #include "sempose/config/reader.hpp"
 #include "sempose/config/scan_config.hpp"
 #include "sempose/config/sim_config.hpp"
@@ -32,13 +34,6 @@ int usage(std::FILE* out) {
   return out == stdout ? 0 : 2;
 }
 
-bool parse_u64(const char* s, unsigned long long& v) {
-  char* end = nullptr;
-  errno = 0;
-  v = std::strtoull(s, &end, 10);
-  return s[0] != '-' && end != s && *end == '\0' && errno == 0;
-}
-
 // Reads only the scan: and sim: sections of the file (the other sections belong to other
 // parts of sempose and are validated by `sempose run`).
 bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& scan, sempose::config::SimConfig& sim,
@@ -46,6 +41,19 @@ bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& sca
   using namespace sempose::config;
   Errors errors(path);
   YAML::Node root = load_file(path, errors);
+  if (errors.empty()) {
+    // The sections are copied into a map of their own below, which would drop a repeated
+    // `scan:` or `sim:` (the second one was ignored without a word: found probing); the
+    // top level's keys are checked for repeats here, as `sempose run` checks them.
+    std::map<std::string, int> first_line;
+    for (const auto& kv : root) {
+      if (!kv.first.IsScalar()) continue;  // not a section name
+      const auto [it, fresh] = first_line.emplace(kv.first.Scalar(), kv.first.Mark().line + 1);
+      if (!fresh) {
+        errors.add(kv.first.Mark(), kv.first.Scalar(), "duplicate key (first given on line " + std::to_string(it->second) + ")");
+      }
+    }
+  }
   if (errors.empty()) {
     YAML::Node only(YAML::NodeType::Map);
     if (root["scan"]) only["scan"] = root["scan"];
@@ -67,46 +75,13 @@ bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& sca
 }  // namespace
 
 int sempose::cli::sim(int argc, char** argv) {
-  if (refuse_repeated_options("sim", argc, argv)) return 2;
-  std::string out_dir, config_path;
-  unsigned long long frames = 100, seed = 0, dwell = 250;
-  bool seed_given = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&](const char* name) -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "sempose sim: %s needs a value\n", name);
-        return nullptr;
-      }
-      return argv[++i];
-    };
-    const char* v = nullptr;
-    if (a == "--help" || a == "-h") return usage(stdout);
-    if (a == "--out") {
-      if (!(v = value("--out"))) return 2;
-      out_dir = v;
-    } else if (a == "--config") {
-      if (!(v = value("--config"))) return 2;
-      config_path = v;
-    } else if (a == "--frames" || a == "--seed" || a == "--dwell") {
-      if (!(v = value(a.c_str()))) return 2;
-      unsigned long long n = 0;
-      if (!parse_u64(v, n) || (a == "--frames" && (n < 1 || n > 1'000'000)) || (a == "--dwell" && (n < 1 || n > 100'000'000))) {
-        std::fprintf(stderr, "sempose sim: %s '%s' is not a valid number%s\n", a.c_str(), v,
-                     a == "--frames" ? " (1..1000000)" : a == "--dwell" ? " (ns, 1..100000000)" : "");
-        return 2;
-      }
-      (a == "--frames" ? frames : a == "--seed" ? seed : dwell) = n;
-      if (a == "--seed") seed_given = true;
-    } else {
-      std::fprintf(stderr, "sempose sim: unknown option '%s'\n", a.c_str());
-      return usage(stderr);
-    }
-  }
-  if (out_dir.empty()) {
-    std::fprintf(stderr, "sempose sim: --out DIR is required\n");
-    return usage(stderr);
-  }
+  const ParsedOptions opt = parse_options({text("--out", true), text("--config"), whole("--frames", 1, 1'000'000),
+                                           whole("--seed", 0, ~0ULL), whole("--dwell", 1, 100'000'000, "ns")},
+                                          argc, argv);
+  if (const int code = finish_parse("sim", opt, usage); code >= 0) return code;
+  const std::string out_dir = opt.text("--out"), config_path = opt.text("--config");
+  const unsigned long long frames = opt.whole("--frames", 100), seed = opt.whole("--seed", 0), dwell = opt.whole("--dwell", 250);
+  const bool seed_given = opt.has("--seed");
   if (cli::refuse_stdout_output("sim", out_dir, "the folder the recording is written to")) return 2;
   config::ScanLimits scan;
   config::SimConfig sim_cfg;

@@ -15,6 +15,8 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_options.hpp"
+#include "sempose/config/reader.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
 #include "sempose/operator_view/pose_csv.hpp"
@@ -39,47 +41,25 @@ int usage(std::FILE* out) {
   return out == stdout ? 0 : 2;
 }
 
-bool positive(const std::string& flag, const char* text, int& out, int lo, int hi) {
-  char* end = nullptr;
-  const long v = std::strtol(text, &end, 10);
-  if (end == text || *end != '\0' || v < lo || v > hi) {
-    std::fprintf(stderr, "sempose view: %s: '%s' is not an integer in [%d, %d]\n", flag.c_str(), text, lo, hi);
-    return false;
-  }
-  out = static_cast<int>(v);
-  return true;
-}
-
 }  // namespace
 
 int sempose::cli::view(int argc, char** argv) {
-  if (refuse_repeated_options("view", argc, argv, {"--pattern"})) return 2;
-  std::string poses_path, out_dir, frames_dir;
-  std::vector<std::string> patterns;
-  int every = 10, roi = 192, pattern_size = 128, scale = 2;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--help" || a == "-h") return usage(stdout);
-    if (i + 1 >= argc) {
-      std::fprintf(stderr, "sempose view: unknown or incomplete option '%s'\n", a.c_str());
-      return usage(stderr);
-    }
-    const char* v = argv[++i];
-    if (a == "--poses") poses_path = v;
-    else if (a == "--out") out_dir = v;
-    else if (a == "--frames") frames_dir = v;
-    else if (a == "--pattern") patterns.emplace_back(v);
-    else if (a == "--every") { if (!positive(a, v, every, 1, 1'000'000)) return 2; }
-    else if (a == "--roi") { if (!positive(a, v, roi, 8, 4096)) return 2; }
-    else if (a == "--pattern-size") { if (!positive(a, v, pattern_size, 8, 1024)) return 2; }
-    else if (a == "--scale") { if (!positive(a, v, scale, 1, 8)) return 2; }
-    else {
-      std::fprintf(stderr, "sempose view: unknown option '%s'\n", a.c_str());
-      return usage(stderr);
-    }
-  }
-  if (poses_path.empty() || out_dir.empty()) return usage(stderr);
+  const ParsedOptions opt = parse_options({text("--poses", true), text("--out", true), text("--frames"),
+                                           text("--pattern", false, true), whole("--every", 1, 1'000'000),
+                                           whole("--roi", 8, 4096), whole("--pattern-size", 8, 1024), whole("--scale", 1, 8)},
+                                          argc, argv);
+  if (const int code = finish_parse("view", opt, usage); code >= 0) return code;
+  const std::string poses_path = opt.text("--poses"), out_dir = opt.text("--out"), frames_dir = opt.text("--frames");
+  const std::vector<std::string> patterns = opt.all("--pattern");
+  const int every = static_cast<int>(opt.whole("--every", 10)), roi = static_cast<int>(opt.whole("--roi", 192)),
+            pattern_size = static_cast<int>(opt.whole("--pattern-size", 128)), scale = static_cast<int>(opt.whole("--scale", 2));
   if (cli::refuse_stdout_output("view", out_dir, "the folder the pictures are written to")) return 2;
+  // A FIFO as --poses blocked in open() (found probing: the process hung).
+  if (const std::string why = config::path_kind_problem(poses_path); !why.empty()) {
+    std::fprintf(stderr, "sempose view: --poses: '%s' is %s (need the CSV of a run or a replay)\n", poses_path.c_str(),
+                 why.c_str());
+    return 2;
+  }
 
   try {
     const auto rows = operator_view::read_pose_csv(poses_path);

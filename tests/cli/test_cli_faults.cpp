@@ -527,3 +527,158 @@ TEST(CliFaults, RunOnARecordingSaysWhichFieldItUses) {
   EXPECT_NE(r.out.find("source replay (virtual time), 320x240 field"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("note: the field is the source's 320x240, not scan.field_w/h 640x480"), std::string::npos) << r.out;
 }
+
+// Hostile option values (found probing the six commands): each used to run with something the
+// operator did not mean — `check-rt --config ''` checked the built-in defaults, `--hist-dir
+// --strict-rt` ran without --strict-rt and wrote into a folder called "--strict-rt", a hex
+// `--duration 0x1` ran 1 s, `--seed ' -1'` seeded 2^64-1, a hex `--center` was read, an empty
+// `--frames`/`--config` dropped that input, and a second `--mask` replaced the first. Now exit 2
+// with the option and the value named, before anything is written.
+TEST(CliFaults, HostileOptionValuesAreRefusedByName) {
+  const std::string dir = work_dir() + "/hostile_opts";
+  fs::create_directories(dir);
+  const std::string cfg = small_config(dir, "");
+  ASSERT_TRUE(record_with_pattern(dir, cfg, 2));
+  {
+    std::ofstream(dir + "/poses.csv") << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,1,160,120,0,0.9,TRACKING\n";
+    sempose::hal::Image mask;
+    mask.width = mask.height = 32;
+    mask.pixels.assign(32 * 32, 255);
+    sempose::hal::write_pgm(dir + "/mask32.pgm", mask);
+    mask.width = mask.height = 64;
+    mask.pixels.assign(64 * 64, 255);
+    sempose::hal::write_pgm(dir + "/mask64.pgm", mask);
+  }
+  const std::string rec = dir + "/rec", pat = dir + "/p.pgm", out = dir + "/out";
+  struct Case {
+    std::vector<std::string> args;
+    std::string expect;
+  };
+  const Case cases[] = {
+      {{"check-rt", "--config", ""}, "--config: the value is empty"},
+      {{"run", "--config", cfg, "--duration", "0.2", "--hist-dir", "--strict-rt"},
+       "--hist-dir needs a value (the next word is the option --strict-rt)"},
+      {{"run", "--config", cfg, "--duration", "0x1"}, "--duration: '0x1' is not a finite number of seconds in [0, 315576000]"},
+      {{"run", "--config", cfg, "--duration", "1", "--can-log", ""}, "--can-log: the value is empty"},
+      {{"sim", "--out", out, "--frames", "1", "--seed", " -1", "--config", cfg},
+       "--seed: ' -1' is not a whole number in [0, 18446744073709551615]"},
+      {{"sim", "--out", out, "--frames=1", "--config", cfg}, "give the value after a space: --frames 1"},
+      {{"sim", "--out", out, "--frames", "12abc", "--config", cfg}, "--frames: '12abc' is not a whole number in [1, 1000000]"},
+      {{"pattern", "--frames", rec, "--center", "0xA0,0x78", "--size", "64", "--out", out}, "--center '0xA0,0x78' is not X,Y"},
+      {{"view", "--poses", dir + "/poses.csv", "--out", out, "--frames", ""}, "--frames: the value is empty"},
+      {{"view", "--poses", dir + "/poses.csv", "--out", out, "--every", "inf"}, "--every: 'inf' is not a whole number in [1, 1000000]"},
+      {{"replay", "--frames", rec, "--pattern", pat, "--config", "", "--out", out}, "--config: the value is empty"},
+      {{"replay", "--frames", rec, "--pattern", pat, "--mask", dir + "/mask32.pgm", "--mask", dir + "/mask64.pgm", "--out", out},
+       "both follow --pattern '" + pat + "': one mask per pattern"},
+  };
+  for (const Case& c : cases) {
+    const Outcome r = run(c.args, 60);
+    std::string joined;
+    for (const auto& a : c.args) joined += "'" + a + "' ";
+    ASSERT_FALSE(r.hung) << joined;
+    EXPECT_EQ(r.code, 2) << joined << "\n" << r.out << r.err;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(out)) << joined << ": output made";
+    EXPECT_FALSE(fs::exists("--strict-rt")) << joined << ": a folder called --strict-rt was made";
+    fs::remove_all(out);
+    fs::remove_all("--strict-rt");
+  }
+}
+
+// An output that names one of the command's inputs: each used to exit 0 having written over
+// the input (found probing: replay's CSV over its pattern, the recording's frames.csv or a
+// frame, its --truth; run's CAN log over its config; the CAN log and the poses into one file).
+TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
+  const std::string dir = work_dir() + "/out_is_in";
+  fs::create_directories(dir);
+  const std::string cfg = small_config(dir, "");
+  ASSERT_TRUE(record_with_pattern(dir, cfg, 2));
+  const std::string rec = dir + "/rec", pat = dir + "/p.pgm";
+  const std::string pattern_bytes = slurp(pat), frames_csv = slurp(rec + "/frames.csv"), frame1 = slurp(rec + "/frame_000001.pgm"),
+                    truth = slurp(rec + "/ground_truth.csv"), config = slurp(cfg);
+  const std::string self = dir + "/self.yaml";  // a config whose poses CSV is the config itself
+  std::ofstream(self) << config << "output: {poses_csv: " << self << "}\n";
+  const std::string self_text = slurp(self);
+  struct Case {
+    std::vector<std::string> args;
+    std::string expect;
+  };
+  const Case cases[] = {
+      {{"replay", "--frames", rec, "--pattern", pat, "--out", pat}, "--out '" + pat + "' is the pattern of target 0"},
+      {{"replay", "--frames", rec, "--pattern", pat, "--out", rec + "/frames.csv"}, "is the time stamps of --frames"},
+      {{"replay", "--frames", rec, "--pattern", pat, "--out", rec + "/frame_000001.pgm"}, "is a frame of --frames"},
+      {{"replay", "--frames", rec, "--pattern", pat, "--truth", rec + "/ground_truth.csv", "--out", rec + "/../rec/ground_truth.csv"},
+       "is --truth"},
+      {{"replay", "--frames", rec, "--pattern", pat, "--out", rec + "/poses.pgm"}, "is a PGM in the frames folder"},
+      {{"run", "--config", cfg, "--duration", "0.2", "--can-log", cfg}, "--can-log '" + cfg + "' is the config"},
+      {{"run", "--config", self, "--duration", "0.2"}, "output.poses_csv '" + self + "' is the config"},
+      {{"run", "--config", small_config(dir, "output: {poses_csv: " + dir + "/both.txt}\ncan: {log_file: " + dir + "/both.txt}\n"),
+        "--duration", "0.2"},
+       "can.log_file: '" + dir + "/both.txt' is also output.poses_csv"},
+  };
+  for (const Case& c : cases) {
+    const Outcome r = run(c.args, 60);
+    std::string joined;
+    for (const auto& a : c.args) joined += a + " ";
+    ASSERT_FALSE(r.hung) << joined;
+    EXPECT_EQ(r.code, 2) << joined << "\n" << r.out << r.err;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
+  }
+  EXPECT_EQ(slurp(pat), pattern_bytes);
+  EXPECT_EQ(slurp(rec + "/frames.csv"), frames_csv);
+  EXPECT_EQ(slurp(rec + "/frame_000001.pgm"), frame1);
+  EXPECT_EQ(slurp(rec + "/ground_truth.csv"), truth);
+  EXPECT_EQ(slurp(cfg), config);
+  EXPECT_EQ(slurp(self), self_text);
+  EXPECT_FALSE(fs::exists(rec + "/poses.pgm"));
+  EXPECT_FALSE(fs::exists(dir + "/both.txt"));
+  // A CSV beside the recording (not one of its files) is fine.
+  const Outcome ok = run({"replay", "--frames", rec, "--pattern", pat, "--out", rec + "/poses.csv"}, 120);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+}
+
+// A config whose scan: (or sim:) section is given twice: sim used the first and ignored the
+// second without a word (found probing; run and check-rt refused it). Now named, nothing made.
+TEST(CliFaults, SimRefusesASectionGivenTwice) {
+  const std::string dir = work_dir() + "/dup_section";
+  fs::create_directories(dir);
+  std::ofstream(dir + "/dup.yaml") << "scan: {field_w: 320, field_h: 240}\nscan: {field_w: 640, field_h: 480}\n";
+  const Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "1", "--config", dir + "/dup.yaml"}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("dup.yaml:2:1: scan: duplicate key (first given on line 1)"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/rec"));
+}
+
+// A FIFO where replay writes its CSV or reads its truth, or where view reads its poses: each
+// blocked in open() for ever (found probing); a directory as --truth was read as a truth of no
+// rows (exit 0, nothing compared). Refused by name at once.
+TEST(CliFaults, FifoOrDirectoryAsReplayOrViewFileIsRefusedAtOnce) {
+  const std::string dir = work_dir() + "/fifo_files";
+  fs::create_directories(dir);
+  const std::string fifo = dir + "/fifo";
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 2));
+  const std::string rec = dir + "/rec", pat = dir + "/p.pgm";
+  struct Case {
+    std::vector<std::string> args;
+    std::string expect;
+  };
+  const Case cases[] = {
+      {{"replay", "--frames", rec, "--pattern", pat, "--out", fifo}, "--out: '" + fifo + "' cannot be written: it is a FIFO"},
+      {{"replay", "--frames", rec, "--pattern", pat, "--truth", fifo, "--out", dir + "/o.csv"}, "--truth: '" + fifo + "' is a FIFO"},
+      {{"replay", "--frames", rec, "--pattern", pat, "--truth", rec, "--out", dir + "/o.csv"}, "--truth: '" + rec + "' is a directory"},
+      {{"view", "--poses", fifo, "--out", dir + "/v"}, "--poses: '" + fifo + "' is a FIFO"},
+  };
+  for (const Case& c : cases) {
+    const Outcome r = run(c.args, 20);
+    std::string joined;
+    for (const auto& a : c.args) joined += a + " ";
+    ASSERT_FALSE(r.hung) << "hung: " << joined;
+    EXPECT_EQ(r.code, 2) << joined << "\n" << r.out << r.err;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
+  }
+  EXPECT_FALSE(fs::exists(dir + "/o.csv"));
+  EXPECT_FALSE(fs::exists(dir + "/v"));
+  ::unlink(fifo.c_str());
+}
