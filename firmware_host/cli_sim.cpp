@@ -21,6 +21,7 @@
 #include "sempose/config/scan_config.hpp"
 #include "sempose/config/sim_config.hpp"
 #include "sempose/hal/pgm.hpp"
+#include "sempose/hal/scan_request_check.hpp"
 #include "sempose/hal/sim_source.hpp"
 
 namespace {
@@ -101,6 +102,19 @@ int sempose::cli::sim(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sempose sim: %s\n", e.what());
     return 2;
+  }
+  {
+    // The dwell against the scan limits, as the scans below will check it, before the output
+    // folder is made (found probing: `--dwell 1` made the folder, frames.csv and
+    // ground_truth.csv, then failed, and that half recording refused the next sim into it).
+    const hal::Roi whole_field{0, 0, scan.field_w, scan.field_h};
+    std::uint32_t rounded = 0;
+    if (hal::check_scan_request(scene->limits(), {whole_field, static_cast<std::uint32_t>(dwell), 0},
+                                static_cast<std::size_t>(scan.field_w) * scan.field_h, rounded) != hal::StartResult::kStarted) {
+      std::fprintf(stderr, "sempose sim: --dwell: %llu ns is outside the scan limits [%u, %u] ns (scan.min_dwell_ns, "
+                   "scan.max_dwell_ns)\n", dwell, scan.min_dwell_ns, scan.max_dwell_ns);
+      return 2;
+    }
   }
   {
     // Frames of an earlier, longer recording would stay beside the new ones (the next replay

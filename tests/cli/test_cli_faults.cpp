@@ -532,7 +532,8 @@ TEST(CliFaults, RunOnARecordingSaysWhichFieldItUses) {
 // operator did not mean — `check-rt --config ''` checked the built-in defaults, `--hist-dir
 // --strict-rt` ran without --strict-rt and wrote into a folder called "--strict-rt", a hex
 // `--duration 0x1` ran 1 s, `--seed ' -1'` seeded 2^64-1, a hex `--center` was read, an empty
-// `--frames`/`--config` dropped that input, and a second `--mask` replaced the first. Now exit 2
+// `--frames`/`--config` dropped that input, a second `--mask` replaced the first, and a `--dwell`
+// outside the scan limits made the output folder before failing. Now exit 2
 // with the option and the value named, before anything is written.
 TEST(CliFaults, HostileOptionValuesAreRefusedByName) {
   const std::string dir = work_dir() + "/hostile_opts";
@@ -563,6 +564,9 @@ TEST(CliFaults, HostileOptionValuesAreRefusedByName) {
       {{"sim", "--out", out, "--frames", "1", "--seed", " -1", "--config", cfg},
        "--seed: ' -1' is not a whole number in [0, 18446744073709551615]"},
       {{"sim", "--out", out, "--frames=1", "--config", cfg}, "give the value after a space: --frames 1"},
+      // In range for the option, outside the config's scan limits: found before the folder is made.
+      {{"sim", "--out", out, "--frames", "1", "--dwell", "1", "--config", cfg},
+       "--dwell: 1 ns is outside the scan limits [100, 10000] ns"},
       {{"sim", "--out", out, "--frames", "12abc", "--config", cfg}, "--frames: '12abc' is not a whole number in [1, 1000000]"},
       {{"pattern", "--frames", rec, "--center", "0xA0,0x78", "--size", "64", "--out", out}, "--center '0xA0,0x78' is not X,Y"},
       {{"view", "--poses", dir + "/poses.csv", "--out", out, "--frames", ""}, "--frames: the value is empty"},
