@@ -334,7 +334,8 @@ int sempose::cli::run(int argc, char** argv) {
     }
     if (rt::now_ns() >= watchdog.next_due_ns()) watchdog.poll(rt::now_ns());
     if (rt::now_ns() >= next_status) {
-      next_status += period_ns;
+      // After a time jump (SIGSTOP, a suspended VM) one status line, not one per missed period.
+      next_status = std::max(next_status + period_ns, rt::now_ns() + period_ns);
       run.flush_outputs();
       if (run.output_write_errors() > 0 && !(pipe->faults() & pipeline::kFaultOutputWrite)) {
         pipe->set_fault(pipeline::kFaultOutputWrite, true);
