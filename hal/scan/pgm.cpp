@@ -59,6 +59,14 @@ std::string parse(const std::vector<unsigned char>& d, Image& out) {
   if (d.size() - pos < need) {
     return "truncated: " + std::to_string(d.size() - pos) + " of " + std::to_string(need) + " pixel bytes";
   }
+  // Bytes beyond the raster mean the header does not describe the data: a comment after
+  // maxval shifts the raster by its length, a 16-bit raster under maxval 255 reads as its
+  // first half, a second image is not one sempose can use. Each read silently as a wrong image.
+  if (d.size() - pos > need) {
+    return std::to_string(d.size() - pos - need) + " bytes after the " + std::to_string(w) + "x" + std::to_string(h) +
+           " raster of " + std::to_string(need) + " bytes (maxval " + std::to_string(maxval) +
+           "): a wrong maxval, a comment after maxval, or a second image";
+  }
   Image img;
   img.width = static_cast<std::int32_t>(w);
   img.height = static_cast<std::int32_t>(h);

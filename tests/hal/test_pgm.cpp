@@ -47,7 +47,7 @@ TEST(Pgm, RoundTrip8And16Bit) {
 TEST(Pgm, SixteenBitIsBigEndian) {
   const auto dir = test::temp_dir("pgm_be");
   const std::string path = (dir / "be.pgm").string();
-  write_raw(path, std::string("P5\n2 1\n65535\n\x01\x02\xff\x00", 18));
+  write_raw(path, std::string("P5\n2 1\n65535\n\x01\x02\xff\x00", 17));  // no trailing NUL
   const Image img = read_pgm(path);
   EXPECT_EQ(img.bits, 16);
   EXPECT_EQ(img.pixels[0], 0x0102);
@@ -81,6 +81,10 @@ TEST(Pgm, EachMalformedFileNamesTheProblem) {
   check("maxval0.pgm", "P5\n2 2\n0\nabcd", "maxval 0");
   check("maxval_big.pgm", "P5\n2 2\n70000\nabcdefgh", "maxval 70000");
   check("noheight.pgm", "P5\n2 \n", "height");
+  // Bytes beyond the raster: read as a wrong image without a word before.
+  check("comment_after_maxval.pgm", "P5\n2 2\n255 # hand-made\nabcd", "12 bytes after the 2x2 raster");
+  check("wide_under_255.pgm", "P5\n2 2\n255\nabcdefgh", "4 bytes after the 2x2 raster");
+  check("two_images.pgm", "P5\n2 1\n255\nabP5\n2 1\n255\ncd", "after the 2x1 raster");
   const std::string missing = (dir / "missing.pgm").string();
   const std::string e = error_of(missing);
   EXPECT_NE(e.find("cannot open"), std::string::npos) << e;

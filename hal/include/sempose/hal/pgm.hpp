@@ -7,6 +7,7 @@
 // Accepted: magic P5, comments (# to end of line) anywhere in the header, width and height in
 // 1..16384, maxval in 1..65535 (> 255 means two bytes per sample). Image::bits is 8 when
 // maxval <= 255, else 16; sample values are kept as stored (not rescaled to the maxval).
+// Refused: bytes after the raster (a wrong maxval, a comment after maxval, a second image).
 #pragma once
 
 #include <string>
