@@ -10,21 +10,8 @@ work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
 fails=0
 ok() { echo "ok   $*"; }
 bad() { echo "FAIL $*"; fails=$((fails + 1)); }
-config() {  # $1: output.poses_csv
-  cat <<YAML
-scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}
-sim:
-  clock: virtual
-  targets:
-    - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}
-tracker: {pattern_size_px: 64, roi_size_px: 96}
-pipeline: {lock_memory: false, hold_dma_latency: false, stats_period_ms: 100,
-           acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0},
-           output: {cpu: -1, priority: 0}, non_rt_cpu: -1}
-output: {poses_csv: $1}
-can: {log_file: $work/can.log}
-YAML
-}
+. "$(dirname "$0")/small_run_config.sh"
+config() { small_run_config "$1" "$work/can.log"; }  # $1: output.poses_csv
 # Runs sempose with stdout the write end of a pipe whose read end is already closed; prints
 # the exit code (negative: killed by that signal). SIGPIPE is left at its default in the child.
 closed_stdout() {

@@ -8,19 +8,8 @@ set -euo pipefail
 bin=${1:?usage: run_time_jump_test.sh SEMPOSE}
 work=$(mktemp -d); pid=""
 trap '[[ -n $pid ]] && kill -CONT $pid 2>/dev/null; rm -rf "$work"' EXIT
-cat >"$work/run.yaml" <<YAML
-scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}
-sim:
-  clock: virtual
-  targets:
-    - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}
-tracker: {pattern_size_px: 64, roi_size_px: 96}
-pipeline: {lock_memory: false, hold_dma_latency: false, stats_period_ms: 100,
-           acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0},
-           output: {cpu: -1, priority: 0}, non_rt_cpu: -1}
-output: {poses_csv: $work/poses.csv}
-can: {log_file: $work/can.log}
-YAML
+. "$(dirname "$0")/small_run_config.sh"
+small_run_config "$work/poses.csv" "$work/can.log" >"$work/run.yaml"
 "$bin" run --config "$work/run.yaml" --duration 4 >"$work/out.txt" 2>"$work/err.txt" &
 pid=$!
 # Stop it once it prints its first status line (it runs), for 1.5 s.
