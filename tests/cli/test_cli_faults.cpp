@@ -112,6 +112,20 @@ Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int sig
   return r;
 }
 
+// A command line that must be refused: not hung, exit 2, and the error names the problem.
+struct Refusal {
+  std::vector<std::string> args;
+  std::string expect;
+};
+void expect_refused(const Refusal& c, double timeout_s) {
+  const Outcome r = run(c.args, timeout_s);
+  std::string joined;
+  for (const auto& a : c.args) joined += "'" + a + "' ";
+  ASSERT_FALSE(r.hung) << "hung: " << joined;
+  EXPECT_EQ(r.code, 2) << joined << "\n" << r.out << r.err;
+  EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
+}
+
 // A small, fast configuration: the simulator on its virtual clock (no real-time pacing).
 std::string small_config(const std::string& dir, const std::string& extra) {
   static int n = 0;
@@ -182,10 +196,7 @@ TEST(CliFaults, FifoDirectoryOrDeviceAsAPathIsRefusedAtOnce) {
   const std::string fifo = dir + "/fifo";
   ::unlink(fifo.c_str());
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-  struct Case {
-    std::vector<std::string> args;
-    std::string expect;
-  };
+  using Case = Refusal;
   const std::string ok_cfg = small_config(dir, "can: {log_file: " + dir + "/can.log}\n");
   const std::string frames = dir + "/one_frame";
   fs::create_directories(frames);
@@ -205,12 +216,7 @@ TEST(CliFaults, FifoDirectoryOrDeviceAsAPathIsRefusedAtOnce) {
       {{"replay", "--frames", frames, "--pattern", "/dev/zero", "--out", dir + "/o.csv"}, "a character device"},
   };
   for (const Case& c : cases) {
-    const Outcome r = run(c.args, 20);
-    std::string joined;
-    for (const auto& a : c.args) joined += a + " ";
-    ASSERT_FALSE(r.hung) << "hung: " << joined;
-    EXPECT_EQ(r.code, 2) << joined << "\n" << r.out << r.err;
-    EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
+    ASSERT_NO_FATAL_FAILURE(expect_refused(c, 20));
   }
   ::unlink(fifo.c_str());
 }
@@ -551,10 +557,7 @@ TEST(CliFaults, HostileOptionValuesAreRefusedByName) {
     sempose::hal::write_pgm(dir + "/mask64.pgm", mask);
   }
   const std::string rec = dir + "/rec", pat = dir + "/p.pgm", out = dir + "/out";
-  struct Case {
-    std::vector<std::string> args;
-    std::string expect;
-  };
+  using Case = Refusal;
   const Case cases[] = {
       {{"check-rt", "--config", ""}, "--config: the value is empty"},
       {{"run", "--config", cfg, "--duration", "0.2", "--hist-dir", "--strict-rt"},
@@ -576,14 +579,9 @@ TEST(CliFaults, HostileOptionValuesAreRefusedByName) {
        "both follow --pattern '" + pat + "': one mask per pattern"},
   };
   for (const Case& c : cases) {
-    const Outcome r = run(c.args, 60);
-    std::string joined;
-    for (const auto& a : c.args) joined += "'" + a + "' ";
-    ASSERT_FALSE(r.hung) << joined;
-    EXPECT_EQ(r.code, 2) << joined << "\n" << r.out << r.err;
-    EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
-    EXPECT_FALSE(fs::exists(out)) << joined << ": output made";
-    EXPECT_FALSE(fs::exists("--strict-rt")) << joined << ": a folder called --strict-rt was made";
+    ASSERT_NO_FATAL_FAILURE(expect_refused(c, 60));
+    EXPECT_FALSE(fs::exists(out)) << c.expect << ": output made";
+    EXPECT_FALSE(fs::exists("--strict-rt")) << c.expect << ": a folder called --strict-rt was made";
     fs::remove_all(out);
     fs::remove_all("--strict-rt");
   }
@@ -603,10 +601,7 @@ TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
   const std::string self = dir + "/self.yaml";  // a config whose poses CSV is the config itself
   std::ofstream(self) << config << "output: {poses_csv: " << self << "}\n";
   const std::string self_text = slurp(self);
-  struct Case {
-    std::vector<std::string> args;
-    std::string expect;
-  };
+  using Case = Refusal;
   const Case cases[] = {
       {{"replay", "--frames", rec, "--pattern", pat, "--out", pat}, "--out '" + pat + "' is the pattern of target 0"},
       {{"replay", "--frames", rec, "--pattern", pat, "--out", rec + "/frames.csv"}, "is the time stamps of --frames"},
@@ -621,12 +616,7 @@ TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
        "can.log_file: '" + dir + "/both.txt' is also output.poses_csv"},
   };
   for (const Case& c : cases) {
-    const Outcome r = run(c.args, 60);
-    std::string joined;
-    for (const auto& a : c.args) joined += a + " ";
-    ASSERT_FALSE(r.hung) << joined;
-    EXPECT_EQ(r.code, 2) << joined << "\n" << r.out << r.err;
-    EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
+    ASSERT_NO_FATAL_FAILURE(expect_refused(c, 60));
   }
   EXPECT_EQ(slurp(pat), pattern_bytes);
   EXPECT_EQ(slurp(rec + "/frames.csv"), frames_csv);
@@ -664,10 +654,7 @@ TEST(CliFaults, FifoOrDirectoryAsReplayOrViewFileIsRefusedAtOnce) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 2));
   const std::string rec = dir + "/rec", pat = dir + "/p.pgm";
-  struct Case {
-    std::vector<std::string> args;
-    std::string expect;
-  };
+  using Case = Refusal;
   const Case cases[] = {
       {{"replay", "--frames", rec, "--pattern", pat, "--out", fifo}, "--out: '" + fifo + "' cannot be written: it is a FIFO"},
       {{"replay", "--frames", rec, "--pattern", pat, "--truth", fifo, "--out", dir + "/o.csv"}, "--truth: '" + fifo + "' is a FIFO"},
@@ -675,12 +662,7 @@ TEST(CliFaults, FifoOrDirectoryAsReplayOrViewFileIsRefusedAtOnce) {
       {{"view", "--poses", fifo, "--out", dir + "/v"}, "--poses: '" + fifo + "' is a FIFO"},
   };
   for (const Case& c : cases) {
-    const Outcome r = run(c.args, 20);
-    std::string joined;
-    for (const auto& a : c.args) joined += a + " ";
-    ASSERT_FALSE(r.hung) << "hung: " << joined;
-    EXPECT_EQ(r.code, 2) << joined << "\n" << r.out << r.err;
-    EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
+    ASSERT_NO_FATAL_FAILURE(expect_refused(c, 20));
   }
   EXPECT_FALSE(fs::exists(dir + "/o.csv"));
   EXPECT_FALSE(fs::exists(dir + "/v"));
