@@ -299,6 +299,7 @@ int sempose::cli::run(int argc, char** argv) {
   std::int64_t next_status = t0 + period_ns;
   const auto& c = pipe->counters();
   int stop_signal = 0;
+  bool can_detached = false;
   pipeline::StallWatchdog source_watchdog(pipeline::StallWatchdog::timeout_for(run.scan->limits()), t0);
   while (!pipe->finished()) {
     const std::int64_t now = rt::now_ns();
@@ -340,6 +341,17 @@ int sempose::cli::run(int argc, char** argv) {
       if (run.output_write_errors() > 0 && !(pipe->faults() & pipeline::kFaultOutputWrite)) {
         pipe->set_fault(pipeline::kFaultOutputWrite, true);
         std::printf("fault: writing an output file failed (%s)\n", std::strerror(run.last_output_errno()));
+        std::fflush(stdout);
+      }
+      // The CAN interface went away (unplugged adapter, `ip link del`) or came back and was
+      // bound again by flush_outputs(): said once each way.
+      if (run.can.channel->detached() != can_detached) {
+        can_detached = !can_detached;
+        if (can_detached)
+          std::printf("fault: CAN interface %s is gone; poses and heartbeats are not sent (counted) until it is back\n",
+                      run.can.channel->name());
+        else
+          std::printf("fault cleared: CAN interface %s is back and bound again\n", run.can.channel->name());
         std::fflush(stdout);
       }
       if (cfg.output.print_status) {

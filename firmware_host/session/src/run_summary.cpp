@@ -35,7 +35,8 @@ RunSummary collect_summary(const RunSetup& run, double run_s, std::uint64_t rt_a
   s.can_bad_commands = cc.bad_commands.load();
   s.commands = c.commands.get();
   s.duration_s = run_s;
-  s.can_bus_state = hal::to_string(run.can.channel->bus_state());
+  s.can_bus_state = run.can.channel->detached() ? "detached" : hal::to_string(run.can.channel->bus_state());
+  s.can_rebinds = run.can.channel->counters().rebinds.load();
   if (run.synced) {
     const auto& sc = run.synced->counters();
     s.frame_sync = true;
@@ -67,7 +68,8 @@ void print_summary(std::FILE* out, const RunSummary& s) {
   }
   std::fprintf(out, " output_errors=%llu csv_lines_lost=%llu can_log_bytes_lost=%llu commands_rejected=%llu",
                u(s.output_errors), u(s.csv_lines_lost), u(s.can_log_bytes_lost), u(s.commands_rejected));
-  std::fprintf(out, " command_overflows=%llu source_stalls=%llu\n", u(s.command_overflows), u(s.source_stalls));
+  std::fprintf(out, " command_overflows=%llu source_stalls=%llu can_rebinds=%llu\n", u(s.command_overflows),
+               u(s.source_stalls), u(s.can_rebinds));
 }
 
 }  // namespace sempose::session

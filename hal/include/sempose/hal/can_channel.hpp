@@ -51,6 +51,9 @@ struct CanChannelCounters {
   std::atomic<std::uint64_t> tx_errors{0};
   std::atomic<std::uint64_t> rx_frames{0};
   std::atomic<std::uint64_t> error_frames{0};
+  // SocketCAN: times the channel was bound again to an interface that had gone (deleted,
+  // e.g. a USB adapter unplugged) and came back. Written by flush()'s (non-RT) caller only.
+  std::atomic<std::uint64_t> rebinds{0};
   std::atomic<std::uint8_t> bus_state{0};  // CanBusState
 
   static void bump(std::atomic<std::uint64_t>& c) noexcept {
@@ -76,8 +79,12 @@ class CanChannel {
   }
   // True when the channel carries CAN FD frames (SocketCAN: MTU 72 and allowed by config).
   virtual bool fd_enabled() const noexcept { return false; }
-  // Non-RT: writes out buffered data (the log channel); no-op elsewhere.
+  // Non-RT, called periodically: writes out buffered data (the log channel); SocketCAN binds
+  // again to an interface that had gone and is back. No-op elsewhere.
   virtual void flush() {}
+  // True while the channel's interface is gone (SocketCAN: deleted or unplugged): every send
+  // fails and is counted until flush() finds the interface again.
+  virtual bool detached() const noexcept { return false; }
   virtual const char* name() const noexcept = 0;
 
   const CanChannelCounters& counters() const noexcept { return counters_; }

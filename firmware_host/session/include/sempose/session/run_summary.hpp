@@ -28,7 +28,8 @@ struct RunSummary {
   std::uint64_t can_sent = 0, can_dropped = 0, can_bad_commands = 0;
   std::uint64_t commands = 0;
   double duration_s = 0;
-  std::string can_bus_state;
+  std::string can_bus_state;      // error-active / error-passive / bus-off, or detached (interface gone)
+  std::uint64_t can_rebinds = 0;  // times the CAN interface came back and was bound again
   bool frame_sync = false;  // the sync_* fields are printed only with GPIO frame sync
   SyncEdgeCounts sync;
   std::uint64_t output_errors = 0;
