@@ -28,7 +28,7 @@ PASS, FAIL, SKIP = "PASS", "FAIL", "SKIP"
 TARGET_CHECKS = ["preempt_rt", "can_if", "gpio_sim", "can_selfcheck", "gpio_input", "gpio_output", "gpio_edge",
                  "can_gpio_hw_test", "cyclictest", "sempose_can_bound", "sempose_gpio_requested",
                  "cmd_select", "cmd_reacquire", "cmd_malformed", "sempose_exit", "check_rt",
-                 "comedi_devices", "comedi_hw_test", "comedi_run"]
+                 "comedi_devices", "comedi_hw_test", "comedi_run", "can_rebind"]
 BASE = 0x100
 ID_XY, ID_ATTR, ID_HB, ID_CMD = BASE + 0x00, BASE + 0x01, BASE + 0x40, BASE + 0x50
 SCALES_NM_PER_PX = (40.0, 20.0)   # system.yaml: pattern set 0 and 1
@@ -124,7 +124,7 @@ def check_target_side(ctx):
         return FAIL, "; ".join(bad) + (f" (not recorded: {' '.join(missing)})" if missing else "")
     skipped = [n for n in TARGET_CHECKS if ctx.target[n][0] == SKIP]
     return PASS, (f"{len(TARGET_CHECKS)} target checks passed (PREEMPT_RT, CAN loop, gpio in/out/edge, "
-                  f"can_gpio_hw_test, commands acknowledged, Comedi devices, comedi_hw_test, comedi run)" + (f"; skipped: {skipped}" if skipped else ""))
+                  f"can_gpio_hw_test, commands acknowledged, Comedi devices, comedi_hw_test, comedi run, CAN re-bind)" + (f"; skipped: {skipped}" if skipped else ""))
 
 
 def check_summary(ctx):

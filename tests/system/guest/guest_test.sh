@@ -394,6 +394,67 @@ run_sempose() {
 }
 if [ -n "$SIM" ]; then run_sempose; else check sempose_exit FAIL "no gpio-sim chip, sempose not run"; fi
 
+# ---- sempose run while its CAN interface is unplugged and plugged in again ---------------
+# A USB-CAN adapter pulled out and put back is an interface deleted and created again (a new
+# ifindex). sempose must say so, count what it cannot send, bind again once the interface is
+# back and send poses on it, in one run: a candump on the re-created interface sees them.
+RB_IF=semposerb1
+rx_on() { cat /proc/net/can/rcvlist_* 2>/dev/null | grep -c " $1 " ; }
+rx_on_more_than() { [ "$(rx_on "$1")" -gt "$2" ]; }
+run_sempose_rebind() {
+  B=$OUT/rebind; mkdir -p "$B"
+  ip link del "$RB_IF" 2>/dev/null
+  if ! { ip link add dev "$RB_IF" type vcan && ip link set "$RB_IF" up; }; then
+    check can_rebind FAIL "cannot create $RB_IF"; return
+  fi
+  # The main run's config without GPIO (its lines belong to that run), CAN on $RB_IF.
+  sed -e '/^gpio:/d' -e "s|@CAN_IF@|$RB_IF|g" -e "s|@OUT@|$B|g" "$CFG/system.yaml" > "$CFG/rebind.run.yaml"
+  base=$(rx_on $RB_IF)
+  candump -L "$RB_IF" > "$B/candump_before.log" 2>/dev/null &
+  CD=$!
+  wait_for 10000 rx_on_more_than $RB_IF "$base" || { check can_rebind FAIL "candump never bound on $RB_IF"; return; }
+  say "STAGE sempose run with $RB_IF deleted and created again"
+  "$SEMPOSE" run --config "$CFG/rebind.run.yaml" --duration "$MAX_RUN_S" > "$B/sempose_stdout.txt" 2> "$B/sempose_stderr.txt" &
+  SP=$!
+  chrt -f -p 70 $$ > /dev/null; POLL_S=0.05
+  on_bus_or_gone() { ! alive $SP || file_has "$B/candump_before.log" ' 101#'; }
+  said_or_gone() { ! alive $SP || file_has "$B/sempose_stdout.txt" "$1"; }
+  detail=""
+  wait_for 60000 on_bus_or_gone
+  if ! file_has "$B/candump_before.log" ' 101#'; then detail="no pose on $RB_IF before the unplug"
+  else
+    ip link del "$RB_IF"; wait $CD 2>/dev/null; CD=""    # candump ends with its interface
+    wait_for 15000 said_or_gone "fault: CAN interface $RB_IF is gone" ||
+      detail="no 'fault: CAN interface $RB_IF is gone' line"
+    ip link add dev "$RB_IF" type vcan && ip link set "$RB_IF" up
+    base=$(rx_on $RB_IF)
+    candump -L "$RB_IF" > "$B/candump_after.log" 2>/dev/null &
+    CD=$!
+    wait_for 10000 rx_on_more_than $RB_IF "$base"
+    wait_for 15000 said_or_gone "fault cleared: CAN interface $RB_IF is back" ||
+      detail="$detail; no 'fault cleared' line"
+    back_or_gone() { ! alive $SP || file_has "$B/candump_after.log" ' 101#'; }
+    wait_for 15000 back_or_gone
+    file_has "$B/candump_after.log" ' 101#' || detail="$detail; no pose on the re-created $RB_IF"
+  fi
+  chrt -o -p 0 $$ > /dev/null; POLL_S=0.02
+  alive $SP && kill -TERM $SP
+  wait $SP; rc=$?
+  nap 0.2
+  [ -n "$CD" ] && { kill $CD 2>/dev/null; wait $CD 2>/dev/null; CD=""; }
+  ip link del "$RB_IF" 2>/dev/null
+  rm -f "$B"/latency_hist*.txt "$B"/*.json   # histograms: the main run's are checked; keep the transfer short
+  summ=$(grep '^summary:' "$B/sempose_stdout.txt")
+  [ $rc -eq 0 ] || detail="$detail; exit code $rc: $(tail -c 200 "$B/sempose_stderr.txt" | tr '\n' ' ')"
+  echo "$summ" | grep -q ' can_rebinds=1' || detail="$detail; summary without can_rebinds=1"
+  if [ -z "$detail" ]; then
+    check can_rebind PASS "$(grep -c ' 101#' "$B/candump_after.log") poses on the re-created $RB_IF; $(grep -o 'can_sent=[0-9]* can_dropped=[0-9]*' "$B/sempose_stdout.txt" | tail -n1) can_rebinds=1"
+  else
+    check can_rebind FAIL "${detail#; }"
+  fi
+}
+if [ -n "$SIM" ]; then run_sempose_rebind; else check can_rebind FAIL "no gpio-sim chip, sempose not run"; fi
+
 # ---- sempose run on the emulated SEM through Comedi (source: comedi) ----------------------
 # The scene's target is static at a known pose (sem_scene_truth.csv); poses go to vcan0 and
 # are read back by candump; the host compares them with the truth (check_results.py).
