@@ -56,17 +56,23 @@ std::vector<std::int64_t> parse_frames_csv(const std::string& text, std::size_t 
     const std::string line = trim(text.substr(pos, end - pos));
     pos = end + 1;
     ++line_no;
+    // Exactly two columns, header and rows: a third column (another file's layout, e.g.
+    // ground_truth.csv's frame,x_px,..., or a hand edit) used to be dropped without a word.
+    const std::size_t columns = static_cast<std::size_t>(std::count(line.begin(), line.end(), ',')) + 1;
     if (header) {
       header = false;
       if (line.rfind("frame", 0) != 0) fail("expected the header 'frame,t_ns', got '" + shown(line) + "'");
+      if (columns != 2) {
+        fail("the header has " + std::to_string(columns) + " columns, expected 2 (frame,t_ns), got '" + shown(line) + "'");
+      }
       continue;
     }
     if (line.empty()) continue;
     const std::size_t comma = line.find(',');
     if (comma == std::string::npos) fail("expected 'frame,t_ns', got '" + shown(line) + "'");
-    const std::size_t comma2 = line.find(',', comma + 1);
+    if (columns != 2) fail("the row has " + std::to_string(columns) + " columns, expected 2 (frame,t_ns), got '" + shown(line) + "'");
     const std::string f = trim(line.substr(0, comma));
-    const std::string t = trim(line.substr(comma + 1, comma2 == std::string::npos ? std::string::npos : comma2 - comma - 1));
+    const std::string t = trim(line.substr(comma + 1));
     std::int64_t frame = 0, ns = 0;
     const auto last = static_cast<std::int64_t>(frame_count) - 1;
     if (!parse_count(f, std::max<std::int64_t>(last, 0), frame) || frame > last) {
@@ -111,6 +117,16 @@ std::vector<std::int64_t> read_frames_csv(const std::string& path, std::size_t f
 }
 
 std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::size_t min_cols) {
+  // Only a regular file is read: a FIFO named ground_truth.csv in a recording blocked replay in
+  // open() for ever, a directory read as a file of no rows (no truth, no word).
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw std::runtime_error(path + ": cannot open (" + std::strerror(errno) + ")");
+  if (!S_ISREG(st.st_mode)) {
+    throw std::runtime_error(path + ": not a regular file (" +
+                             std::string(S_ISDIR(st.st_mode) ? "a directory" : S_ISFIFO(st.st_mode) ? "a FIFO" : "a device or socket") +
+                             ")");
+  }
+  if (st.st_size > kMaxFileBytes) throw std::runtime_error(path + ": larger than 64 MiB");
   std::ifstream f(path);
   if (!f) throw std::runtime_error(path + ": cannot open");
   std::vector<std::vector<double>> rows;
@@ -125,7 +141,11 @@ std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::
     while (std::getline(ss, cell, ',')) {
       char* end = nullptr;
       const double v = std::strtod(cell.c_str(), &end);
-      if (end == cell.c_str()) throw std::runtime_error(path + ":" + std::to_string(line_no) + ": '" + cell + "' is not a number");
+      // The whole cell (blanks and a CR aside): "12abc" was read as 12, "0x1p3" as 8.
+      while (*end == ' ' || *end == '\t' || *end == '\r') ++end;
+      if (end == cell.c_str() || *end != '\0' || cell.find_first_of("xX") != std::string::npos) {
+        throw std::runtime_error(path + ":" + std::to_string(line_no) + ": '" + shown(cell) + "' is not a number");
+      }
       row.push_back(v);
     }
     if (row.size() < min_cols) {

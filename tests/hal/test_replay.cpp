@@ -3,6 +3,7 @@
 
 #include <fstream>
 
+#include "sempose/hal/frames_csv.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
 #include "sempose/hal/source_factory.hpp"
@@ -140,6 +141,66 @@ TEST(Replay, SetupErrorsNameTheProblem) {
   EXPECT_EQ(make_scan_source("replay", limits(), {}, rc, st), nullptr);
   EXPECT_NE(st.message.find("frame_000001.pgm: 8-bit samples where the first frame has 16-bit ones"), std::string::npos)
       << st.message;
+}
+
+
+// frames.csv is frame,t_ns and nothing else: a row or header with a third column (another
+// file's layout such as ground_truth.csv's, a hand edit) was read as if the column were not
+// there. Refused naming the file, the line and the column count.
+TEST(FramesCsv, AnExtraColumnIsRefusedNamingFileLineAndCount) {
+  struct Case {
+    const char* text;
+    const char* expect;
+  };
+  const Case cases[] = {
+      {"frame,t_ns\n0,1000,7\n1,2000\n", "rec/frames.csv:2: the row has 3 columns, expected 2 (frame,t_ns)"},
+      {"frame,t_ns\n0,1000\n1,2000,\n", "rec/frames.csv:3: the row has 3 columns, expected 2 (frame,t_ns)"},
+      {"frame,t_ns\r\n0,1000\r\n1,2000,3,4\r\n", "rec/frames.csv:3: the row has 4 columns"},
+      {"frame,x_px,y_px,phi_deg\n0,10,20,0\n1,11,20,0\n", "rec/frames.csv:1: the header has 4 columns, expected 2"},
+  };
+  for (const Case& c : cases) {
+    try {
+      parse_frames_csv(c.text, 2, "rec/frames.csv");
+      ADD_FAILURE() << "accepted: " << c.text;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(c.expect), std::string::npos) << e.what();
+    }
+  }
+  // Two columns (spaces and CR around the cells) are still read.
+  const auto t = parse_frames_csv("frame, t_ns\r\n0, 1000\r\n1 ,2000\r\n", 2, "rec/frames.csv");
+  ASSERT_EQ(t.size(), 2u);
+  EXPECT_EQ(t[1], 2000);
+}
+
+
+// The truth CSVs (a recording's ground_truth.csv, replay --truth) are read whole-cell: "12abc"
+// was read as 12 and a hex float as its value; a directory in the file's place read as a file
+// of no rows. Each is a named error now.
+TEST(FramesCsv, TruthCellsMustBeWholeNumbersAndTheFileARegularOne) {
+  const auto dir = test::temp_dir("truth_cells");
+  const std::string path = (dir / "truth.csv").string();
+  for (const char* row : {"0,12abc,20,0", "0,10,0x1p3,0", "0,10,20,5deg"}) {
+    std::ofstream(path) << "frame,x_px,y_px,phi_deg\n" << row << "\n";
+    try {
+      read_numeric_csv(path, 4);
+      ADD_FAILURE() << "accepted: " << row;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(path + ":2: '"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("is not a number"), std::string::npos) << e.what();
+    }
+  }
+  std::ofstream(path) << "frame,x_px,y_px,phi_deg\r\n0, 10.5 ,-2e1,nan\r\n";
+  const auto rows = read_numeric_csv(path, 4);
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_DOUBLE_EQ(rows[0][1], 10.5);
+  EXPECT_DOUBLE_EQ(rows[0][2], -20.0);
+  std::filesystem::create_directories(dir / "as_dir.csv");
+  try {
+    read_numeric_csv((dir / "as_dir.csv").string(), 4);
+    ADD_FAILURE() << "a directory was read as a truth file";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("as_dir.csv: not a regular file (a directory)"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
