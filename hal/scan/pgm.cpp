@@ -76,6 +76,15 @@ std::string parse(const std::vector<unsigned char>& d, Image& out) {
   for (std::size_t i = 0; i < n; ++i) {
     img.pixels[i] = bytes_per == 2 ? static_cast<std::uint16_t>((p[2 * i] << 8) | p[2 * i + 1]) : p[i];
   }
+  // A sample above maxval is not a PGM (netpbm): the header lies about the depth (a 12-bit
+  // raster under maxval 255 whose bytes happen to fit, a maxval typed wrong). It was read as it
+  // came, brighter than white.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (img.pixels[i] > maxval) {
+      return "sample " + std::to_string(img.pixels[i]) + " at (" + std::to_string(i % static_cast<std::size_t>(w)) + ", " +
+             std::to_string(i / static_cast<std::size_t>(w)) + ") is above maxval " + std::to_string(maxval);
+    }
+  }
   out = std::move(img);
   return {};
 }

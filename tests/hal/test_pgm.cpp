@@ -85,6 +85,9 @@ TEST(Pgm, EachMalformedFileNamesTheProblem) {
   check("comment_after_maxval.pgm", "P5\n2 2\n255 # hand-made\nabcd", "12 bytes after the 2x2 raster");
   check("wide_under_255.pgm", "P5\n2 2\n255\nabcdefgh", "4 bytes after the 2x2 raster");
   check("two_images.pgm", "P5\n2 1\n255\nabP5\n2 1\n255\ncd", "after the 2x1 raster");
+  // A sample above maxval: the header does not describe the data (read as it came before).
+  check("above_maxval.pgm", "P5\n2 2\n100\nab\x10\xc8", "sample 200 at (1, 1) is above maxval 100");
+  check("above_maxval16.pgm", std::string("P5\n2 1\n1000\n\x03\xe8\x03\xe9", 16), "sample 1001 at (1, 0) is above maxval 1000");
   const std::string missing = (dir / "missing.pgm").string();
   const std::string e = error_of(missing);
   EXPECT_NE(e.find("cannot open"), std::string::npos) << e;
