@@ -192,7 +192,17 @@ YAML::Node checked_root(YAML::Node root, Errors& errors) {
 
 YAML::Node load_text(const std::string& text, Errors& errors) {
   try {
-    return checked_root(YAML::Load(text), errors);
+    // One config per file: YAML::Load read the first document of a multi-document stream and
+    // dropped the rest without a word (a `---` and a second set of sections, e.g. two configs
+    // concatenated, ran the first one). A later document that holds anything is an error.
+    std::vector<YAML::Node> docs = YAML::LoadAll(text);
+    for (std::size_t i = 1; i < docs.size(); ++i) {
+      if (docs[i].IsNull()) continue;  // an empty document (a trailing `---`)
+      errors.add(docs[i].Mark(), "(document " + std::to_string(i + 1) + ")",
+                 "a second YAML document (after ---); a config file holds one document");
+      return {};
+    }
+    return checked_root(docs.empty() ? YAML::Node() : docs.front(), errors);
   } catch (const YAML::Exception& e) {
     errors.add(e.mark, "(syntax)", e.msg);
   } catch (const std::exception& e) {

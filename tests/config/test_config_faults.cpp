@@ -215,6 +215,19 @@ TEST(ConfigFaults, DuplicateAndNonScalarKeysAreErrors) {
   EXPECT_NE(e.find("a key must be a plain name"), std::string::npos) << e;
 }
 
+// A second YAML document (`---`, two configs concatenated) was dropped without a word: the
+// first one ran. Refused naming its line; an empty trailing document is harmless.
+TEST(ConfigFaults, ASecondYamlDocumentIsRefused) {
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config("tracker: {score_threshold: 0.3}\n---\ntracker: {score_threshold: 0.9}\n", "m.yaml", c, e));
+  EXPECT_NE(e.find("m.yaml:3:1: (document 2): a second YAML document"), std::string::npos) << e;
+  EXPECT_FALSE(parse_app_config("---\nscan: {field_w: 640}\n...\n--- {scan: {field_w: 320}}\n", "m.yaml", c, e));
+  EXPECT_NE(e.find("a second YAML document"), std::string::npos) << e;
+  EXPECT_TRUE(parse_app_config("---\ntracker: {score_threshold: 0.3}\n---\n", "m.yaml", c, e)) << e;
+  EXPECT_DOUBLE_EQ(c.tracker.score_threshold, 0.3);
+}
+
 TEST(ConfigFaults, TrackingRoiLargerThanTheScanLimitIsRefused) {
   AppConfig c;
   std::string e;
