@@ -5,6 +5,7 @@
 // in the README's conventions; a full field takes ~78 ms at 640x480, 250 ns, so mid-scan
 // would be px off for a moving target).
 // Runs on the virtual clock: as fast as the CPU allows and reproducible from the seed.
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -17,6 +18,7 @@
 
 #include "cli.hpp"
 #include "cli_options.hpp"
+#include "sempose/config/app_config.hpp"
 #include "sempose/config/reader.hpp"
 #include "sempose/config/scan_config.hpp"
 #include "sempose/config/sim_config.hpp"
@@ -46,12 +48,23 @@ bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& sca
     // The sections are copied into a map of their own below, which would drop a repeated
     // `scan:` or `sim:` (the second one was ignored without a word: found probing); the
     // top level's keys are checked for repeats here, as `sempose run` checks them.
+    // A key no part of sempose reads (a typo such as `sim_targets:` or `Sim:`) used to be
+    // ignored here, and the default scene was recorded: refused as `sempose run` refuses it.
+    const std::vector<std::string>& sections = app_config_sections();
+    std::string known;
+    for (const auto& k : sections) known += (known.empty() ? "" : ", ") + k;
     std::map<std::string, int> first_line;
     for (const auto& kv : root) {
-      if (!kv.first.IsScalar()) continue;  // not a section name
+      if (!kv.first.IsScalar()) {
+        errors.add(kv.first.Mark(), "(top level)", "a key must be a plain name, not a list or mapping");
+        continue;
+      }
       const auto [it, fresh] = first_line.emplace(kv.first.Scalar(), kv.first.Mark().line + 1);
       if (!fresh) {
         errors.add(kv.first.Mark(), kv.first.Scalar(), "duplicate key (first given on line " + std::to_string(it->second) + ")");
+      } else if (std::find(sections.begin(), sections.end(), kv.first.Scalar()) == sections.end()) {
+        errors.add(kv.first.Mark(), kv.first.Scalar(),
+                   "unknown key (known: " + known + "; sim reads scan: and sim:, the others are sempose run's)");
       }
     }
   }

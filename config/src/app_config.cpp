@@ -140,6 +140,13 @@ bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, A
                      std::string& error_text);
 }  // namespace
 
+const std::vector<std::string>& app_config_sections() {
+  // Kept equal to what read_app_config reads (test: AppConfig.SectionListIsWhatRunReads).
+  static const std::vector<std::string> sections = {"source", "scan",   "sim",      "replay",   "comedi", "targets", "tracker",
+                                                    "governor", "pipeline", "output", "can", "gpio", "service"};
+  return sections;
+}
+
 std::vector<KeyInfo> config_keys(const std::string& text) {
   Errors errors("(catalog)");
   AppConfig out;

@@ -2,6 +2,7 @@
 // file, line, key, value and allowed range; all problems at once, unknown sections included.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -35,6 +36,23 @@ TEST(AppConfig, UnknownKeyAndSectionAreErrors) {
   EXPECT_FALSE(load_app_config(path, c, e));
   EXPECT_NE(e.find(path + ":2:3: governor.margn: unknown key"), std::string::npos) << e;
   EXPECT_NE(e.find(path + ":3:1: foo: unknown key"), std::string::npos) << e;
+}
+
+// app_config_sections() is what `sempose sim` accepts at the top level besides scan: and sim:;
+// it must be exactly the keys run's reader knows (the "known here" list of its error).
+TEST(AppConfig, SectionListIsWhatRunReads) {
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config("zz_not_a_section: 1\n", "x.yaml", c, e));
+  const std::string mark = "zz_not_a_section: unknown key (known here: ";
+  const auto at = e.find(mark);
+  ASSERT_NE(at, std::string::npos) << e;
+  const std::string known = e.substr(at + mark.size(), e.find(')', at) - at - mark.size());
+  std::vector<std::string> sorted = app_config_sections();
+  std::sort(sorted.begin(), sorted.end());
+  std::string expected;
+  for (const auto& k : sorted) expected += (expected.empty() ? "" : ", ") + k;
+  EXPECT_EQ(known, expected);
 }
 
 TEST(AppConfig, OutOfRangeNamesKeyValueAndRange) {

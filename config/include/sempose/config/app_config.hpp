@@ -47,6 +47,10 @@ bool load_app_config(const std::string& path, AppConfig& out, std::string& error
 // The same for YAML text already in memory (tests, the fuzz target); `path` names it in
 // messages and is the folder relative pattern paths resolve against.
 bool parse_app_config(const std::string& text, const std::string& path, AppConfig& out, std::string& error_text);
+// The top-level keys `sempose run` reads (source, scan, sim, ...), in the order it reads them:
+// `sempose sim` reads only scan: and sim: from a run's config but must still refuse a key no
+// part of sempose knows (a typo such as `sim_targets:` ran the default scene).
+const std::vector<std::string>& app_config_sections();
 // Every scalar key the readers look at for this text (lists as far as the text has items),
 // with its kind: what the table-driven tests iterate over.
 std::vector<KeyInfo> config_keys(const std::string& text);
