@@ -157,6 +157,14 @@ int run_replay(int argc, char** argv) {
     std::fprintf(stderr, "sempose replay: --out: '%s' cannot be written: it is %s\n", out_path.c_str(), why.c_str());
     return 2;
   }
+  // A missing folder: the CSV's open() failed after setup, naming output.poses_csv (a config
+  // key the command line never gave). Named here by the option, before any work.
+  if (std::error_code ec; out_path != "-" && !std::filesystem::path(out_path).parent_path().empty() &&
+                          !std::filesystem::is_directory(std::filesystem::path(out_path).parent_path(), ec)) {
+    std::fprintf(stderr, "sempose replay: --out: '%s' cannot be written: its folder '%s' does not exist (make it first)\n",
+                 out_path.c_str(), std::filesystem::path(out_path).parent_path().c_str());
+    return 2;
+  }
   if (const std::string why = config::path_kind_problem(truth_path); !truth_path.empty() && !why.empty()) {
     std::fprintf(stderr, "sempose replay: --truth: '%s' is %s (need a CSV file: frame,x_px,y_px,phi_deg[,target])\n",
                  truth_path.c_str(), why.c_str());
@@ -215,7 +223,10 @@ int run_replay(int argc, char** argv) {
   // Every check is done: only now is the output file created.
   pipeline::CsvPoseSink csv(out_path, 1024, trackers.trackers.size() > 1);
   if (const rt::Status opened = csv.open(); !opened.ok) {
-    std::fprintf(stderr, "sempose replay: %s\n", opened.message.c_str());
+    // The sink names the config key; here the file came from --out.
+    std::string message = opened.message;
+    if (message.rfind("output.poses_csv:", 0) == 0) message.replace(0, 17, "--out:");
+    std::fprintf(stderr, "sempose replay: %s\n", message.c_str());
     return 2;
   }
   TruthCheckSink sink(csv, truth);

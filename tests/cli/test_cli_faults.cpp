@@ -668,3 +668,67 @@ TEST(CliFaults, FifoOrDirectoryAsReplayOrViewFileIsRefusedAtOnce) {
   EXPECT_FALSE(fs::exists(dir + "/v"));
   ::unlink(fifo.c_str());
 }
+
+// A top-level key that no part of sempose reads (a typo, the wrong case) was ignored by `sim`,
+// which then recorded the default scene (exit 0). Refused naming the file, line, key and the
+// keys allowed; a run config's other sections (tracker:, output:, ...) are still accepted.
+TEST(CliFaults, SimRefusesAnUnknownTopLevelKey) {
+  const std::string dir = work_dir() + "/sim_unknown";
+  fs::create_directories(dir);
+  const std::string scene = "  - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}\n";
+  std::ofstream(dir + "/typo.yaml") << "scan: {field_w: 320, field_h: 240}\nsim_targets:\n" << scene;
+  std::ofstream(dir + "/case.yaml") << "scan: {field_w: 320, field_h: 240}\nSim:\n  targets:\n" << scene;
+  std::ofstream(dir + "/nested.yaml") << "scan: {field_w: 320, feld_h: 240}\n";
+  const Refusal cases[] = {
+      {{"sim", "--out", dir + "/rec", "--frames", "1", "--config", dir + "/typo.yaml"},
+       "typo.yaml:2:1: sim_targets: unknown key (known: source, scan, sim, replay"},
+      {{"sim", "--out", dir + "/rec", "--frames", "1", "--config", dir + "/case.yaml"}, "case.yaml:2:1: Sim: unknown key"},
+      {{"sim", "--out", dir + "/rec", "--frames", "1", "--config", dir + "/nested.yaml"}, "scan.feld_h: unknown key"},
+  };
+  for (const Refusal& c : cases) ASSERT_NO_FATAL_FAILURE(expect_refused(c, 60));
+  EXPECT_FALSE(fs::exists(dir + "/rec"));
+  // A full run config (sections sim does not read) still records.
+  const Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "1", "--config",
+                         small_config(dir, "output: {poses_csv: x.csv}\ncan: {log_file: x.log}\n")},
+                        60);
+  EXPECT_EQ(r.code, 0) << r.err;
+}
+
+// replay --out in a folder that does not exist: the CSV's open() failed after setup with
+// "output.poses_csv: cannot create …", a config key the user never wrote. Named by the option
+// and the path, before any work.
+TEST(CliFaults, ReplayOutInAMissingFolderNamesTheOption) {
+  const std::string dir = work_dir() + "/replay_missing_dir";
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 2));
+  const std::string out = dir + "/no_such_dir/poses.csv";
+  const Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", out}, 60);
+  ASSERT_FALSE(r.hung);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--out: '" + out + "' cannot be written: its folder '" + dir + "/no_such_dir' does not exist"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("output.poses_csv"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("pattern bank"), std::string::npos) << "refused before the setup:\n" << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/no_such_dir"));
+}
+
+// A FIFO in the place of a recording's ground_truth.csv blocked replay (and run on the
+// recording) in open() for ever; a directory there read as a truth of no rows. Refused by name.
+TEST(CliFaults, RecordingTruthThatIsAFifoOrDirectoryIsRefusedAtOnce) {
+  const std::string dir = work_dir() + "/truth_fifo";
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 2));
+  const std::string truth = dir + "/rec/ground_truth.csv";
+  ASSERT_EQ(::unlink(truth.c_str()), 0);
+  ASSERT_EQ(::mkfifo(truth.c_str(), 0600), 0);
+  const Refusal fifo{{"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/o.csv"},
+                     truth + ": not a regular file (a FIFO)"};
+  ASSERT_NO_FATAL_FAILURE(expect_refused(fifo, 20));
+  ::unlink(truth.c_str());
+  fs::create_directories(truth);
+  const Refusal directory{{"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/o.csv"},
+                          truth + ": not a regular file (a directory)"};
+  ASSERT_NO_FATAL_FAILURE(expect_refused(directory, 20));
+  EXPECT_FALSE(fs::exists(dir + "/o.csv"));
+}
