@@ -23,6 +23,7 @@
 
 #include "cli.hpp"
 #include "cli_options.hpp"
+#include "sempose/session/nonblocking_stdio.hpp"
 #include "sempose/session/run_setup.hpp"
 #include "sempose/session/run_summary.hpp"
 #include "sempose/config/app_config.hpp"
@@ -127,6 +128,9 @@ int sempose::cli::run(int argc, char** argv) {
                                               flag("--strict-rt"), text("--hist-dir"), text("--can-log")},
                                              argc, argv);
   if (const int code = finish_parse("run", parsed, usage); code >= 0) return code;
+  // A stdout or stderr nobody reads must not stall the main loop (CSV flushing, watchdog,
+  // signals): status lines it cannot take are dropped and counted (stdout_lines_lost).
+  session::make_stdio_nonblocking();
   const Options opt{parsed.text("--config"), parsed.real("--duration", 0), parsed.has("--strict-rt"),
                     parsed.text("--hist-dir"), parsed.text("--can-log")};
 
@@ -370,6 +374,9 @@ int sempose::cli::run(int argc, char** argv) {
     }
   }
   const double run_s = (rt::now_ns() - t0) * 1e-9;
+  // What follows (stop line, histograms, summary) may wait a little for a slow reader, in all
+  // at most 2 s: the run has stopped, and a reader that never reads must not keep it alive.
+  session::set_stdio_patience_ms(2000);
   notifier.stopping();
   pipe->request_stop();
   // Drain within a bound: a stage stuck in a driver must not keep the service from stopping.
@@ -428,9 +435,15 @@ int sempose::cli::run(int argc, char** argv) {
                 static_cast<unsigned long long>(k.timeouts),
                 static_cast<unsigned long long>(k.arm_errors), static_cast<unsigned long long>(k.cancelled));
   }
-  const session::RunSummary summary =
+  session::RunSummary summary =
       session::collect_summary(run, run_s, rt::alloc::allocations() - allocs_at_start, source_watchdog.stalls());
+  summary.stdout_lines_lost = session::stdout_lines_lost();
   session::print_summary(stdout, summary);
+  if (session::stdout_lines_lost() > summary.stdout_lines_lost) {
+    // The summary itself did not get through: stderr has it (a different reader, often a log).
+    std::fprintf(stderr, "sempose run: standard output is blocked or closed; the summary:\n");
+    session::print_summary(stderr, summary);
+  }
   // Exit code: 0 only when nothing was lost. 4: an output failed to write; 5: the source stalled;
   // 6 (above): the stages did not drain within service.stop_timeout_ms.
   if (summary.output_errors > 0 || !csv_ok || summary.can_log_bytes_lost > 0 || !hist_ok) {

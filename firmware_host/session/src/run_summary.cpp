@@ -68,8 +68,8 @@ void print_summary(std::FILE* out, const RunSummary& s) {
   }
   std::fprintf(out, " output_errors=%llu csv_lines_lost=%llu can_log_bytes_lost=%llu commands_rejected=%llu",
                u(s.output_errors), u(s.csv_lines_lost), u(s.can_log_bytes_lost), u(s.commands_rejected));
-  std::fprintf(out, " command_overflows=%llu source_stalls=%llu can_rebinds=%llu\n", u(s.command_overflows),
-               u(s.source_stalls), u(s.can_rebinds));
+  std::fprintf(out, " command_overflows=%llu source_stalls=%llu can_rebinds=%llu stdout_lines_lost=%llu\n",
+               u(s.command_overflows), u(s.source_stalls), u(s.can_rebinds), u(s.stdout_lines_lost));
 }
 
 }  // namespace sempose::session

@@ -38,6 +38,7 @@ struct RunSummary {
   std::uint64_t commands_rejected = 0;
   std::uint64_t command_overflows = 0;
   std::uint64_t source_stalls = 0;
+  std::uint64_t stdout_lines_lost = 0;  // status lines a blocked or closed stdout did not take
 };
 
 // From a finished run (stages joined, sinks closed): run_s the run's length, rt_allocs the
