@@ -152,7 +152,13 @@ void read_sim(Section& s, SimConfig& c) {
   s.opt("beam_lag_len_px", c.beam_lag_len_px, 0.1, 256.0);
   if (s.has("drift")) {
     c.drift.clear();
-    for (Section& d : s.children("drift")) {
+    std::vector<Section> terms = s.children("drift");
+    // Every term is summed for every scanned line on the RT path: 200,000 terms were accepted
+    // (sim took 18 s for two 320x240 frames). A few slow sines model a stage's drift.
+    if (terms.size() > kMaxDriftTerms) {
+      s.error("drift", std::to_string(terms.size()) + " terms; at most " + std::to_string(kMaxDriftTerms) + " are allowed");
+    }
+    for (Section& d : terms) {
       DriftTerm term;
       d.opt("amplitude_px", term.amplitude_px, 0.0, 1000.0);
       d.opt("period_s", term.period_s, 1e-3, 1e6);

@@ -90,6 +90,26 @@ sim:
   }
 }
 
+// Each drift term is summed for every scanned line on the RT path: 200,000 were accepted (sim
+// took 18 s for two 320x240 frames). Bounded at kMaxDriftTerms, named with the count.
+TEST(ScanConfig, DriftTermsAreBounded) {
+  ScanLimits scan;
+  SimConfig sim;
+  ReplayConfig replay;
+  auto drift = [](std::size_t n) {
+    std::string y = "sim:\n  drift:\n";
+    for (std::size_t i = 0; i < n; ++i) y += "    - {amplitude_px: 0.1, period_s: 10}\n";
+    return y;
+  };
+  EXPECT_EQ(read(drift(kMaxDriftTerms), scan, sim, replay), "");
+  EXPECT_EQ(sim.drift.size(), kMaxDriftTerms);
+  const std::string err = read(drift(kMaxDriftTerms + 1), scan, sim, replay);
+  EXPECT_NE(err.find("sim.drift: " + std::to_string(kMaxDriftTerms + 1) + " terms; at most " +
+                     std::to_string(kMaxDriftTerms) + " are allowed"),
+            std::string::npos)
+      << err;
+}
+
 TEST(ScanConfig, DefaultsNeedNoSection) {
   const SimConfig sim;
   const ScanLimits scan;

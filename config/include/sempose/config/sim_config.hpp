@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -85,6 +86,9 @@ struct SimTargetConfig {
   // position (negative: closing); the body, which carries the pose point, does not move.
   TimeProfile jaws = TimeProfile::constant(0.0);
 };
+
+// At most this many drift terms: each is summed for every scanned line (RT path).
+constexpr std::size_t kMaxDriftTerms = 16;
 
 struct DriftTerm {  // one sinusoid of the slow image drift
   double amplitude_px = 0, period_s = 10, direction_deg = 0, phase_deg = 0;
