@@ -1,4 +1,6 @@
 // sempose: hard-real-time vision controller for robotic nanohandling in an SEM.
+#include <signal.h>
+
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -32,6 +34,10 @@ int usage(std::FILE* out) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A file-size limit (`ulimit -f`, RLIMIT_FSIZE) reached by an output: the default action of
+  // SIGXFSZ killed the process mid-line (run: a cut CSV line, no summary, exit 153). Ignored,
+  // the write fails with EFBIG and is reported like a full disk (run: exit 4, counted).
+  ::signal(SIGXFSZ, SIG_IGN);
   if (argc < 2) return usage(stderr);
   if (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) return usage(stdout);
   for (const auto& c : kCommands) {

@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -52,6 +53,7 @@ std::string work_dir() {
 // it printed its thread placement, i.e. the RT stages run); kills it (and reports a hang)
 // after timeout_s.
 constexpr int kWhenRunning = -2;
+long g_child_file_size_limit = -1;  // RLIMIT_FSIZE of the child in bytes (-1: unlimited)
 Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int signal_after_ms = -1, int sig = SIGTERM) {
   const std::string dir = work_dir();
   const std::string out_path = dir + "/stdout.txt", err_path = dir + "/stderr.txt";
@@ -68,6 +70,10 @@ Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int sig
     dup2(e, 2);
     const int in = ::open("/dev/null", O_RDONLY);
     dup2(in, 0);
+    if (g_child_file_size_limit >= 0) {
+      const rlimit lim{static_cast<rlim_t>(g_child_file_size_limit), static_cast<rlim_t>(g_child_file_size_limit)};
+      setrlimit(RLIMIT_FSIZE, &lim);
+    }
     std::vector<char*> argv;
     std::string bin = SEMPOSE_BIN;
     argv.push_back(bin.data());
@@ -731,4 +737,32 @@ TEST(CliFaults, RecordingTruthThatIsAFifoOrDirectoryIsRefusedAtOnce) {
                           truth + ": not a regular file (a directory)"};
   ASSERT_NO_FATAL_FAILURE(expect_refused(directory, 20));
   EXPECT_FALSE(fs::exists(dir + "/o.csv"));
+}
+
+// A file-size limit (`ulimit -f`) reached by the CSV: SIGXFSZ's default action killed `run`
+// mid-line (signal 25: a cut CSV line, no summary) and `replay` likewise. Now the write fails
+// (EFBIG) and is reported as any failed output: exit 4, counted, the CSV cut to whole lines.
+TEST(CliFaults, AFileSizeLimitIsAWriteErrorNotADeath) {
+  const std::string dir = work_dir() + "/fsize";
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 10));  // ~1.2 kB of replay CSV
+  const std::string csv = dir + "/poses.csv", replay_csv = dir + "/replay.csv";
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: /dev/null}\n");
+  g_child_file_size_limit = 16384;
+  Outcome r = run({"run", "--config", cfg, "--duration", "2"}, 60);
+  g_child_file_size_limit = 600;  // below the CSV, above its stderr message
+  const Outcome rp = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", replay_csv}, 60);
+  g_child_file_size_limit = -1;
+  ASSERT_FALSE(r.hung);
+  EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << " (25: SIGXFSZ)";
+  EXPECT_EQ(r.code, 4) << r.out << r.err;
+  EXPECT_NE(field(r.out, "output_errors"), "0") << r.out;
+  EXPECT_NE(field(r.out, "csv_lines_lost"), "0") << r.out;
+  const std::string text = slurp(csv);
+  EXPECT_LE(text.size(), 16384u);
+  EXPECT_TRUE(!text.empty() && text.back() == '\n') << "a cut last line";
+  ASSERT_FALSE(rp.hung);
+  EXPECT_EQ(rp.signal, 0) << "replay killed by signal " << rp.signal;
+  EXPECT_EQ(rp.code, 4) << rp.err;
+  EXPECT_NE(rp.err.find("pose lines not written"), std::string::npos) << rp.err;
 }
