@@ -35,6 +35,11 @@ std::string describe_range(double lo, double hi) {
   return "[" + num(lo) + ", " + num(hi) + "]";
 }
 
+bool tag_is_plain(const std::string& tag) {
+  return tag.empty() || tag == "?" || tag == "!" || tag == "tag:yaml.org,2002:str" || tag == "tag:yaml.org,2002:int" ||
+         tag == "tag:yaml.org,2002:float" || tag == "tag:yaml.org,2002:bool";
+}
+
 Section::Section(YAML::Node node, std::string path, Errors& errors)
     : node_(std::move(node)), path_(std::move(path)), errors_(&errors) {
   if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap()) {

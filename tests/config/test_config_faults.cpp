@@ -228,6 +228,26 @@ TEST(ConfigFaults, ASecondYamlDocumentIsRefused) {
   EXPECT_DOUBLE_EQ(c.tracker.score_threshold, 0.3);
 }
 
+// A tag was dropped and the text read as it stands: `!!binary aGVsbG8=` named a file
+// "aGVsbG8=", `!local 3` read 3. Refused naming key and tag; the core scalar tags still read.
+TEST(ConfigFaults, TaggedValuesOtherThanPlainOnesAreRefused) {
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config("output: {poses_csv: !!binary aGVsbG8=}\n", "t.yaml", c, e));
+  EXPECT_NE(e.find("output.poses_csv: 'aGVsbG8=' carries the tag 'tag:yaml.org,2002:binary'"),
+            std::string::npos)
+      << e;
+  EXPECT_FALSE(parse_app_config("tracker: {roi_size_px: !local 160}\n", "t.yaml", c, e));
+  EXPECT_NE(e.find("tracker.roi_size_px: '160' carries the tag '!local'"), std::string::npos) << e;
+  EXPECT_FALSE(parse_app_config("pipeline: {schedule: [0, !!timestamp 1]}\n", "t.yaml", c, e));
+  EXPECT_NE(e.find("pipeline.schedule[1]"), std::string::npos) << e;
+  EXPECT_TRUE(parse_app_config("tracker: {roi_size_px: !!int 160, score_threshold: !!float 0.3, circular_mask: !!bool true}\n"
+                               "output: {poses_csv: !!str 12.csv}\n",
+                               "t.yaml", c, e))
+      << e;
+  EXPECT_EQ(c.tracker.roi_size_px, 160);
+}
+
 TEST(ConfigFaults, TrackingRoiLargerThanTheScanLimitIsRefused) {
   AppConfig c;
   std::string e;

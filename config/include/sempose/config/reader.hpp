@@ -128,6 +128,8 @@ std::string output_dir_problem(const std::string& path);
 // ---- template definitions ----
 
 std::string describe_range(double lo, double hi);
+// "?" (plain), "!" (quoted) and the core schema's scalar tags: a value read as it is written.
+bool tag_is_plain(const std::string& tag);
 
 template <typename T>
 void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T hi) {
@@ -135,6 +137,13 @@ void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T 
                             (n.IsSequence() ? "list" : n.IsMap() ? "mapping" : "null") + ")";
   if (!n.IsScalar()) {
     errors_->add(n.Mark(), key_path(key), shown + " is not a single value");
+    return;
+  }
+  // A tag changes what a value means (`!!binary aGVsbG8=` is "hello"), yet it was dropped and
+  // the text read as it stands: only the plain types are accepted.
+  if (const std::string& tag = n.Tag(); !tag_is_plain(tag)) {
+    errors_->add(n.Mark(), key_path(key), "'" + shown + "' carries the tag '" + tag +
+                                              "'; only plain values (or !!str, !!int, !!float, !!bool) are read");
     return;
   }
   if constexpr (std::is_same_v<T, bool>) {
