@@ -54,6 +54,12 @@ int sempose::cli::view(int argc, char** argv) {
   const int every = static_cast<int>(opt.whole("--every", 10)), roi = static_cast<int>(opt.whole("--roi", 192)),
             pattern_size = static_cast<int>(opt.whole("--pattern-size", 128)), scale = static_cast<int>(opt.whole("--scale", 2));
   if (cli::refuse_stdout_output("view", out_dir, "the folder the pictures are written to")) return 2;
+  // A file or device as --out failed after the inputs were read with a bare "filesystem error:
+  // cannot create directories: Not a directory [afile]": named by the option, first.
+  if (const std::string why = config::output_dir_problem(out_dir); !why.empty()) {
+    std::fprintf(stderr, "sempose view: --out: '%s' cannot hold the pictures: it is %s\n", out_dir.c_str(), why.c_str());
+    return 2;
+  }
   // A FIFO as --poses blocked in open() (found probing: the process hung).
   if (const std::string why = config::path_kind_problem(poses_path); !why.empty()) {
     std::fprintf(stderr, "sempose view: --poses: '%s' is %s (need the CSV of a run or a replay)\n", poses_path.c_str(),

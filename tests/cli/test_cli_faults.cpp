@@ -766,3 +766,20 @@ TEST(CliFaults, AFileSizeLimitIsAWriteErrorNotADeath) {
   EXPECT_EQ(rp.code, 4) << rp.err;
   EXPECT_NE(rp.err.find("pose lines not written"), std::string::npos) << rp.err;
 }
+
+// view --out on a regular file or below one: refused by the option before any input is read
+// (it was a bare "filesystem error: cannot create directories: Not a directory [afile]").
+TEST(CliFaults, ViewOutThatIsAFileIsNamedByTheOption) {
+  const std::string dir = work_dir() + "/view_out_file";
+  fs::create_directories(dir);
+  std::ofstream(dir + "/poses.csv") << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,1,2,3,0.5,TRACKING\n";
+  std::ofstream(dir + "/afile") << "x\n";
+  const Refusal cases[] = {
+      {{"view", "--poses", dir + "/poses.csv", "--out", dir + "/afile"},
+       "--out: '" + dir + "/afile' cannot hold the pictures: it is a regular file, not a directory"},
+      {{"view", "--poses", dir + "/poses.csv", "--out", dir + "/afile/sub"},
+       "--out: '" + dir + "/afile/sub' cannot hold the pictures: it is not accessible (Not a directory)"},
+  };
+  for (const Refusal& c : cases) ASSERT_NO_FATAL_FAILURE(expect_refused(c, 20));
+  EXPECT_EQ(slurp(dir + "/afile"), "x\n");
+}
