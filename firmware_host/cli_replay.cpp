@@ -57,7 +57,8 @@ struct Truth {
 // (frame, target).
 class TruthCheckSink final : public pipeline::PoseSink {
  public:
-  TruthCheckSink(pipeline::PoseSink& out, const std::map<std::pair<long, int>, Truth>& truth) : out_(out), truth_(truth) {}
+  TruthCheckSink(pipeline::PoseSink& out, const std::map<std::pair<long, int>, Truth>& truth, bool truth_given)
+      : out_(out), truth_(truth), truth_given_(truth_given) {}
   pipeline::PublishResult publish(const pipeline::PoseRecord& p, std::int64_t t_now_ns) noexcept override {
     const auto it = truth_.find({static_cast<long>(p.frame_seq), static_cast<int>(p.target)});
     if (it != truth_.end() && p.state == pose::TrackState::kTracking) {
@@ -70,7 +71,7 @@ class TruthCheckSink final : public pipeline::PoseSink {
       ++compared;
       // Issue 13's rule for a pose a robot must not be driven with.
       if (d > 3.0 || a > 10.0) ++false_tracking;
-    } else if (p.state == pose::TrackState::kTracking && !truth_.empty()) {
+    } else if (p.state == pose::TrackState::kTracking && truth_given_) {
       // No truth for this frame and target: `sempose sim` leaves a target out of a frame it is
       // not in, so this is a pose of something else; a hand-made truth may just have a gap.
       // Either way it is counted, not silently left out of the comparison.
@@ -86,6 +87,7 @@ class TruthCheckSink final : public pipeline::PoseSink {
  private:
   pipeline::PoseSink& out_;
   const std::map<std::pair<long, int>, Truth>& truth_;
+  bool truth_given_;  // --truth given (an empty one: the target is on no frame)
 };
 
 double percentile(std::vector<double> v, double q) {
@@ -218,6 +220,14 @@ int run_replay(int argc, char** argv) {
       }
       truth[{static_cast<long>(r[0]), r.size() >= 5 ? static_cast<int>(r[4]) : 0}] = {r[1], r[2], r[3]};
     }
+    // A truth of no usable row (an empty file, a header only — `sempose sim` of a target never
+    // in the field —, every row non-finite) says the target is on no frame: every TRACKING pose
+    // is one without truth. It used to count none (poses_compared=0 false_tracking=0
+    // tracking_without_truth=0: a clean-looking pass).
+    if (truth.empty()) {
+      std::fprintf(stderr, "sempose replay: warning: --truth '%s' has no usable row (frame,x_px,y_px,phi_deg[,target], "
+                   "finite): the target is taken to be on no frame\n", truth_path.c_str());
+    }
   }
 
   // Every check is done: only now is the output file created.
@@ -229,7 +239,7 @@ int run_replay(int argc, char** argv) {
     std::fprintf(stderr, "sempose replay: %s\n", message.c_str());
     return 2;
   }
-  TruthCheckSink sink(csv, truth);
+  TruthCheckSink sink(csv, truth, !truth_path.empty());
   std::vector<pose::Tracker*> raw;
   for (auto& t : trackers.trackers) raw.push_back(t.get());
   pipeline::OfflineRunner runner(app.pipeline, app.governor, *run.scan, raw, sink, *run.clock);

@@ -783,3 +783,34 @@ TEST(CliFaults, ViewOutThatIsAFileIsNamedByTheOption) {
   for (const Refusal& c : cases) ASSERT_NO_FATAL_FAILURE(expect_refused(c, 20));
   EXPECT_EQ(slurp(dir + "/afile"), "x\n");
 }
+
+// A --truth of no usable row (empty, a header only — sim's truth for a target never in the
+// field —, only non-finite rows) compared nothing and counted nothing: poses_compared=0
+// false_tracking=0 tracking_without_truth=0, a clean-looking pass. Now it says so, and every
+// TRACKING pose is one without truth.
+TEST(CliFaults, ReplayTruthWithoutAUsableRowCountsEveryTrackingPose) {
+  const std::string dir = work_dir() + "/empty_truth";
+  fs::create_directories(dir);
+  // A standing lamella at 2000 ns and a 10-frame pattern: tracked (17 of 20 TRACKING here).
+  Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "20", "--dwell", "2000", "--config", small_config(dir, "")}, 120);
+  ASSERT_EQ(made.code, 0) << made.err;
+  made = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "10", "--out",
+              dir + "/p.pgm"},
+             60);
+  ASSERT_EQ(made.code, 0) << made.err;
+  int n = 0;
+  for (const char* text : {"", "frame,x_px,y_px,phi_deg\n", "frame,x_px,y_px,phi_deg\n0,nan,1,2\n1,inf,1,2\n"}) {
+    const std::string truth = dir + "/truth" + std::to_string(++n) + ".csv", out = dir + "/o" + std::to_string(n) + ".csv";
+    std::ofstream(truth) << text;
+    const Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--truth", truth, "--out", out}, 60);
+    ASSERT_FALSE(r.hung);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("--truth '" + truth + "' has no usable row"), std::string::npos) << r.err;
+    const std::string poses = slurp(out);
+    long tracking = 0;
+    for (std::size_t p = poses.find(",TRACKING,"); p != std::string::npos; p = poses.find(",TRACKING,", p + 1)) ++tracking;
+    ASSERT_GT(tracking, 0) << "the standing lamella is tracked:\n" << poses;
+    EXPECT_EQ(field(r.out, "tracking_without_truth"), std::to_string(tracking)) << r.out;
+    EXPECT_EQ(field(r.out, "poses_compared"), "0") << r.out;
+  }
+}
