@@ -370,8 +370,7 @@ TEST(NoFalseTracking, SpinPastTheRecordedOrientationIsFollowed) {
 // where the search found it (9 px off, σ ~0.3 px, score 0.71 after the search's 0.94): its own σ
 // is all that judges it there (the stream's noise is not known yet), and it was TRACKING. Its
 // score fell below the search's level by more than the target's confirmed margin and the
-// detector's noise: UNCERTAIN. (The frames after it, once the stream's noise is known from the
-// still pose, are still TRACKING at the clutter's place: what is not solved, Known limitations.)
+// detector's noise: UNCERTAIN. (The frames after it: StaticClutterHoldingThePoseIsNotTracking.)
 TEST(NoFalseTracking, FirstRoiFrameWhoseScoreFellFromTheSearchIsNotTrusted) {
   pt::Scenario s;
   s.target = "needle_tip";
@@ -400,4 +399,70 @@ TEST(NoFalseTracking, FirstRoiFrameWhoseScoreFellFromTheSearchIsNotTrusted) {
   ASSERT_FALSE(e1.searched);
   EXPECT_GT(err1, 3.0) << "the case must hold the pose on the clutter, or it tests nothing";
   EXPECT_NE(e1.state, TrackState::kTracking) << "TRACKING " << err1 << " px off on its own sigma (it was before)";
+}
+
+// The same clutter over the frames after the first: the needle steps 10 px away and back every
+// 78 ms (~8 ROI frames each way). Where the clutter outweighs the needle the pose stays at the
+// recording spot while the needle is away, scoring ~0.71 against the 0.94 it had a frame before,
+// σ ~0.15 px; it does not move, so its innovations and the stream's pose noise are ~0 and it was
+// TRACKING ~9 px off on about half of the 60 frames (README Known limitations: 31 / 32 / 32 at
+// 20 e-/px; C 0.5 B 0.3 at 6 e-/px 11). Its score fell by far more than the noise while the pose
+// stood still: UNCERTAIN until the score is back. Each case must still hold the pose on the
+// clutter (else it tests nothing) and still report the needle TRACKING when it is back there.
+// The control, C 0.3 B 1 (the needle outweighs the clutter: the pose follows it, 0.97 -> 0.79 as
+// the clutter is left behind), must stay TRACKING: a fall with a move is no doubt.
+TEST(NoFalseTracking, StaticClutterHoldingThePoseIsNotTracking) {
+  struct Case {
+    double contrast, brightness, dose;
+    bool clutter_wins;
+  };
+  const Case cases[] = {{0.3, 0.3, 20, true}, {0.5, 0.5, 20, true}, {0.5, 0.3, 20, true}, {0.5, 0.3, 6, true}, {0.3, 1.0, 20, false}};
+  for (const Case& c : cases) {
+    pt::Scenario s;
+    s.target = "needle_tip";
+    s.motion = "step";
+    s.step_x_px = 8;
+    s.step_y_px = 6;
+    s.step_period_s = 0.078;
+    s.background_contrast = c.contrast;
+    s.target_brightness = c.brightness;
+    s.dose_e = c.dose;
+    s.frames = 60;
+    s.start_phi_deg = 0;
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    int tracking = 0, false_tracking = 0, false_torn = 0, held_off = 0, tracking_near = 0;
+    for (std::size_t f = 0; f < h.poses().size(); ++f) {
+      const auto& e = h.poses()[f];
+      const auto& t = h.records()[f].truth;
+      // A torn frame: the needle stepped while its ROI was scanned (half the ROI shows it at
+      // each place; frame 39 of every row, Known limitations), told by the step times.
+      const double t0 = 1e-9 * static_cast<double>(h.records()[f].t_start_ns - sempose::hal::SimSource::kVirtualEpochNs);
+      const double t1 = 2.0 * h.records()[f].t_mid_s - t0;
+      const bool torn = std::floor(t0 / s.step_period_s) != std::floor(t1 / s.step_period_s);
+      const double err = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
+      const double err_deg = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
+      const bool off = err > sempose::pose::LossPolicy::kFalsePx || err_deg > sempose::pose::LossPolicy::kFalseDeg;
+      const bool followed = e.state == TrackState::kTracking || e.state == TrackState::kUncertain;
+      held_off += followed && off && !e.searched;
+      if (e.state != TrackState::kTracking) continue;
+      ++tracking;
+      false_tracking += off;
+      false_torn += off && torn;
+      tracking_near += !off;
+    }
+    std::printf("clutter C %.2g B %.2g dose %4.1f: TRACKING %d/60, false %d (%d on a torn frame), followed off the needle %d\n",
+                c.contrast, c.brightness, c.dose, tracking, false_tracking, false_torn, held_off);
+    if (c.clutter_wins) {
+      EXPECT_GE(held_off, 10) << "the case must hold the pose on the clutter, or it tests nothing";
+      EXPECT_EQ(false_tracking, 0) << "TRACKING on the clutter while the needle is away";
+      EXPECT_GE(tracking_near, 10) << "the needle back at the recording spot is TRACKING again";
+    } else {
+      EXPECT_LE(held_off, 1) << "the control's pose follows the needle";
+      // Its torn frame scores as the frames before it (0.80 after 0.79, still): nothing tells it.
+      EXPECT_EQ(false_tracking - false_torn, 0);
+      EXPECT_GE(tracking, 54) << "a score that fell with a move is no doubt: the needle followed is TRACKING";
+    }
+  }
 }

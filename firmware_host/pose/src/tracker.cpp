@@ -236,6 +236,50 @@ bool Tracker::Impl::fell_below_search_level(float score) const noexcept {
   return level > 0 && !loss.confirmed(score) && score < level - significance_z() * flip_sd(level);
 }
 
+// Static clutter recorded with the target (README Known limitations, look-alike background): a
+// pattern that is mostly background standing still at the recording spot holds the pose there
+// when the target moves away. The pose then does not move, so its innovations and the stream's
+// pose noise are ~0 and σ (the fit's curvature on the clutter) is small; only the score says so:
+// it falls at once from the level the target gave (0.94-0.96 at 20 e-/px) to what the clutter
+// alone explains (0.70-0.74; the normalised χ² ~8× the noise's). A target that moved takes the
+// pose with it (the same pattern over weaker clutter: 0.97 -> 0.79 with the pose 10 px on, on the
+// needle); a target that stands still does not lose score at once but over many frames
+// (charging, defocus: far less than the noise per frame). So: a score below the last accepted
+// one by more than the confirmed margin's share of the room a ZNCC of that level has
+// (0.1 × (1 − level²)) and the detector noise of a difference of two scores (significance_z() ×
+// flip_sd) while the pose
+// stood still (moved less than significance_z() × √2 × its σ, in position and angle) opens a
+// doubt: its poses are followed but UNCERTAIN while the pose keeps standing still and the score
+// stays below the level before the fall by that margin. It ends when the score is back or the
+// pose moves (what it follows moves: not static clutter); a loss or a new search forgets it.
+// Not the running SD of the accepted scores that the confirmed margin also allows: the falls
+// themselves make it (0.94 / 0.71 alternating: 3 SD ~0.3 after one fall), which closed the
+// doubt on the second frame.
+bool Tracker::Impl::fell_while_still(const PoseEstimate& e) noexcept {
+  if (!(cfg.max_false_probability > 0) || loss.calibrating() || !last_known) {
+    still_doubt = false;
+    return false;
+  }
+  const double z = significance_z();
+  const double s_px = std::max(e.sigma_x_px, e.sigma_y_px), s_deg = e.sigma_phi_deg;
+  const bool still = s_px > 0 && s_deg > 0 && std::hypot(e.x_px - last_x, e.y_px - last_y) <= z * std::sqrt(2.0) * s_px &&
+                     std::fabs(rt::wrap_deg(e.phi_deg - last_phi)) <= z * std::sqrt(2.0) * s_deg;
+  if (!still) {
+    still_doubt = false;
+    return false;
+  }
+  const auto below = [&](double level) {
+    return e.score < level - std::max(LossPolicy::kConfirmShare * (1.0 - level * level), z * flip_sd(level));
+  };
+  if (still_doubt) {
+    still_doubt = below(still_level);
+  } else if (below(last_score)) {
+    still_doubt = true;
+    still_level = last_score;
+  }
+  return still_doubt;
+}
+
 double Tracker::Impl::significance_z() const noexcept {
   const double p = std::clamp(cfg.max_false_probability, 1e-12, 0.5);
   double lo = 0, hi = 10;  // 0.5·erfc(z/√2) = p, decreasing in z
@@ -375,6 +419,8 @@ void Tracker::Impl::go_lost() noexcept {
   loss.set_held(false);
   loss.reset();
   motion.reset();
+  last_known = false;
+  still_doubt = false;
 }
 
 // An accepted pose: the motion model and the recent score learn it, then the reported pose
@@ -387,6 +433,12 @@ void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, 
   motion.accept(e.x_px, e.y_px, e.phi_deg, fresh, frame_dwell_ns, e.score);
   loss.accepted(static_cast<float>(std::min<double>(e.score, level_cap)));
   tracking = true;
+  if (fresh) still_doubt = false;
+  last_known = true;
+  last_x = e.x_px;
+  last_y = e.y_px;
+  last_phi = e.phi_deg;
+  last_score = e.score;
   if (fresh) filter.reset();
   const double t_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
   const PoseSample f = filter.update({t_s, e.x_px, e.y_px, e.phi_deg});
@@ -560,11 +612,12 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       if (!flipped && motion.prediction_from_roi_poses())
         innov = {true, motion.innovation_px(e.x_px, e.y_px), motion.innovation_deg(e.phi_deg)};
       const bool fell = fell_below_search_level(m.score);  // against the level before this frame
+      const bool fell_still = fell_while_still(e);          // against the last accepted pose
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
-      if (flip_open || rival_within_noise || fell || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
+      if (flip_open || rival_within_noise || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
       // A good frame teaches the appearance model (RT: sums into a preallocated batch). It reads
       // the pixels the walk was scored on (the ROI resampled to the pattern's size if rescaled).
       if (learning && e.reason_bits == 0 && e.state == TrackState::kTracking && m.score >= cfg.appearance.min_score) {

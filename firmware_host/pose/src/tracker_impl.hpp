@@ -211,6 +211,15 @@ struct Tracker::Impl {
   // A first start's pose before the stream's noise is known scoring below the level the search
   // set by more than the detector noise explains: not trusted on its own σ (tracker.cpp).
   bool fell_below_search_level(float score) const noexcept;
+  // Static clutter in the pattern (tracker.cpp, fell_while_still): a score that fell from the
+  // last accepted pose's by more than the confirmed margin and the detector noise while the pose
+  // stood still (within the noise of its σ) opens a doubt, kept while the pose stands still and
+  // the score stays below the level before the fall; its poses are followed, UNCERTAIN.
+  bool fell_while_still(const PoseEstimate& e) noexcept;
+  bool last_known = false;  // the last accepted pose (and its score) below are set
+  double last_x = 0, last_y = 0, last_phi = 0, last_score = 0;
+  bool still_doubt = false;  // a fall while still is open
+  double still_level = 0;    // the last accepted score before that fall
   // The motion check's sweep found a second hypothesis more than the false-pose rule's 3 px /
   // 10° from the pose kept whose score is within the noise of the kept one's (the two differ
   // by less than significance_z() SDs of a difference of two independent scores, flip_sd):
