@@ -25,11 +25,8 @@ T0=$(date +%s.%N)
 el() { awk -v a="$T0" -v b="$(date +%s.%N)" 'BEGIN{printf "%.1f", b-a}'; }
 log() { echo "[system-test +$(el)s] $*"; }
 
-QEMU=$(command -v qemu-system-x86_64 || true)
-if [ -z "$QEMU" ] || ! echo quit | timeout 30 "$QEMU" -machine none -accel tcg -display none \
-       -nodefaults -monitor stdio >/dev/null 2>&1; then
-  echo "SKIP: qemu-system-x86_64 cannot start here (apt-get install qemu-system-x86)"; exit 77
-fi
+. "$HERE/vm_common.sh"
+require_qemu
 [ -x "$SEMPOSE" ] || { echo "FAIL: sempose binary '$SEMPOSE' missing (build the sempose target)"; exit 1; }
 if [ -z "$HWTEST" ] || [ ! -x "$HWTEST" ]; then
   echo "FAIL: can_gpio_hw_test binary '${HWTEST}' missing (build the can_gpio_hw_test target)"; exit 1
@@ -71,13 +68,7 @@ for attempt in $(seq 1 "$BOOTS"); do
   # noirqdebug: under PREEMPT_RT the 8250's IRQ is threaded, and on TCG the THRE interrupt is
   # often already gone when the thread looks, so the long artifact upload on ttyS1 piles up
   # "unhandled" counts until the kernel disables IRQ 3 ("nobody cared") and the upload stops.
-  timeout "$VM_MAX_S" "$QEMU" -accel tcg -machine pc -smp 2 -m 512 -cpu max \
-    -kernel "$VMLINUX" -initrd "$OUT/initramfs.img" \
-    -append "console=ttyS0 panic=-1 tsc=reliable noirqdebug" \
-    -display none -nodefaults -no-reboot -nic none \
-    -serial "file:$ATT/console.log" -serial "file:$ATT/results.raw" \
-    -device isa-debug-exit,iobase=0xf4,iosize=0x04 > "$ATT/qemu.log" 2>&1 &
-  QPID=$!
+  start_vm "$VM_MAX_S" 512 "$OUT/initramfs.img" "console=ttyS0 panic=-1 tsc=reliable noirqdebug" "$ATT"
   last_size=-1; last_change=$(date +%s); start=$(date +%s); stalled=""; stage=""
   xfer_size=-1; xfer_change=$start
   while kill -0 $QPID 2>/dev/null; do

@@ -16,11 +16,8 @@ VM_MAX_S=${SEMPOSE_SYSTEMD_VM_MAX:-420}
 T0=$(date +%s)
 log() { echo "[systemd-test +$(( $(date +%s) - T0 ))s] $*"; }
 
-QEMU=$(command -v qemu-system-x86_64 || true)
-if [ -z "$QEMU" ] || ! echo quit | timeout 30 "$QEMU" -machine none -accel tcg -display none \
-       -nodefaults -monitor stdio >/dev/null 2>&1; then
-  echo "SKIP: qemu-system-x86_64 cannot start here (apt-get install qemu-system-x86)"; exit 77
-fi
+. "$HERE/vm_common.sh"
+require_qemu
 command -v cpack >/dev/null && command -v dpkg-deb >/dev/null || { echo "SKIP: cpack or dpkg-deb missing"; exit 77; }
 dpkg-query -W -f='${Status}' systemd 2>/dev/null | grep -q "ok installed" ||
   { echo "SKIP: the systemd package is not installed (ci/setup installs it)"; exit 77; }
@@ -43,13 +40,8 @@ if ! "$HERE/build_systemd_initramfs.sh" "$CACHE/current.env" "$OUT/initramfs-sys
   echo "FAIL: initramfs build failed"; exit 1
 fi
 log "boot: kernel $KVER, systemd as PID 1, TCG, 2 vCPUs"
-"$QEMU" -accel tcg -machine pc -smp 2 -m 1024 -cpu max \
-  -kernel "$VMLINUX" -initrd "$OUT/initramfs-systemd.img" \
-  -append "console=ttyS0 panic=-1 tsc=reliable noirqdebug systemd.show_status=1 systemd.log_target=console" \
-  -display none -nodefaults -no-reboot -nic none \
-  -serial "file:$OUT/console.log" -serial "file:$OUT/results.raw" \
-  -device isa-debug-exit,iobase=0xf4,iosize=0x04 > "$OUT/qemu.log" 2>&1 &
-QPID=$!
+start_vm "$VM_MAX_S" 1024 "$OUT/initramfs-systemd.img" \
+  "console=ttyS0 panic=-1 tsc=reliable noirqdebug systemd.show_status=1" "$OUT"
 # Ends by itself (isa-debug-exit); stopped on a kernel panic or after VM_MAX_S.
 stage=""; why=""
 while kill -0 $QPID 2>/dev/null; do
