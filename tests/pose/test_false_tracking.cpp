@@ -243,7 +243,8 @@ TEST(NoFalseTracking, FastSpinAfterTheStartSearch) {
     std::printf("warped spin dose %4.1f: TRACKING %d/%d, false %d, searches %d\n", dose, c.tracked, s.frames, c.false_n,
                 c.searches);
     EXPECT_EQ(c.false_n, 0) << "TRACKING while > 3 px or > 10 deg off";
-    EXPECT_GE(c.tracked, s.frames - 2) << "the spin is followed, not rejected";
+    // Of the 59 ROI frames after the search (whose own frame waits for them: UNCERTAIN), at most 2 not TRACKING.
+    EXPECT_GE(c.tracked, s.frames - 1 - 2) << "the spin is followed, not rejected";
   }
 }
 
@@ -463,6 +464,48 @@ TEST(NoFalseTracking, StaticClutterHoldingThePoseIsNotTracking) {
       // Its torn frame scores as the frames before it (0.80 after 0.79, still): nothing tells it.
       EXPECT_EQ(false_tracking - false_torn, 0);
       EXPECT_GE(tracking, 54) << "a score that fell with a move is no doubt: the needle followed is TRACKING";
+    }
+  }
+}
+
+// heldout_end_to_end's look-alike rows in the simulator: the needle tip recorded over static
+// clutter that outweighs it (C 0.5 B 0.3) at the field's centre, but standing 5 px from that
+// spot when the start search scans the field. The clutter, which did not move, pulls the search
+// frame's pose to the recording spot (4.2 px off, score 0.88); nothing on that one frame tells
+// it from a true search frame (its σ is not measured, its score is high), so a first start's
+// search frame is not TRACKING until an ROI frame confirms it (README: States). It was TRACKING
+// before. The control, the needle on the recording spot, is confirmed by the frames after it.
+// (A needle that then stays 5 px from the spot keeps the pose on the clutter, TRACKING: Known
+// limitations, look-alike background; the held-out rows' needle moves on and is not.)
+TEST(NoFalseTracking, FirstSearchFrameHeldByStaticClutterIsNotTracking) {
+  for (const bool on_spot : {false, true}) {
+    pt::Scenario s;
+    s.target = "needle_tip";
+    s.motion = "static";
+    s.start_x_px = on_spot ? 320 : 324;  // the pattern is recorded at the field's centre (320, 240)
+    s.start_y_px = on_spot ? 240 : 243;
+    s.background_contrast = 0.5;
+    s.target_brightness = 0.3;
+    s.dose_e = 20;
+    s.frames = on_spot ? 10 : 1;
+    s.start_phi_deg = 0;
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    int tracking = 0;
+    for (const auto& e : h.poses()) tracking += e.state == TrackState::kTracking;
+    const auto& e0 = h.poses()[0];
+    const auto& t0 = h.records()[0].truth;
+    const double err0 = std::hypot(e0.x_px - t0.x_px, e0.y_px - t0.y_px);
+    std::printf("clutter C 0.5 B 0.3, needle %s the recording spot: search frame %s %.3f %.1f px; TRACKING %d/%d\n",
+                on_spot ? "on" : "5 px from", sempose::pose::to_string(e0.state), e0.score, err0, tracking, s.frames);
+    ASSERT_TRUE(e0.searched);
+    EXPECT_NE(e0.state, TrackState::kTracking) << "a first start's search frame waits for an ROI frame to confirm it";
+    if (on_spot) {
+      EXPECT_LE(err0, 1.0);
+      EXPECT_GE(tracking, 8) << "the frames after the search confirm a true pose";
+    } else {
+      EXPECT_GT(err0, 3.0) << "the clutter must hold the search's pose at the recording spot, or the case tests nothing";
     }
   }
 }

@@ -168,6 +168,10 @@ TEST(Geometry, CommandedReacquireMarksTheSearchsPose) {
   EXPECT_EQ(confirmed.state, TrackState::kTracking);
   EXPECT_EQ(confirmed.reason_bits, 0);
 
+  // sempose's own re-search carries the stream's pose noise (same target, same detector), as a
+  // re-acquisition after a loss does: once the stream has shown it (three ROI innovations), the
+  // search frame is judged against it and TRACKING at once, not held UNCERTAIN like a first start's.
+  for (int f = 0; f < 4; ++f) ASSERT_EQ(frame(230.2, 170.7).state, TrackState::kTracking) << "frame " << f;
   rig.tracker->request_reacquire(/*commanded=*/false);
   const PoseEstimate own = frame(230.2, 170.7);
   EXPECT_TRUE(own.searched);

@@ -50,10 +50,10 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
   } else {
     same_place_frames_[o.target] = 0;
   }
-  // A target holds its object while it is followed (TRACKING, or UNCERTAIN at a measured pose).
+  // A target holds its object while it is followed (TRACKING, or UNCERTAIN at a pose its
+  // tracker follows: a first start's search frame waiting to be confirmed, a doubted ROI frame).
   Held& h = held_[o.target];
-  const bool followed = o.est.state == pose::TrackState::kTracking ||
-                        (o.est.state == pose::TrackState::kUncertain && !o.est.searched);
+  const bool followed = o.est.followed;
   const double dt = static_cast<double>(t_mid_ns - h.t_ns);
   const bool moving = followed && h.held && dt > 0;
   h = {followed, o.est.x_px, o.est.y_px, t_mid_ns, moving ? (o.est.x_px - h.x_px) / dt : 0.0,
@@ -69,9 +69,7 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
 
 bool TrackingStep::on_a_look_alikes_place(std::uint8_t target, const pose::PoseEstimate& est,
                                           std::int64_t t_ns) const noexcept {
-  const bool followed = est.state == pose::TrackState::kTracking ||
-                        (est.state == pose::TrackState::kUncertain && !est.searched);
-  if (!followed) return false;
+  if (!est.followed) return false;
   for (std::size_t t = 0; t < trackers_.size() && t < held_.size(); ++t) {
     if (t == target || !alike_[target][t] || !held_[t].held) continue;
     // The other's place carried to this frame's time at its last velocity.

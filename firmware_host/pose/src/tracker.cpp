@@ -230,6 +230,20 @@ bool Tracker::Impl::trusted_pose(const PoseEstimate& e, const Innovation& innov)
 // test the motion check makes once the motion is known) says the pattern no longer explains
 // the frame as it did: UNCERTAIN (followed, so the stream's noise is learnt as before). On
 // the `--quick` rows the first three ROI frames of a first start fell by at most 0.085 of it.
+// A new target's first pose (a first start: no pose noise learnt, none carried from a stream
+// before a loss) is a single field scan that nothing has confirmed: its σ is not measured, the
+// target moves during the ~80 ms field scan (on `--quick` the 89 first search frames are up to
+// 2.7 px off, the worst poses of their streams), and a pattern recorded over static clutter
+// scores best where the clutter was, not where the target is (heldout_end_to_end's hole
+// lattice: frame 0 3.3-3.7 px off at 0.84-0.90, TRACKING, the rows' only false poses). No score,
+// χ² or σ on it tells those from a true one (the bench's true 0.58 px search frame has χ² 3.9),
+// so it is reported UNCERTAIN, as a new SELECT's search frame already is (reason 32), and the
+// next ROI frame, judged by every rule, confirms it or not. A re-acquisition after a loss of the
+// same target (noise carried) is judged as before: recovery after a jump stays one frame.
+bool Tracker::Impl::first_pose_unconfirmed() const noexcept {
+  return cfg.max_false_probability > 0 && !loss.calibrating() && !motion.pose_noise_known();
+}
+
 bool Tracker::Impl::fell_below_search_level(float score) const noexcept {
   if (!(cfg.max_false_probability > 0) || loss.calibrating() || motion.pose_noise_known()) return false;
   const double level = loss.recent_level();
@@ -476,9 +490,12 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     flip_open = false;
     search_n = 0;
     // Commanded, or a new magnification: the target's look may have changed; the new
-    // pattern set has its own noise floors and is matched at its own size first.
+    // pattern set has its own noise floors and is matched at its own size first. sempose's own
+    // re-search (a look-alike target on this one's place: same target, same detector) carries
+    // the stream's pose noise as after a loss, so its search frame is judged against it rather
+    // than waiting, as a first start's does, for an ROI frame to confirm it.
     loss.forget_target();
-    motion.forget_noise();
+    if (commanded_search) motion.forget_noise();
     scale = expected_scale.load(std::memory_order_relaxed);
     scale_tracked = false;
     use_noise_floors_of(set);
@@ -524,6 +541,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       e.state = TrackState::kUncertain;
       go_lost();
     } else if (loss.found(m, attainable)) {
+      const bool unconfirmed = first_pose_unconfirmed();  // before accept() teaches the motion model
       // The target's level from a search frame at most the attainable score: a score above it
       // shares the frame's noise with the pattern (a pattern cut from this very frame scores
       // 0.95 there and 0.55-0.6 on every later frame, read as a fall to a look-alike).
@@ -533,7 +551,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       open_flip_check(m, prior_known);
       // The search frame's pose is judged like a tracked one (trusted_pose: below the explained
       // bound it waits for the stream's pose noise; above it σ = 0, not measured, passes as before).
-      if (flip_open || !trusted_pose(e, Innovation{})) e.state = TrackState::kUncertain;
+      if (flip_open || unconfirmed || !trusted_pose(e, Innovation{})) e.state = TrackState::kUncertain;
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable
@@ -657,7 +675,11 @@ Roi Tracker::next_roi() const noexcept {
                                        field_h);
 }
 
-PoseEstimate Tracker::update(const PoseFrame& frame) noexcept { return impl_->update(frame); }
+PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
+  PoseEstimate e = impl_->update(frame);
+  e.followed = impl_->tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
+  return e;
+}
 
 bool Tracker::select_pattern_set(std::uint8_t set, double nm_per_px) noexcept {
   Impl& t = *impl_;

@@ -208,6 +208,9 @@ struct Tracker::Impl {
     double d_px = 0, d_deg = 0;
   };
   bool trusted_pose(const PoseEstimate& e, const Innovation& innov) const noexcept;
+  // A new target's first pose (no pose noise learnt or carried): a single field scan nothing
+  // has confirmed yet, reported UNCERTAIN (tracker.cpp).
+  bool first_pose_unconfirmed() const noexcept;
   // A first start's pose before the stream's noise is known scoring below the level the search
   // set by more than the detector noise explains: not trusted on its own σ (tracker.cpp).
   bool fell_below_search_level(float score) const noexcept;

@@ -44,6 +44,10 @@ struct PoseEstimate {
   std::uint8_t pattern_set = 0;
   int angle_steps = 0;  // correlations spent on orientation this frame
   bool searched = false;  // this frame ran the full-field start search
+  // The tracker follows this pose (its next ROI is placed from it): TRACKING, or UNCERTAIN at
+  // an accepted pose (a first start's search frame, a doubted ROI frame). False for a search
+  // not yet told from a look-alike (UNCERTAIN, searched again), LOST and ACQUIRING.
+  bool followed = false;
   // tracker.refine's outcome for this frame's measurement (FitStatus: 0 off or not reached,
   // 1 refined, 2 diverged — the walk's pose kept —, 3 skipped).
   std::uint8_t refine_status = 0;
