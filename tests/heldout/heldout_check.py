@@ -108,8 +108,6 @@ def sequences(data):
     nl = lambda traj, extra="", brightness=1.3: [(lambda *a: needle_lamella(*a, brightness=brightness), 320, 240, 0.0,
                                                   traj, extra)]
     grid, chamber, post = grid_background(data), chamber_background(data), post_background(data)
-    lattice = ("the pattern recorded over the lattice: its static lattice part holds the first frames' pose at "
-               "the recording spot while the needle moves on (README, Known limitations: look-alike background)")
     # Easy: the needle carrying its lamella over the dark chamber of its own micrograph.
     for dose, share in ((20, 0.9), (6, 0.9), (2.5, 0.8), (1, None)):
         s.append(Seq(f"needle_smooth_d{dose:g}", dose, nl(SMOOTH), chamber, share,
@@ -136,11 +134,11 @@ def sequences(data):
     for dose in (6, 2.5):
         s.append(Seq(f"needle_over_grid_d{dose:g}", dose, nl(SMOOTH), grid, None, pattern_background=chamber,
                      mask=True, what="pattern and mask over the chamber, tracked over the hole lattice"))
-    s.append(Seq("needle_pattern_on_grid_d20", 20, nl(SMOOTH), grid, None, known=lattice,
+    s.append(Seq("needle_pattern_on_grid_d20", 20, nl(SMOOTH), grid, None,
                  what="the pattern recorded over the lattice itself"))
-    s.append(Seq("needle_pattern_on_grid_d6", 6, nl(SMOOTH), grid, None, known=lattice,
+    s.append(Seq("needle_pattern_on_grid_d6", 6, nl(SMOOTH), grid, None,
                  what="the same at 6 e-/px"))
-    s.append(Seq("faint_needle_over_grid_d6", 6, nl(SMOOTH, brightness=1.0), grid, None, known=lattice,
+    s.append(Seq("faint_needle_over_grid_d6", 6, nl(SMOOTH, brightness=1.0), grid, None,
                  what="the needle at its own brightness, pattern over the lattice: the lattice fills most of it"))
     s.append(Seq("needle_over_post_d6", 6, nl(LINEAR, brightness=1.0), post, None,
                  what="the needle over the bright post: little contrast"))
