@@ -8,8 +8,11 @@
 #include <utility>
 #include <vector>
 
+#include "sempose/hal/replay_source.hpp"
+
 namespace sempose::config {
 struct AppConfig;
+std::string control_character_problem(const std::string& value);  // config/reader.hpp
 }
 
 namespace sempose::cli {
@@ -33,6 +36,16 @@ inline bool refuse_stdout_output(const char* command, const std::string& value, 
   return true;
 }
 
+// An output path with a control character (a newline, a tab, an escape): refused, naming the
+// option and the character, before any output is touched. Found probing: `--out $'a\nb.csv'`
+// was used as it stood, and a file name with a newline breaks every line-oriented tool and log.
+inline bool refuse_control_characters(const char* command, const char* option, const std::string& value) {
+  const std::string why = config::control_character_problem(value);
+  if (why.empty()) return false;
+  std::fprintf(stderr, "sempose %s: %s: %s\n", command, option, why.c_str());
+  return true;
+}
+
 // An output that names one of the command's own inputs destroys it (found probing: `replay
 // --out P.pgm` wrote its CSV over its own pattern, `--out REC/frames.csv` over the recording's
 // time stamps, `run --can-log CONFIG` the CAN log over the config; each exited 0). `inputs` are
@@ -48,7 +61,7 @@ inline void add_recording(std::vector<NamedPath>& inputs, const std::string& wha
   std::error_code ec;
   inputs.push_back({"the time stamps of " + what, dir + "/frames.csv"});
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    if (it->path().extension() == ".pgm") inputs.push_back({"a frame of " + what, it->path().string()});
+    if (hal::is_pgm_name(it->path().string())) inputs.push_back({"a frame of " + what, it->path().string()});
   }
 }
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_signals.hpp"
 #include "cli_options.hpp"
 #include "pattern_stillness.hpp"
 #include "sempose/hal/pgm.hpp"
@@ -27,6 +28,13 @@ int usage(std::FILE* out) {
   return out == stdout ? 0 : 2;
 }
 
+[[noreturn]] void stopped_by(int sig, std::size_t done, std::size_t n, const std::string& out) {
+  char name[24];
+  std::fprintf(stderr, "sempose pattern: stopped by %s after %zu of %zu frames: %s not written\n",
+               sempose::cli::signal_name(sig, name), done, n, out.c_str());
+  sempose::cli::end_by_signal(sig);
+}
+
 }  // namespace
 
 int sempose::cli::pattern(int argc, char** argv) {
@@ -34,9 +42,13 @@ int sempose::cli::pattern(int argc, char** argv) {
                                            whole("--size", 4, 4096), whole("--average", 1, 100000)},
                                           argc, argv);
   if (const int code = finish_parse("pattern", opt, usage); code >= 0) return code;
+  // A signal while the frames are read stops before the pattern is written; one while it is
+  // written waits until the file is whole (cli_signals.hpp).
+  cli::catch_termination_signals();
   const std::string dir = opt.text("--frames"), out = opt.text("--out"), center = opt.text("--center");
   const long size = static_cast<long>(opt.whole("--size", 128)), average = static_cast<long>(opt.whole("--average", 10));
   if (cli::refuse_stdout_output("pattern", out, "the pattern's PGM file")) return 2;
+  if (cli::refuse_control_characters("pattern", "--out", out)) return 2;
   double cx = 0, cy = 0;
   {
     const auto comma = center.find(',');
@@ -92,6 +104,7 @@ int sempose::cli::pattern(int argc, char** argv) {
     const double first_noise = cli::scan_noise_var(first, wx, wy, wsize);
     std::size_t used = 0;
     for (std::size_t f = 0; f < n; ++f) {
+      if (const int sig = cli::stop_requested()) stopped_by(sig, f, n, out);
       const hal::Image img = f == 0 ? first : hal::read_pgm(names[f]);
       if (img.width != w || img.height != h) {
         std::fprintf(stderr, "sempose pattern: %s: size %dx%d differs from the first frame's %dx%d\n",
@@ -141,6 +154,7 @@ int sempose::cli::pattern(int argc, char** argv) {
         pat.pixels[static_cast<std::size_t>(y) * size + x] = static_cast<std::uint16_t>(std::lround(std::min(maxv, v)));
       }
     }
+    if (const int sig = cli::stop_requested()) stopped_by(sig, used, n, out);
     try {
       hal::write_pgm(out, pat);
     } catch (const std::exception& e) {

@@ -11,8 +11,12 @@
 // first full-field search. With --truth: RMS/max position and angle errors over TRACKING
 // poses, the TRACKING poses > 3 px or > 10° off (false_tracking) and those on a frame the truth
 // has no row for (tracking_without_truth), on a line before the summary.
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -22,6 +26,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_signals.hpp"
 #include "cli_options.hpp"
 #include "sempose/config/app_config.hpp"
 #include "sempose/config/reader.hpp"
@@ -48,6 +53,11 @@ int usage(std::FILE* out) {
                "  --truth:  frame,x_px,y_px,phi_deg[,target]; prints RMS/max errors\n");
   return out == stdout ? 0 : 2;
 }
+
+// The replay's CSV and the poses written to it, for stop_replay().
+pipeline::CsvPoseSink* g_csv = nullptr;
+std::string g_out_path;
+std::uint64_t g_poses = 0;
 
 struct Truth {
   double x = 0, y = 0, phi = 0;
@@ -77,8 +87,12 @@ class TruthCheckSink final : public pipeline::PoseSink {
       // Either way it is counted, not silently left out of the comparison.
       ++uncompared;
     }
+    if (const int sig = sempose::cli::stop_requested(); sig != 0 && on_stop_ != nullptr) on_stop_(sig);
+    ++g_poses;
     return out_.publish(p, t_now_ns);
   }
+  // Called (not returning) with the signal when one asks the replay to stop.
+  void (*on_stop_)(int) = nullptr;
   void flush() override { out_.flush(); }
 
   double sum_px2 = 0, max_px = 0, sum_deg2 = 0, max_deg = 0;
@@ -89,6 +103,25 @@ class TruthCheckSink final : public pipeline::PoseSink {
   const std::map<std::pair<long, int>, Truth>& truth_;
   bool truth_given_;  // --truth given (an empty one: the target is on no frame)
 };
+
+// A replay stopped by a signal: its CSV holds whole lines of the frames so far and would look
+// like the replay of a shorter recording, so it is closed and removed (a regular file only:
+// not standard output or a device), and the process ends by the signal (cli_signals.hpp).
+[[noreturn]] void stop_replay(int sig) {
+  char name[24];
+  bool removed = false;
+  if (g_csv != nullptr) {
+    g_csv->close();
+    struct stat st {};
+    if (g_out_path != "-" && ::stat(g_out_path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) {
+      removed = ::unlink(g_out_path.c_str()) == 0;
+    }
+  }
+  std::fprintf(stderr, "sempose replay: stopped by %s after %llu poses%s\n", sempose::cli::signal_name(sig, name),
+               static_cast<unsigned long long>(g_poses),
+               removed ? (": removed the incomplete " + g_out_path).c_str() : g_csv ? "" : ": nothing written");
+  sempose::cli::end_by_signal(sig);
+}
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
@@ -102,8 +135,11 @@ int run_replay(int argc, char** argv) {
                                            text("--pattern", false, true), text("--mask", false, true)},
                                           argc, argv);
   if (const int code = cli::finish_parse("replay", opt, usage); code >= 0) return code;
+  // A signal stops the replay and removes the CSV begun (stop_replay).
+  cli::catch_termination_signals();
   const std::string frames_dir = opt.text("--frames"), config_path = opt.text("--config"), truth_path = opt.text("--truth"),
                     out_path = opt.text("--out");
+  if (cli::refuse_control_characters("replay", "--out", out_path)) return 2;
   std::vector<std::string> patterns, masks;  // masks[i]: --mask after pattern i ("" = none)
   for (const OptionValue& v : opt.given) {
     if (v.name == "--pattern") {
@@ -188,7 +224,7 @@ int run_replay(int argc, char** argv) {
     // A new .pgm in the frames folder is read as a frame by the next replay of it.
     std::error_code ec;
     const auto out_dir = std::filesystem::absolute(out_path, ec).parent_path();
-    if (out_path != "-" && std::filesystem::path(out_path).extension() == ".pgm" &&
+    if (out_path != "-" && hal::is_pgm_name(out_path) &&
         std::filesystem::equivalent(out_dir, frames_dir, ec) && !ec) {
       std::fprintf(stderr, "sempose replay: --out '%s' is a PGM in the frames folder %s: it would be read as a frame; "
                    "name the poses' CSV otherwise\n", out_path.c_str(), frames_dir.c_str());
@@ -230,7 +266,13 @@ int run_replay(int argc, char** argv) {
     }
   }
 
-  // Every check is done: only now is the output file created.
+  // Every check is done: only now is the output file created (not when a signal came meanwhile).
+  if (const int sig = cli::stop_requested()) stop_replay(sig);
+  session::OutputLock out_lock;  // a run or another replay writing the same file: refused
+  if (const rt::Status locked = out_lock.acquire("--out", out_path); !locked) {
+    std::fprintf(stderr, "sempose replay: %s\n", locked.message.c_str());
+    return 2;
+  }
   pipeline::CsvPoseSink csv(out_path, 1024, trackers.trackers.size() > 1);
   if (const rt::Status opened = csv.open(); !opened.ok) {
     // The sink names the config key; here the file came from --out.
@@ -239,7 +281,10 @@ int run_replay(int argc, char** argv) {
     std::fprintf(stderr, "sempose replay: %s\n", message.c_str());
     return 2;
   }
+  g_csv = &csv;
+  g_out_path = out_path;
   TruthCheckSink sink(csv, truth, !truth_path.empty());
+  sink.on_stop_ = stop_replay;
   std::vector<pose::Tracker*> raw;
   for (auto& t : trackers.trackers) raw.push_back(t.get());
   pipeline::OfflineRunner runner(app.pipeline, app.governor, *run.scan, raw, sink, *run.clock);

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_signals.hpp"
 #include "cli_options.hpp"
 #include "sempose/session/nonblocking_stdio.hpp"
 #include "sempose/session/run_setup.hpp"
@@ -83,14 +84,24 @@ bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
   return true;
 }
 
-// The signals that stop a run cleanly. SIGHUP too: an operator's ssh session or terminal
-// closing used to kill `sempose run` with the default action, mid-line in the CSV and with the
-// candump log and histograms unwritten.
-constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
+// The signals that stop a run cleanly: every one whose default action would end the process
+// and that comes from outside (cli_signals.hpp) but SIGUSR1, which dumps the histograms.
+// SIGHUP too: an operator's ssh session or terminal closing used to kill `sempose run` with the
+// default action, mid-line in the CSV and with the candump log and histograms unwritten; and
+// SIGQUIT, SIGALRM, SIGUSR2 (and the rest of the list) did so until the third round.
+bool is_stop_signal(int sig) {
+  static const sigset_t stop = [] {
+    sigset_t s = cli::termination_signals();
+    sigdelset(&s, SIGUSR1);
+    return s;
+  }();
+  return sig > 0 && sigismember(&stop, sig) == 1;
+}
 
-bool is_stop_signal(int sig) { return std::find(std::begin(kStopSignals), std::end(kStopSignals), sig) != std::end(kStopSignals); }
-
-const char* signal_name(int sig) { return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : sig == SIGHUP ? "SIGHUP" : "a signal"; }
+const char* stop_signal_name(int sig) {
+  static char buf[24];
+  return sempose::cli::signal_name(sig, buf);
+}
 
 // A stop signal that arrived while setup ran (signals are blocked, so it waits): taken
 // here so a stop request during a long setup is honoured between phases, not after start.
@@ -98,8 +109,8 @@ int pending_stop_signal(const sigset_t& signals) {
   sigset_t pending;
   sigemptyset(&pending);
   if (sigpending(&pending) != 0) return 0;
-  for (int sig : kStopSignals) {
-    if (sigismember(&pending, sig) == 1 && sigismember(&signals, sig) == 1) {
+  for (int sig = 1; sig < NSIG; ++sig) {
+    if (is_stop_signal(sig) && sigismember(&pending, sig) == 1 && sigismember(&signals, sig) == 1) {
       const timespec zero{0, 0};
       sigset_t one;
       sigemptyset(&one);
@@ -136,10 +147,7 @@ int sempose::cli::run(int argc, char** argv) {
 
   // Signals: blocked from the very start and everywhere (threads inherit the mask), taken
   // with sigtimedwait, so a SIGINT/SIGTERM/SIGHUP in any phase of start-up is a clean stop.
-  sigset_t signals;
-  sigemptyset(&signals);
-  for (int sig : kStopSignals) sigaddset(&signals, sig);
-  sigaddset(&signals, SIGUSR1);
+  sigset_t signals = termination_signals();  // the stop signals and SIGUSR1
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   config::AppConfig cfg;
@@ -164,11 +172,15 @@ int sempose::cli::run(int argc, char** argv) {
   // setup work and before any file is created or truncated.
   {
     std::string bad;
-    if (!opt.can_log.empty()) {
+    if (const std::string ctl = config::control_character_problem(opt.can_log); !ctl.empty()) {
+      bad += "  --can-log: " + ctl + "\n";
+    } else if (!opt.can_log.empty()) {
       if (const std::string why = config::output_path_problem(opt.can_log); !why.empty())
         bad += "  --can-log: '" + opt.can_log + "' cannot be written: it is " + why + "\n";
     }
-    if (!opt.hist_dir.empty()) {
+    if (const std::string ctl = config::control_character_problem(opt.hist_dir); !ctl.empty()) {
+      bad += "  --hist-dir: " + ctl + "\n";
+    } else if (!opt.hist_dir.empty()) {
       if (const std::string why = config::output_dir_problem(opt.hist_dir); !why.empty())
         bad += "  --hist-dir: '" + opt.hist_dir + "' cannot hold histograms: it is " + why + "\n";
     }
@@ -206,7 +218,7 @@ int sempose::cli::run(int argc, char** argv) {
   }
 
   if (const int sig = pending_stop_signal(signals)) {
-    std::printf("stopped by %s during setup (no output written)\n", signal_name(sig));
+    std::printf("stopped by %s during setup (no output written)\n", stop_signal_name(sig));
     return 0;
   }
   // ---- setup: everything that allocates (session::RunSetup), inputs first
@@ -219,7 +231,7 @@ int sempose::cli::run(int argc, char** argv) {
   // Setup is done up to the outputs: a stop signal that came meanwhile stops here, before
   // any output file is created or truncated.
   if (const int sig = pending_stop_signal(signals)) {
-    std::printf("stopped by %s during setup (no output written)\n", signal_name(sig));
+    std::printf("stopped by %s during setup (no output written)\n", stop_signal_name(sig));
     return 0;
   }
   st = session::build_outputs(cfg, opt.can_log, run);
@@ -268,7 +280,7 @@ int sempose::cli::run(int argc, char** argv) {
     if (!st.message.empty()) std::printf("warning: %s\n", st.message.c_str());
   }
   if (const int sig = pending_stop_signal(signals)) {
-    std::printf("stopped by %s during setup\n", signal_name(sig));
+    std::printf("stopped by %s during setup\n", stop_signal_name(sig));
     return 0;
   }
   // rt_allocs: heap calls on armed (RT) threads from here on; setup may allocate freely.
@@ -393,7 +405,7 @@ int sempose::cli::run(int argc, char** argv) {
   pipe->join();
   run.sink->flush();
   const bool csv_ok = run.csv ? run.csv->close() : true;
-  if (stop_signal != 0) std::printf("stopped by %s\n", signal_name(stop_signal));
+  if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal_name(stop_signal));
   if (pipe->source_ended()) std::printf("the source ended\n");
   const bool hist_ok = dump_histograms(hist_dir, *pipe);
 

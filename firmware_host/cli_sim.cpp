@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "cli_signals.hpp"
 #include "cli_options.hpp"
 #include "sempose/config/app_config.hpp"
 #include "sempose/config/reader.hpp"
@@ -86,6 +87,20 @@ bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& sca
   return errors.empty();
 }
 
+// Removes what an interrupted recording wrote: its first `frames` frames, the two CSV files
+// and the folder when this run made it (and nothing else is in it).
+void remove_recording(const std::string& dir, unsigned long long frames, bool made_dir) {
+  std::error_code ec;
+  for (unsigned long long f = 0; f < frames; ++f) {
+    char name[64];
+    std::snprintf(name, sizeof name, "/frame_%06llu.pgm", f);
+    std::filesystem::remove(dir + name, ec);
+  }
+  std::filesystem::remove(dir + "/frames.csv", ec);
+  std::filesystem::remove(dir + "/ground_truth.csv", ec);
+  if (made_dir) std::filesystem::remove(dir, ec);  // only when empty
+}
+
 }  // namespace
 
 int sempose::cli::sim(int argc, char** argv) {
@@ -93,10 +108,14 @@ int sempose::cli::sim(int argc, char** argv) {
                                            whole("--seed", 0, ~0ULL), whole("--dwell", 1, 100'000'000, "ns")},
                                           argc, argv);
   if (const int code = finish_parse("sim", opt, usage); code >= 0) return code;
+  // A signal stops the recording and removes what this run wrote of it (a shorter recording
+  // would look whole to replay and pattern): cli_signals.hpp.
+  cli::catch_termination_signals();
   const std::string out_dir = opt.text("--out"), config_path = opt.text("--config");
   const unsigned long long frames = opt.whole("--frames", 100), seed = opt.whole("--seed", 0), dwell = opt.whole("--dwell", 250);
   const bool seed_given = opt.has("--seed");
   if (cli::refuse_stdout_output("sim", out_dir, "the folder the recording is written to")) return 2;
+  if (cli::refuse_control_characters("sim", "--out", out_dir)) return 2;
   config::ScanLimits scan;
   config::SimConfig sim_cfg;
   if (!config_path.empty()) {
@@ -117,6 +136,17 @@ int sempose::cli::sim(int argc, char** argv) {
     return 2;
   }
   {
+    // No target (`targets: []`, or every one `enabled: false`): the recording is background
+    // only. Useful (a replay of it must report LOST, never TRACKING), so recorded, but said:
+    // it used to be made without a word, and a pattern cut from it is of background.
+    int enabled = 0;
+    for (const auto& t : sim_cfg.targets) enabled += t.enabled ? 1 : 0;
+    if (enabled == 0) {
+      std::fprintf(stderr, "sempose sim: warning: no target in sim.targets%s: the recording shows the background only "
+                   "and ground_truth.csv has no row\n", sim_cfg.targets.empty() ? "" : " is enabled");
+    }
+  }
+  {
     // The dwell against the scan limits, as the scans below will check it, before the output
     // folder is made (found probing: `--dwell 1` made the folder, frames.csv and
     // ground_truth.csv, then failed, and that half recording refused the next sim into it).
@@ -129,6 +159,7 @@ int sempose::cli::sim(int argc, char** argv) {
       return 2;
     }
   }
+  bool made_dir = false;  // --out did not exist: made here (and removed again on a signal)
   {
     // Frames of an earlier, longer recording would stay beside the new ones (the next replay
     // then fails on a frame without a time stamp, or a pattern averages both): an existing
@@ -138,7 +169,7 @@ int sempose::cli::sim(int argc, char** argv) {
     bool old_csv = false;
     if (std::filesystem::is_directory(out_dir, ec)) {
       for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
-        old_frames += e.path().extension() == ".pgm" ? 1 : 0;
+        old_frames += hal::is_pgm_name(e.path().string()) ? 1 : 0;
         old_csv = old_csv || e.path().filename() == "frames.csv" || e.path().filename() == "ground_truth.csv";
       }
     }
@@ -147,6 +178,7 @@ int sempose::cli::sim(int argc, char** argv) {
                    out_dir.c_str(), old_frames, old_csv ? ", frames.csv / ground_truth.csv" : "");
       return 2;
     }
+    made_dir = !std::filesystem::exists(out_dir, ec);
     std::filesystem::create_directories(out_dir, ec);
     if (ec || !std::filesystem::is_directory(out_dir)) {
       std::fprintf(stderr, "sempose sim: --out '%s': cannot make it a folder of frames (%s)\n", out_dir.c_str(),
@@ -181,6 +213,15 @@ int sempose::cli::sim(int argc, char** argv) {
     // leaves a recording of background only, and the truth has no row for it.
     std::vector<unsigned long long> in_field(sim_cfg.targets.size(), 0);
     for (unsigned long long f = 0; f < frames; ++f) {
+      if (const int sig = cli::stop_requested()) {
+        std::fclose(frames_csv);
+        std::fclose(truth_csv);
+        remove_recording(out_dir, f, made_dir);
+        char sname[24];
+        std::fprintf(stderr, "sempose sim: stopped by %s after %llu of %llu frames: removed the incomplete recording "
+                     "from %s\n", cli::signal_name(sig, sname), f, frames, out_dir.c_str());
+        cli::end_by_signal(sig);
+      }
       const auto r = source.start({field, static_cast<std::uint32_t>(dwell), 0}, slot);
       if (r != hal::StartResult::kStarted) {
         std::fprintf(stderr, "sempose sim: dwell %llu ns is outside the scan limits [%u, %u] ns\n", dwell,

@@ -54,6 +54,7 @@ int sempose::cli::view(int argc, char** argv) {
   const int every = static_cast<int>(opt.whole("--every", 10)), roi = static_cast<int>(opt.whole("--roi", 192)),
             pattern_size = static_cast<int>(opt.whole("--pattern-size", 128)), scale = static_cast<int>(opt.whole("--scale", 2));
   if (cli::refuse_stdout_output("view", out_dir, "the folder the pictures are written to")) return 2;
+  if (cli::refuse_control_characters("view", "--out", out_dir)) return 2;
   // A file or device as --out failed after the inputs were read with a bare "filesystem error:
   // cannot create directories: Not a directory [afile]": named by the option, first.
   if (const std::string why = config::output_dir_problem(out_dir); !why.empty()) {

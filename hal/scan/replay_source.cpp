@@ -19,6 +19,11 @@ namespace sempose::hal {
 
 namespace fs = std::filesystem;
 
+bool is_pgm_name(const std::string& path) {
+  const std::string ext = fs::path(path).extension().string();
+  return ext.size() == 4 && ext[0] == '.' && (ext[1] | 0x20) == 'p' && (ext[2] | 0x20) == 'g' && (ext[3] | 0x20) == 'm';
+}
+
 std::vector<std::string> list_pgm_frames(const std::string& dir) {
   std::error_code ec;
   if (dir.empty() || !fs::is_directory(dir, ec)) {
@@ -26,7 +31,20 @@ std::vector<std::string> list_pgm_frames(const std::string& dir) {
   }
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(dir)) {
-    if (e.is_regular_file() && e.path().extension() == ".pgm") names.push_back(e.path().string());
+    if (!is_pgm_name(e.path().string())) continue;
+    std::error_code kind_ec;
+    if (e.is_regular_file(kind_ec)) {
+      names.push_back(e.path().string());
+    } else if (!e.is_directory(kind_ec)) {
+      const fs::file_status st = e.status(kind_ec);
+      const char* kind = st.type() == fs::file_type::fifo        ? "a FIFO"
+                         : st.type() == fs::file_type::character ? "a character device"
+                         : st.type() == fs::file_type::block     ? "a block device"
+                         : st.type() == fs::file_type::socket    ? "a socket"
+                         : st.type() == fs::file_type::not_found ? "a dangling link"
+                                                                 : "not a regular file";
+      throw std::runtime_error(e.path().string() + ": named like a frame but " + kind + ", not a PGM file");
+    }
   }
   if (names.empty()) throw std::runtime_error(dir + ": no *.pgm frames in the directory");
   std::sort(names.begin(), names.end());

@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -813,4 +814,238 @@ TEST(CliFaults, ReplayTruthWithoutAUsableRowCountsEveryTrackingPose) {
     EXPECT_EQ(field(r.out, "tracking_without_truth"), std::to_string(tracking)) << r.out;
     EXPECT_EQ(field(r.out, "poses_compared"), "0") << r.out;
   }
+}
+
+// Every signal whose default action ends the process and that comes from outside stops a run
+// as SIGTERM does: one `stopped by SIGxxx` line, the summary, a whole CSV whose rows are the
+// summary's poses, exit 0. SIGQUIT, SIGALRM and SIGUSR2 (and the rest) used to kill it with
+// their default action: no summary, the CAN output not stopped, the candump log unflushed.
+TEST(CliFaults, EverySignalThatWouldEndARunStopsItCleanly) {
+  const std::string dir = work_dir() + "/signals";
+  fs::create_directories(dir);
+  const std::string csv = dir + "/poses.csv", can_log = dir + "/can.log";
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + can_log + "}\n");
+  struct Sig {
+    int sig;
+    std::string name;
+  };
+  std::vector<Sig> sigs = {{SIGQUIT, "SIGQUIT"},     {SIGALRM, "SIGALRM"}, {SIGUSR2, "SIGUSR2"}, {SIGVTALRM, "SIGVTALRM"},
+                           {SIGPROF, "SIGPROF"},     {SIGIO, "SIGIO"},     {SIGPWR, "SIGPWR"},   {SIGSTKFLT, "SIGSTKFLT"},
+                           {SIGXCPU, "SIGXCPU"},     {SIGRTMIN, "SIGRTMIN"}, {SIGRTMIN + 5, "SIGRTMIN+5"},
+                           {SIGRTMAX, "SIGRTMAX"}};
+  for (const Sig& s : sigs) {
+    fs::remove(csv);
+    fs::remove(can_log);
+    const Outcome r = run({"run", "--config", cfg, "--duration", "60"}, 30, kWhenRunning, s.sig);
+    ASSERT_FALSE(r.hung) << s.name;
+    EXPECT_TRUE(r.exited && r.code == 0) << s.name << ": exit " << r.code << " signal " << r.signal << "\n" << r.out << r.err;
+    EXPECT_NE(r.out.find("stopped by " + s.name + "\n"), std::string::npos) << s.name << "\n" << r.out;
+    const std::string poses = field(r.out, "poses");
+    ASSERT_FALSE(poses.empty()) << s.name << ": no summary\n" << r.out;
+    const std::string text = slurp(csv);
+    ASSERT_TRUE(!text.empty() && text.back() == '\n') << s.name << ": CSV missing or cut mid-line";
+    const long rows = static_cast<long>(std::count(text.begin(), text.end(), '\n')) - 1;  // less the header
+    EXPECT_EQ(std::to_string(rows), poses) << s.name;
+    const std::string log = slurp(can_log);
+    EXPECT_TRUE(!log.empty() && log.back() == '\n') << s.name << ": candump log missing or cut";
+  }
+}
+
+// `sempose replay` and `sempose sim` stopped by a signal mid-way used to die by it, leaving a
+// CSV of whole lines for the frames so far (replay) or a shorter recording (sim) that looked
+// like a whole one to the next replay or pattern. Now the output begun is removed and the
+// process still ends by the signal (a shell or make sees what it asked for).
+TEST(CliFaults, ReplayAndSimStoppedByASignalLeaveNoOutputThatLooksWhole) {
+  const std::string dir = work_dir() + "/offline_sig";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string cfg = small_config(dir, "");
+  // sim: SIGTERM once the second frame is on disk.
+  {
+    const std::string rec = dir + "/rec_cut";
+    const pid_t pid = fork();
+    if (pid == 0) {
+      const int null = ::open("/dev/null", O_WRONLY);
+      dup2(null, 1);
+      dup2(null, 2);
+      execl(SEMPOSE_BIN, SEMPOSE_BIN, "sim", "--out", rec.c_str(), "--frames", "100000", "--config", cfg.c_str(),
+            static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    while (!fs::exists(rec + "/frame_000001.pgm") &&
+           std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    kill(pid, SIGTERM);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) << "sim still ends by the signal: " << status;
+    EXPECT_FALSE(fs::exists(rec + "/frames.csv")) << "the cut recording's time stamps are left";
+    EXPECT_FALSE(fs::exists(rec + "/frame_000000.pgm")) << "the cut recording's frames are left";
+    EXPECT_FALSE(fs::exists(rec)) << "the folder sim made is left";
+  }
+  // replay: SIGTERM once its CSV is made (setup done, the frames being tracked).
+  Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "300", "--dwell", "2000", "--config", cfg}, 300);
+  ASSERT_EQ(made.code, 0) << made.err;
+  made = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "5", "--out",
+              dir + "/p.pgm"},
+             60);
+  ASSERT_EQ(made.code, 0) << made.err;
+  for (int sig : {SIGTERM, SIGINT, SIGALRM}) {
+    const std::string out = dir + "/poses.csv", err = dir + "/replay_err.txt";
+    fs::remove(out);
+    const pid_t pid = fork();
+    if (pid == 0) {
+      const int null = ::open("/dev/null", O_WRONLY);
+      const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      dup2(null, 1);
+      dup2(e, 2);
+      execl(SEMPOSE_BIN, SEMPOSE_BIN, "replay", "--frames", (dir + "/rec").c_str(), "--pattern", (dir + "/p.pgm").c_str(),
+            "--out", out.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    while (!fs::exists(out) && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    kill(pid, sig);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    const std::string text = slurp(err);
+    ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig)
+        << "replay ends by signal " << sig << " (status " << status << ")\n" << text;
+    EXPECT_FALSE(fs::exists(out)) << "a cut poses CSV is left behind:\n" << slurp(out);
+    EXPECT_NE(text.find("stopped by "), std::string::npos) << text;
+    EXPECT_NE(text.find("removed the incomplete " + out), std::string::npos) << text;
+  }
+}
+
+// A control character in an output path (a newline, a tab, an escape, a NUL from a YAML
+// escape) was used as it stood: a file name with a newline breaks every line-oriented tool and
+// log, and "a\0b" from YAML was cut to "a". Refused naming the key or option and the
+// character, before any output is touched.
+TEST(CliFaults, ControlCharactersInOutputPathsAreRefusedByName) {
+  const std::string dir = work_dir() + "/ctl";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // Config keys, written with YAML escapes.
+  struct Case {
+    std::string yaml, key, what;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"output: {poses_csv: \"" + dir + "/a\\nb.csv\"}\n", "output.poses_csv", "a newline (\\n), byte 0x0a"},
+           {"can: {log_file: \"" + dir + "/c\\tan.log\"}\n", "can.log_file", "a tab (\\t), byte 0x09"},
+           {"output: {hist_dir: \"" + dir + "/h\\e\"}\n", "output.hist_dir", "an escape (\\x1b), byte 0x1b"},
+           {"output: {poses_csv: \"" + dir + "/n\\0.csv\"}\n", "output.poses_csv", "a NUL byte (\\0), byte 0x00"},
+           {"output: {poses_csv: \"" + dir + "/r.csv\\r\"}\n", "output.poses_csv", "a carriage return"},
+       }) {
+    const std::string cfg = small_config(dir, c.yaml);
+    const Outcome r = run({"run", "--config", cfg, "--duration", "1"}, 60);
+    ASSERT_FALSE(r.hung) << c.yaml;
+    EXPECT_EQ(r.code, 2) << c.yaml << r.out << r.err;
+    EXPECT_NE(r.err.find(c.key + ": '"), std::string::npos) << c.yaml << r.err;
+    EXPECT_NE(r.err.find(c.what), std::string::npos) << c.yaml << r.err;
+  }
+  // Command-line outputs.
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + dir + "/ok.csv}\n");
+  Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "3", "--config", cfg}, 120);
+  ASSERT_EQ(made.code, 0) << made.err;
+  const std::string nl = dir + "/x\ny";
+  for (const Refusal& c : std::vector<Refusal>{
+           {{"run", "--config", cfg, "--duration", "1", "--can-log", nl}, "--can-log: '" + dir + "/x\\ny' holds a newline"},
+           {{"run", "--config", cfg, "--duration", "1", "--hist-dir", nl}, "--hist-dir: '" + dir + "/x\\ny' holds a newline"},
+           {{"sim", "--out", nl, "--frames", "2"}, "sempose sim: --out: '" + dir + "/x\\ny' holds a newline"},
+           {{"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "32", "--out", nl + ".pgm"},
+            "sempose pattern: --out: '" + dir + "/x\\ny.pgm' holds a newline"},
+           {{"replay", "--frames", dir + "/rec", "--pattern", dir + "/rec/frame_000000.pgm", "--out", nl + ".csv"},
+            "sempose replay: --out: '" + dir + "/x\\ny.csv' holds a newline"},
+           {{"view", "--poses", dir + "/none.csv", "--out", dir + "/v\x01"}, "sempose view: --out: '" + dir + "/v\\x01' holds a control character, byte 0x01"},
+       }) {
+    expect_refused(c, 60);
+  }
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    EXPECT_EQ(name.find_first_of("\n\t\r\x1b\x01"), std::string::npos) << "made: " << name;
+    EXPECT_NE(name, "n") << "a NUL cut the name short";
+    EXPECT_FALSE(name == "ok.csv" || name == "sempose_can.log") << "an output was touched: " << name;
+  }
+}
+
+// `sim.targets: []` (or every target disabled) recorded the background only without a word.
+// Still recorded (a replay of it must report LOST: a false-tracking check), but said on stderr.
+TEST(CliFaults, SimWithoutATargetSaysSo) {
+  const std::string dir = work_dir() + "/no_target";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  for (const char* targets : {"[]", "[{texture: {source: lamella}, size: [60, 40], start: [160, 120, 0], enabled: false}]"}) {
+    std::ofstream(dir + "/c.yaml") << "scan: {field_w: 320, field_h: 240}\nsim:\n  targets: " << targets << "\n";
+    fs::remove_all(dir + "/rec");
+    const Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "2", "--config", dir + "/c.yaml"}, 60);
+    ASSERT_FALSE(r.hung);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.err.find("warning: no target in sim.targets"), std::string::npos) << targets << "\n" << r.err;
+    EXPECT_NE(r.err.find("the recording shows the background only"), std::string::npos) << r.err;
+  }
+  // One target in the field: no such warning.
+  std::ofstream(dir + "/c.yaml") << "scan: {field_w: 320, field_h: 240}\nsim:\n  targets: [{texture: {source: lamella}, "
+                                    "size: [60, 40], start: [160, 120, 0]}]\n";
+  fs::remove_all(dir + "/rec");
+  const Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "2", "--config", dir + "/c.yaml"}, 60);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("no target"), std::string::npos) << r.err;
+}
+
+// Two writers on one output file: a second `sempose run` (or a replay) on the CSV or candump
+// log a running one writes truncated the first one's lines and then interleaved its own with
+// them. Each output is locked (flock) while written: the second is refused naming the file.
+TEST(CliFaults, ASecondWriterOnARunningRunsOutputIsRefused) {
+  const std::string dir = work_dir() + "/two_writers";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string csv = dir + "/poses.csv", log = dir + "/can.log";
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + log + "}\n");
+  const std::string first_out = dir + "/first.txt";
+  const pid_t first = fork();
+  if (first == 0) {
+    const int o = ::open(first_out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(o, 1);
+    dup2(o, 2);
+    execl(SEMPOSE_BIN, SEMPOSE_BIN, "run", "--config", cfg.c_str(), "--duration", "120", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  while (slurp(first_out).find("thread ") == std::string::npos &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  // The same CSV (another candump log), then the same candump log (no CSV), then replay --out.
+  const std::string cfg_csv = small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + dir + "/other.log}\n");
+  Outcome r = run({"run", "--config", cfg_csv, "--duration", "1"}, 60);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("output.poses_csv: '" + csv + "' is being written by another process"), std::string::npos) << r.err;
+  r = run({"run", "--config", small_config(dir, ""), "--duration", "1", "--can-log", log}, 60);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("--can-log: '" + log + "' is being written by another process"), std::string::npos) << r.err;
+  Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "3", "--config", cfg}, 120);
+  ASSERT_EQ(made.code, 0) << made.err;
+  made = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "1", "--out",
+              dir + "/p.pgm"}, 60);
+  ASSERT_EQ(made.code, 0) << made.err;
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", csv}, 60);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("--out: '" + csv + "' is being written by another process"), std::string::npos) << r.err;
+  kill(first, SIGTERM);
+  int status = 0;
+  waitpid(first, &status, 0);
+  const std::string out = slurp(first_out);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out;
+  // The first run's CSV is its own: a header, then one row per pose it reports.
+  const std::string text = slurp(csv);
+  ASSERT_TRUE(!text.empty() && text.back() == '\n');
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n') - 1, std::stol(field(out, "poses"))) << out;
+  EXPECT_EQ(text.find("frame,", 1), std::string::npos) << "a second header in the CSV";
+  // The lock goes with the process: the file can be written again.
+  r = run({"run", "--config", cfg_csv, "--duration", "0.5"}, 60);
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
 }

@@ -287,5 +287,34 @@ TEST(ConfigFaults, MaxFalseProbabilityIsRangeChecked) {
   }
 }
 
+// A control character in ANY text value (paths, names, interface names, choices): a newline in
+// an output path was used as the file name (breaking every line-oriented tool and log), a NUL
+// from a YAML escape cut the name short where the C library read it. Every text key of the
+// catalog refuses each, naming the key, the character and its place.
+TEST(ConfigFaults, ControlCharactersAreRefusedInEveryTextValue) {
+  const std::string dir = temp_dir();
+  const std::string base = base_yaml(dir);
+  int text_keys = 0;
+  for (const KeyInfo& k : config_keys(base)) {
+    if (k.kind != KeyKind::kText) continue;
+    ++text_keys;
+    struct Bad {
+      const char* yaml;
+      const char* says;
+    };
+    for (const Bad& b : {Bad{"\"a\\nb\"", "'a\\nb' holds a newline (\\n), byte 0x0a at character 2"},
+                         Bad{"\"a\\0b\"", "'a\\0b' holds a NUL byte (\\0), byte 0x00 at character 2"},
+                         Bad{"\"ab\\x7f\"", "'ab\\x7f' holds a DEL (\\x7f), byte 0x7f at character 3"},
+                         Bad{"\"\\x01\"", "'\\x01' holds a control character, byte 0x01 at character 1"}}) {
+      AppConfig c;
+      std::string e;
+      EXPECT_FALSE(parse_app_config(with(base, k.path, b.yaml), dir + "/c.yaml", c, e)) << k.path << " = " << b.yaml;
+      EXPECT_NE(e.find(k.path + ": " + b.says), std::string::npos) << k.path << " = " << b.yaml << ":\n" << e;
+    }
+  }
+  std::printf("control characters refused for %d text keys\n", text_keys);
+  EXPECT_GE(text_keys, 15);
+}
+
 }  // namespace
 }  // namespace sempose::config

@@ -1,6 +1,9 @@
 // Replay serves each requested ROI as a crop of the current recorded frame, one frame per scan.
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
+#include <filesystem>
 #include <fstream>
 
 #include "sempose/hal/frames_csv.hpp"
@@ -201,6 +204,53 @@ TEST(FramesCsv, TruthCellsMustBeWholeNumbersAndTheFileARegularOne) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("as_dir.csv: not a regular file (a directory)"), std::string::npos) << e.what();
   }
+}
+
+}  // namespace
+}  // namespace sempose::hal
+
+namespace sempose::hal {
+namespace {
+
+// A frame named *.PGM or *.Pgm (a recording copied through a tool that changed the case) was
+// passed over without a word: with frames.csv the replay failed on "one row too many", without
+// it the recording was a frame short. Now every case of the extension is a frame, in name order.
+TEST(Replay, AFrameNamedInCapitalsIsReadNotSkipped) {
+  const auto dir = test::temp_dir("replay_case");
+  const auto frames = write_sequence(dir, 3, true, false);
+  std::filesystem::rename(dir / "frame_000001.pgm", dir / "frame_000001.PGM");
+  std::filesystem::rename(dir / "frame_000002.pgm", dir / "frame_000002.Pgm");
+  EXPECT_TRUE(is_pgm_name("a/b.PGM") && is_pgm_name("b.pGm") && is_pgm_name("c.pgm"));
+  EXPECT_FALSE(is_pgm_name("c.pgmx") || is_pgm_name("c.pg") || is_pgm_name("pgm") || is_pgm_name("c.png"));
+  ASSERT_EQ(list_pgm_frames(dir.string()).size(), 3u);
+  config::ReplayConfig rc;
+  rc.frames_dir = dir.string();
+  rt::Status st;
+  auto src = make_scan_source("replay", limits(), {}, rc, st);
+  ASSERT_NE(src, nullptr) << st.message;
+  FramePool pool(1, 80 * 60);
+  for (int f = 0; f < 3; ++f) {
+    ASSERT_EQ(src->start({{0, 0, 80, 60}, 250, 0}, pool[0]), StartResult::kStarted) << f;
+    src->poll();
+    EXPECT_EQ(pool[0].pixels[0], frames[static_cast<std::size_t>(f)].at(0, 0)) << "frame " << f << " in name order";
+    EXPECT_EQ(pool[0].meta.t_scan_start_ns, 5'000'000'000LL + f * 40'000'000LL);
+  }
+}
+
+// A FIFO named like a frame was passed over (not a regular file) without a word; reading it
+// would block. Refused, naming the file and what it is.
+TEST(Replay, AFifoNamedLikeAFrameIsRefusedByName) {
+  const auto dir = test::temp_dir("replay_fifo_frame");
+  write_sequence(dir, 2, false, false);
+  ASSERT_EQ(::mkfifo((dir / "frame_000002.pgm").c_str(), 0644), 0);
+  config::ReplayConfig rc;
+  rc.frames_dir = dir.string();
+  rt::Status st;
+  EXPECT_EQ(make_scan_source("replay", limits(), {}, rc, st), nullptr);
+  EXPECT_NE(st.message.find("frame_000002.pgm: named like a frame but a FIFO"), std::string::npos) << st.message;
+  std::filesystem::remove(dir / "frame_000002.pgm");
+  std::filesystem::create_directory(dir / "old.pgm");  // a directory is not a frame: passed over
+  EXPECT_EQ(list_pgm_frames(dir.string()).size(), 2u);
 }
 
 }  // namespace

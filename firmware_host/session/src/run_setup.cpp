@@ -1,7 +1,13 @@
 #include "sempose/session/run_setup.hpp"
 
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 
@@ -10,6 +16,31 @@
 #include "sempose/pose/tracker.hpp"
 
 namespace sempose::session {
+
+OutputLock::~OutputLock() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+rt::Status OutputLock::acquire(const std::string& what, const std::string& path) {
+  if (path.empty() || path == "-") return {};
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) return {};  // a device: nothing to mix up
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return rt::Status::failure(what + ": cannot open '" + path + "' (" + std::strerror(errno) + ")");
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int err = errno;
+    ::close(fd);
+    if (err == EWOULDBLOCK) {
+      return rt::Status::failure(what + ": '" + path + "' is being written by another process (it holds a lock on " +
+                                 "it: another sempose run or replay); two writers would mix their lines: name another " +
+                                 "file or stop the other one");
+    }
+    return rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
+  }
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = fd;
+  return {};
+}
 
 rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out) {
   rt::Status st;
@@ -55,11 +86,21 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     std::error_code ec;
     if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
   }
+  // Each output file is locked just before it is opened for writing (and truncated): a second
+  // run on the same file stops here, naming it, and the first one's lines stay as they are.
+  auto lock = [&out](const std::string& what, const std::string& file) {
+    OutputLock l;
+    rt::Status locked = l.acquire(what, file);
+    if (locked) out.output_locks.push_back(std::move(l));
+    return locked;
+  };
+  if (rt::Status locked = lock(can_log_override.empty() ? "can.log_file" : "--can-log", can_log); !locked) return locked;
   rt::Status st = can_output::make_can_output(cfg.can, can_log_override, out.can);
   if (!st) return rt::Status::failure("can: " + st.message);
   st = can_output::make_gpio_outputs(cfg.gpio, out.gpio_out);
   if (!st) return rt::Status::failure("gpio: " + st.message);
   if (!cfg.output.poses_csv.empty()) {
+    if (rt::Status locked = lock("output.poses_csv", cfg.output.poses_csv); !locked) return locked;
     out.csv = std::make_unique<pipeline::CsvPoseSink>(cfg.output.poses_csv, cfg.output.csv_buffer_poses,
                                                       out.trackers.trackers.size() > 1);
     st = out.csv->open();

@@ -13,6 +13,7 @@
 #include <set>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace sempose::config {
@@ -124,6 +125,13 @@ std::string path_kind_problem(const std::string& path);
 std::string output_path_problem(const std::string& path);
 // For an output folder: "" when it is a writable directory or can be created; otherwise why not.
 std::string output_dir_problem(const std::string& path);
+// A text value (a path, a name) with a control character (bytes 0x00..0x1f, 0x7f): a newline
+// in a file name breaks every line-oriented tool and log, a NUL cut the name short where the
+// C library read it. "" when there is none; otherwise a message naming the first one (its
+// escape, byte and position) with the value shown escaped.
+std::string control_character_problem(const std::string& value);
+// The value with control characters written as escapes (\n, \t, \x01): safe in a message.
+std::string printable(const std::string& value);
 
 // ---- template definitions ----
 
@@ -184,7 +192,14 @@ void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T 
     }
     out = static_cast<T>(v);
   } else {
-    out = n.as<T>();
+    T v = n.as<T>();
+    if constexpr (std::is_same_v<T, std::string>) {
+      if (const std::string why = control_character_problem(v); !why.empty()) {
+        errors_->add(n.Mark(), key_path(key), why);
+        return;
+      }
+    }
+    out = std::move(v);
   }
 }
 

@@ -44,7 +44,14 @@ class ReplaySource final : public TimedScanSource {
   std::uint64_t seq_ = 0;
 };
 
-// Sorted *.pgm names in a directory (setup; throws when it is missing or has none).
+// Sorted *.pgm names in a directory (setup; throws when it is missing or has none). The
+// extension in any case (.pgm, .PGM, .Pgm: a recording copied through a tool that changed the
+// case): a frame named .PGM used to be skipped without a word (frames.csv then had "one row
+// too many", or without frames.csv the recording was a frame short). A FIFO, device or socket
+// named *.pgm is refused by name (reading it would block or never end); a directory is not a
+// frame and is passed over.
 std::vector<std::string> list_pgm_frames(const std::string& dir);
+// Whether a file name ends in .pgm, in any case.
+bool is_pgm_name(const std::string& path);
 
 }  // namespace sempose::hal

@@ -9,6 +9,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "sempose/can_output/factory.hpp"
 #include "sempose/can_output/gpio_pose_sink.hpp"
@@ -22,6 +23,27 @@
 #include "sempose/rt/result.hpp"
 
 namespace sempose::session {
+
+// An exclusive advisory lock (flock) on an output file for as long as the run writes it. Two
+// `sempose run` (or a run and a replay) on one CSV or candump log used to write into the same
+// file: the second truncated the first's lines, then both interleaved theirs. Setup only.
+class OutputLock {
+ public:
+  OutputLock() = default;
+  ~OutputLock();
+  OutputLock(const OutputLock&) = delete;
+  OutputLock& operator=(const OutputLock&) = delete;
+  OutputLock(OutputLock&& o) noexcept : fd_(o.fd_) { o.fd_ = -1; }
+  OutputLock& operator=(OutputLock&&) = delete;
+
+  // `what` names the file in the message (a config key or an option). A regular file (or a
+  // missing one, created here without truncating anything) is locked; a device (/dev/null,
+  // /dev/full) or "-" is not. Fails naming `what` when another process holds the lock.
+  rt::Status acquire(const std::string& what, const std::string& path);
+
+ private:
+  int fd_ = -1;
+};
 
 struct RunSetup {
   // Inputs.
@@ -37,6 +59,7 @@ struct RunSetup {
   std::unique_ptr<pipeline::CsvPoseSink> csv;   // output.poses_csv, or null
   std::unique_ptr<pipeline::TeePoseSink> tee;
   std::unique_ptr<can_output::GpioPoseSink> gpio_sink;
+  std::vector<OutputLock> output_locks;         // the CSV's and the candump log's, held to the end
   pipeline::PoseSink* sink = nullptr;           // the head of the chain the pipeline publishes to
   std::unique_ptr<pipeline::Pipeline> pipeline;
 
