@@ -186,6 +186,7 @@ int sempose::cli::sim(int argc, char** argv) {
       return 1;
     }
   }
+  unsigned long long frames_started = 0;  // frame files this run may have begun
   try {
     hal::SimSource& source = *scene;
     const hal::Roi field{0, 0, scan.field_w, scan.field_h};
@@ -222,6 +223,7 @@ int sempose::cli::sim(int argc, char** argv) {
                      "from %s\n", cli::signal_name(sig, sname), f, frames, out_dir.c_str());
         cli::end_by_signal(sig);
       }
+      frames_started = f + 1;
       const auto r = source.start({field, static_cast<std::uint32_t>(dwell), 0}, slot);
       if (r != hal::StartResult::kStarted) {
         std::fprintf(stderr, "sempose sim: dwell %llu ns is outside the scan limits [%u, %u] ns\n", dwell,
@@ -250,9 +252,12 @@ int sempose::cli::sim(int argc, char** argv) {
         }
       }
     }
-    const bool ok = std::fclose(frames_csv) == 0 && std::fclose(truth_csv) == 0;
-    if (!ok) {
-      std::fprintf(stderr, "sempose sim: %s: writing the CSV files failed\n", out_dir.c_str());
+    const bool frames_ok = std::fclose(frames_csv) == 0;
+    const bool truth_ok = std::fclose(truth_csv) == 0;  // closed even when the first failed
+    if (!frames_ok || !truth_ok) {
+      std::fprintf(stderr, "sempose sim: %s: writing the CSV files failed (disk full?); removed the incomplete "
+                   "recording\n", out_dir.c_str());
+      remove_recording(out_dir, frames, made_dir);
       return 1;
     }
     for (std::size_t t = 0; t < in_field.size(); ++t) {
@@ -264,7 +269,10 @@ int sempose::cli::sim(int argc, char** argv) {
     std::printf("sempose sim: wrote %llu frames (%dx%d, %u-bit, dwell %llu ns) to %s\n", frames, scan.field_w,
                 scan.field_h, static_cast<unsigned>(scan.bits), dwell, out_dir.c_str());
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sempose sim: %s\n", e.what());
+    // A frame that could not be written (a full disk): the recording so far is removed, as on
+    // a signal — it left a cut PGM, empty CSV files, and a folder the next sim refused.
+    std::fprintf(stderr, "sempose sim: %s; removed the incomplete recording from %s\n", e.what(), out_dir.c_str());
+    remove_recording(out_dir, frames_started, made_dir);
     return 1;
   }
   return 0;

@@ -12,6 +12,7 @@
 #include <limits>
 #include <sstream>
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/parser.h>
 
@@ -294,6 +295,12 @@ YAML::Node load_text(const std::string& text, Errors& errors) {
       return {};
     }
     return checked_root(root, errors);
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's own message for this is "bad file": 100,000 `[` or `{` (or as many nested
+    // indented levels) said nothing of what is wrong.
+    errors.add(e.mark, "(syntax)",
+               "lists or mappings nested too deep for the YAML reader (a config is a few levels deep: an unclosed "
+               "'[' or '{'?)");
   } catch (const YAML::Exception& e) {
     errors.add(e.mark, "(syntax)", e.msg);
   } catch (const std::exception& e) {

@@ -1049,3 +1049,22 @@ TEST(CliFaults, ASecondWriterOnARunningRunsOutputIsRefused) {
   r = run({"run", "--config", cfg_csv, "--duration", "0.5"}, 60);
   EXPECT_EQ(r.code, 0) << r.out << r.err;
 }
+
+// `sempose sim` on a full disk (here a file-size limit: a frame cannot be written whole) said
+// so and exited 1, but left a cut PGM, empty frames.csv / ground_truth.csv and a folder the
+// next sim refused as "already holds a recording". Now what it wrote is removed.
+TEST(CliFaults, SimOnAFullDiskLeavesNoHalfRecording) {
+  const std::string dir = work_dir() + "/sim_full";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string cfg = small_config(dir, "");
+  g_child_file_size_limit = 50 * 1024;  // a 320x240 frame (76,815 bytes) is cut, as at a disk's last block
+  const Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "5", "--config", cfg}, 120);
+  g_child_file_size_limit = -1;
+  ASSERT_FALSE(r.hung);
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find("removed the incomplete recording"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/rec")) << "a half recording is left";
+  const Outcome again = run({"sim", "--out", dir + "/rec", "--frames", "2", "--config", cfg}, 120);
+  EXPECT_EQ(again.code, 0) << again.err;
+}

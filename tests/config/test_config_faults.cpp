@@ -316,5 +316,19 @@ TEST(ConfigFaults, ControlCharactersAreRefusedInEveryTextValue) {
   EXPECT_GE(text_keys, 15);
 }
 
+// 100,000 '[' or '{' (or an unclosed one followed by more): yaml-cpp stops at its depth limit
+// with the message "bad file", which named nothing. Now the message says what is wrong.
+TEST(ConfigFaults, DeepNestingIsNamedNotABadFile) {
+  for (const std::string& text : {"scan: " + std::string(100000, '['), "scan: " + std::string(100000, '{'),
+                                  "scan: " + std::string(5000, '[') + std::string(5000, ']')}) {
+    AppConfig c;
+    std::string e;
+    EXPECT_FALSE(parse_app_config(text, "deep.yaml", c, e));
+    EXPECT_NE(e.find("deep.yaml:1:"), std::string::npos) << e;
+    EXPECT_NE(e.find("(syntax): lists or mappings nested too deep for the YAML reader"), std::string::npos) << e;
+    EXPECT_EQ(e.find("bad file"), std::string::npos) << e;
+  }
+}
+
 }  // namespace
 }  // namespace sempose::config

@@ -315,4 +315,23 @@ TEST(FormatResult, OneLineWithTheFix) {
   EXPECT_EQ(l.find('\n'), std::string::npos);
 }
 
+// A --root tree with a FIFO or /dev/zero where check-rt reads a file: it blocked in open() for
+// good (the FIFO) or read without end (/dev/zero). Now only regular files are read, and only
+// their first MiB: the check whose file it is reports it as unreadable, the rest run.
+TEST_F(FakeTree, AFifoOrDeviceInTheTreeIsNotRead) {
+  fs::remove(root / "proc/cmdline");
+  ASSERT_EQ(::mkfifo((root / "proc/cmdline").c_str(), 0644), 0);
+  fs::remove(root / "proc/sys/kernel/version");
+  fs::create_symlink("/dev/zero", root / "proc/sys/kernel/version");
+  check_rt::SystemTree tree(root.string());
+  EXPECT_FALSE(tree.read("proc/cmdline").has_value());
+  EXPECT_FALSE(tree.read("proc/sys/kernel/version").has_value());
+  put("proc/irq/default_smp_affinity", std::string(3 << 20, '3'));
+  const auto big = tree.read("proc/irq/default_smp_affinity");
+  ASSERT_TRUE(big.has_value());
+  EXPECT_EQ(big->size(), std::size_t{1} << 20);
+  const auto r = run();
+  EXPECT_FALSE(r.empty());
+}
+
 }  // namespace

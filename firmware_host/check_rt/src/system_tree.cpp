@@ -1,5 +1,6 @@
 #include "sempose/check_rt/system_tree.hpp"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -19,12 +20,21 @@ std::string SystemTree::path(const std::string& rel) const {
 }
 
 std::optional<std::string> SystemTree::read(const std::string& rel) const {
-  std::ifstream in(path(rel));
+  // Only a regular file, and only its first kMaxReadBytes: every file check-rt reads under
+  // /proc and /sys is one (a few KiB at most). Found probing `--root` trees: a FIFO there
+  // blocked check-rt in open() for good, and /dev/zero linked in read without end.
+  constexpr std::size_t kMaxReadBytes = 1 << 20;
+  struct stat st {};
+  if (::stat(path(rel).c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return std::nullopt;
+  std::ifstream in(path(rel), std::ios::binary);
   if (!in) return std::nullopt;
-  std::ostringstream ss;
-  ss << in.rdbuf();
+  std::string s;
+  char buf[4096];
+  while (s.size() < kMaxReadBytes && (in.read(buf, sizeof buf) || in.gcount() > 0)) {
+    s.append(buf, static_cast<std::size_t>(in.gcount()));
+  }
   if (in.bad()) return std::nullopt;
-  std::string s = ss.str();
+  if (s.size() > kMaxReadBytes) s.resize(kMaxReadBytes);
   while (!s.empty() && (s.back() == '\n' || s.back() == '\r')) s.pop_back();
   return s;
 }
