@@ -8,6 +8,7 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -328,6 +329,57 @@ TEST(ConfigFaults, DeepNestingIsNamedNotABadFile) {
     EXPECT_NE(e.find("(syntax): lists or mappings nested too deep for the YAML reader"), std::string::npos) << e;
     EXPECT_EQ(e.find("bad file"), std::string::npos) << e;
   }
+}
+
+// Every numeric key at the exact edges of its allowed range, written as the range message
+// prints them, is accepted; one step outside is refused. The reader compared the number as a
+// long double with the bound as a double: "0.01" lies below the double 0.01, so
+// `sim.beam_current_pa: 0.01` was "outside the allowed range [0.01, 100000]" (found probing:
+// the minimum of 22 keys and the maximum of 2 refused).
+TEST(ConfigFaults, EveryNumericKeyAcceptsTheEdgesOfItsRange) {
+  const std::string dir = temp_dir();
+  const std::string base = base_yaml(dir);
+  const std::regex range_re(R"(is outside the allowed range \[([^,\]]+), ([^\]]+)\])");
+  int keys = 0, edges = 0;
+  std::vector<std::string> refused;
+  for (const KeyInfo& k : config_keys(base)) {
+    if (k.kind != KeyKind::kFloat && k.kind != KeyKind::kInteger) continue;
+    AppConfig c;
+    std::string e;
+    parse_app_config(with(base, k.path, "1e300"), dir + "/c.yaml", c, e);
+    std::smatch m;
+    const auto at = e.find(k.path + ": ");
+    if (at == std::string::npos) continue;
+    const std::string line = e.substr(at, e.find('\n', at) - at);
+    if (!std::regex_search(line, m, range_re)) continue;  // a bound that depends on other keys
+    ++keys;
+    for (const std::string& edge : {m[1].str(), m[2].str()}) {
+      if (edge == "inf" || edge == "-inf") continue;
+      ++edges;
+      AppConfig ce;
+      std::string ee;
+      parse_app_config(with(base, k.path, edge), dir + "/c.yaml", ce, ee);
+      if (ee.find(k.path + ": " + edge + " is outside the allowed range") != std::string::npos) {
+        refused.push_back(k.path + " = " + edge);
+      }
+    }
+    // One step outside the lower edge is still refused.
+    if (m[1].str() != "-inf") {
+      const double lo = std::stod(m[1].str());
+      const double below = k.kind == KeyKind::kInteger ? lo - 1 : (lo == 0 ? -1e-9 : lo - std::fabs(lo) * 1e-6);
+      char text[64];
+      std::snprintf(text, sizeof text, k.kind == KeyKind::kInteger ? "%.0f" : "%.17g", below);
+      AppConfig cb;
+      std::string eb;
+      EXPECT_FALSE(parse_app_config(with(base, k.path, text), dir + "/c.yaml", cb, eb)) << k.path << " = " << text;
+      EXPECT_NE(eb.find(k.path + ": "), std::string::npos) << k.path << " = " << text << ":\n" << eb;
+    }
+  }
+  std::printf("%d keys with a fixed range, %d edges accepted\n", keys, edges);
+  EXPECT_GE(keys, 80);
+  std::string list;
+  for (const auto& r : refused) list += "  " + r + "\n";
+  EXPECT_TRUE(refused.empty()) << refused.size() << " range edges refused as outside their own range:\n" << list;
 }
 
 }  // namespace

@@ -139,6 +139,24 @@ std::string describe_range(double lo, double hi);
 // "?" (plain), "!" (quoted) and the core schema's scalar tags: a value read as it is written.
 bool tag_is_plain(const std::string& tag);
 
+// Whether a number read as long double is in [lo, hi] once it is the key's type. A floating
+// key compares the value it will hold: "0.01" as a long double lies below the double 0.01 (and
+// "0.85" above the double 0.85), so a minimum or maximum written exactly as the range prints it
+// was refused as outside that range (found probing every key at its edges).
+template <typename T>
+bool in_range(long double v, T lo, T hi) {
+  if constexpr (std::is_floating_point_v<T>) {
+    if (v < static_cast<long double>(std::numeric_limits<T>::lowest()) ||
+        v > static_cast<long double>(std::numeric_limits<T>::max())) {
+      return false;
+    }
+    const T t = static_cast<T>(v);
+    return t >= lo && t <= hi;
+  } else {
+    return v >= static_cast<long double>(lo) && v <= static_cast<long double>(hi);
+  }
+}
+
 template <typename T>
 void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T hi) {
   const std::string shown = n.IsScalar() ? n.Scalar() : std::string("(a ") +
@@ -184,7 +202,7 @@ void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T 
       errors_->add(n.Mark(), key_path(key), shown + " is not a whole number");
       return;
     }
-    if (v < static_cast<long double>(lo) || v > static_cast<long double>(hi)) {
+    if (!in_range(v, lo, hi)) {
       errors_->add(n.Mark(), key_path(key),
                    shown + " is outside the allowed range " +
                        describe_range(static_cast<double>(lo), static_cast<double>(hi)));
