@@ -364,7 +364,7 @@ TEST(ConfigFaults, EveryNumericKeyAcceptsTheEdgesOfItsRange) {
       }
     }
     // One step outside the lower edge is still refused.
-    if (m[1].str() != "-inf") {
+    if (m[1].str() != "-inf" && std::stod(m[1].str()) > -9e18) {
       const double lo = std::stod(m[1].str());
       const double below = k.kind == KeyKind::kInteger ? lo - 1 : (lo == 0 ? -1e-9 : lo - std::fabs(lo) * 1e-6);
       char text[64];
@@ -380,6 +380,26 @@ TEST(ConfigFaults, EveryNumericKeyAcceptsTheEdgesOfItsRange) {
   std::string list;
   for (const auto& r : refused) list += "  " + r + "\n";
   EXPECT_TRUE(refused.empty()) << refused.size() << " range edges refused as outside their own range:\n" << list;
+}
+
+// A 64-bit integer key takes every value of its type: `sim.seed: 18446744073709551615` (2^64 - 1,
+// which `sim --seed` takes) was refused as "outside the allowed range [0, inf]" — the bound was
+// 1.8e19 and the message printed the type's maximum as inf. 2^64 is still refused, with the
+// exact bounds.
+TEST(ConfigFaults, A64BitKeyTakesItsWholeRangeAndNamesItExactly) {
+  for (const char* v : {"18446744073709551615", "18000000000000000001", "0"}) {
+    AppConfig c;
+    std::string e;
+    EXPECT_TRUE(parse_app_config(std::string("sim: {seed: ") + v + "}\n", "s.yaml", c, e)) << v << ": " << e;
+    EXPECT_EQ(std::to_string(c.sim.seed), v);
+  }
+  for (const char* v : {"18446744073709551616", "-1", "1e300"}) {
+    AppConfig c;
+    std::string e;
+    EXPECT_FALSE(parse_app_config(std::string("sim: {seed: ") + v + "}\n", "s.yaml", c, e)) << v;
+    EXPECT_NE(e.find(std::string("sim.seed: ") + v + " is outside the allowed range [0, 18446744073709551615]"),
+              std::string::npos) << e;
+  }
 }
 
 }  // namespace

@@ -157,6 +157,17 @@ bool in_range(long double v, T lo, T hi) {
   }
 }
 
+// "[lo, hi]": an integer key's bounds exactly (describe_range prints |v| >= 9e18 as inf, which
+// said "[0, inf]" for a 64-bit seed), a floating key's as describe_range prints them.
+template <typename T>
+std::string describe_bounds(T lo, T hi) {
+  if constexpr (std::is_integral_v<T>) {
+    return "[" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+  } else {
+    return describe_range(static_cast<double>(lo), static_cast<double>(hi));
+  }
+}
+
 template <typename T>
 void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T hi) {
   const std::string shown = n.IsScalar() ? n.Scalar() : std::string("(a ") +
@@ -192,10 +203,11 @@ void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T 
       errors_->add(n.Mark(), key_path(key), "'" + shown + "' is not a finite number");
       return;
     }
-    if (std::is_integral_v<T> && (v < -9.2e18L || v > 1.8e19L)) {
-      errors_->add(n.Mark(), key_path(key),
-                   shown + " is outside the allowed range " +
-                       describe_range(static_cast<double>(lo), static_cast<double>(hi)));
+    // An integer beyond its type (checked exactly: a long double holds every 64-bit integer)
+    // is outside the range before it is anything else. The bound was 1.8e19, which refused
+    // `sim.seed: 18446744073709551615` (2^64 - 1, what `sim --seed` takes) as "outside [0, inf]".
+    if (std::is_integral_v<T> && !in_range(v, std::numeric_limits<T>::lowest(), std::numeric_limits<T>::max())) {
+      errors_->add(n.Mark(), key_path(key), shown + " is outside the allowed range " + describe_bounds(lo, hi));
       return;
     }
     if (std::is_integral_v<T> && v != std::floor(v)) {
@@ -203,9 +215,7 @@ void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T 
       return;
     }
     if (!in_range(v, lo, hi)) {
-      errors_->add(n.Mark(), key_path(key),
-                   shown + " is outside the allowed range " +
-                       describe_range(static_cast<double>(lo), static_cast<double>(hi)));
+      errors_->add(n.Mark(), key_path(key), shown + " is outside the allowed range " + describe_bounds(lo, hi));
       return;
     }
     out = static_cast<T>(v);
