@@ -507,5 +507,70 @@ TEST(NoFalseTracking, FirstSearchFrameHeldByStaticClutterIsNotTracking) {
     } else {
       EXPECT_GT(err0, 3.0) << "the clutter must hold the search's pose at the recording spot, or the case tests nothing";
     }
+
+// A torn frame (issue 13 item 6): the needle steps 10 px while its ROI is scanned, so the lines
+// scanned before the step show it at one place and those after at the other. In the clutter
+// control cases (the needle outweighs the clutter: the pose follows it) frame 39 was TRACKING
+// 7-8.6 px off at 0.76-0.86 (`pose_accuracy_bench --clutter`: 4 false TRACKING in these four
+// cases): its score is at the level of the frames before, so neither the score rules nor the
+// fall-while-still rule see it. The split-scan check (Tracker torn(), split_consistency.hpp: on
+// a target the stream says stood still, the rows scanned first and those scanned last fitted
+// apart, their displacements differing by more than their noise and by at least kTornApartPx)
+// makes it UNCERTAIN at 20 e-/px. At 6 e-/px the parts' noise hides it (C 0.12: 2.9 SD where
+// the check asks 3.4; C 0.3: the stream's pose noise does not let the target count as still;
+// README Known limitations in depth): those cases only check that the whole frames stay
+// TRACKING. Whole frames of every case must stay TRACKING (so the check cannot pass by refusing
+// everything): at most 3 of them lost per case.
+TEST(NoFalseTracking, TornFrameOfAStepIsNotTracking) {
+  struct Case {
+    double contrast, dose;
+    bool torn_caught;
+  };
+  const Case cases[] = {{0.12, 20, true}, {0.3, 20, true}, {0.12, 6, false}, {0.3, 6, false}};
+  for (const Case& c : cases) {
+    pt::Scenario s;
+    s.target = "needle_tip";
+    s.motion = "step";
+    s.step_x_px = 8;
+    s.step_y_px = 6;
+    s.step_period_s = 0.078;
+    s.background_contrast = c.contrast;
+    s.target_brightness = 1.0;
+    s.dose_e = c.dose;
+    s.frames = 60;
+    s.start_phi_deg = 30;  // as pose_accuracy_bench --clutter
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    int torn_n = 0, torn_off = 0, torn_off_tracking = 0, whole_n = 0, whole_tracking = 0, whole_false = 0;
+    for (std::size_t f = 0; f < h.poses().size(); ++f) {
+      const auto& e = h.poses()[f];
+      const auto& t = h.records()[f].truth;
+      const double t0 = 1e-9 * static_cast<double>(h.records()[f].t_start_ns - sempose::hal::SimSource::kVirtualEpochNs);
+      const double t1 = 2.0 * h.records()[f].t_mid_s - t0;
+      const bool torn = std::floor(t0 / s.step_period_s) != std::floor(t1 / s.step_period_s);
+      const bool off = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) > sempose::pose::LossPolicy::kFalsePx ||
+                       std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)) > sempose::pose::LossPolicy::kFalseDeg;
+      const bool tracking = e.state == TrackState::kTracking;
+      if (torn) {
+        ++torn_n;
+        torn_off += off && !e.searched;
+        torn_off_tracking += off && tracking;
+      } else if (!e.searched) {
+        ++whole_n;
+        whole_tracking += tracking;
+        whole_false += off && tracking;
+      }
+    }
+    std::printf("torn step C %.2g B 1 dose %4.1f: torn frames %d (%d off the needle, %d of them TRACKING); whole frames %d, "
+                "TRACKING %d, false %d\n",
+                c.contrast, c.dose, torn_n, torn_off, torn_off_tracking, whole_n, whole_tracking, whole_false);
+    EXPECT_GT(torn_n, 0) << "the case must contain a torn frame, or it tests nothing";
+    if (c.torn_caught) {
+      EXPECT_GT(torn_off, 0) << "the case must contain a torn frame off the needle, or it tests nothing";
+      EXPECT_EQ(torn_off_tracking, 0) << "a torn frame TRACKING off the needle (frame 39 before the split check)";
+    }
+    EXPECT_EQ(whole_false, 0);
+    EXPECT_GE(whole_tracking, whole_n - 3) << "whole frames of the same scene must stay TRACKING";
   }
 }

@@ -294,6 +294,27 @@ bool Tracker::Impl::fell_while_still(const PoseEstimate& e) noexcept {
   return still_doubt;
 }
 
+// A torn frame (issue 13 item 6): the target jumped while its ROI was scanned, so the lines
+// scanned before the jump show it at one place and those after at another, and the pose sits
+// with one part or between them. Its score can stay at the level of the frames before and the
+// pose moves, so neither the score rules nor fell_while_still see it (the clutter control rows
+// of `pose_accuracy_bench --clutter`, frame 39: TRACKING 7-8.6 px off at 0.76-0.86). The split
+// check (split_consistency.hpp) fits the rows scanned first and those scanned last apart at the
+// pose; parts whose displacements differ by more than significance_z() SDs of their noise and
+// by at least kTornApartPx say the target was not rigid during the scan. Both: at 20 e-/px a
+// whole frame of the needle over clutter it moved away from parts 0.3-0.6 px apart at 4-5 SD
+// (the clutter pulls each part by its own share), the torn frames 0.8-1.3 px (the linear step
+// reads an 8 px tear short) at 2.9-6.5 SD. Only on a pose otherwise TRACKING (one pass over the
+// footprint, RT).
+bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept {
+  if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
+  const SplitConsistency s = split.measure(bank, m.j, m.ux, m.uy);
+  // The parts' distance is a 2-D Mahalanobis one, the largest of kCuts: significant when its
+  // square exceeds the χ² (2 dof) quantile of max_false_probability shared over the cuts.
+  const double p = std::clamp(cfg.max_false_probability / SplitConsistencyCheck::kCuts, 1e-12, 0.5);
+  return s.valid && s.z * s.z >= -2.0 * std::log(p) && used_scale * s.apart_px >= kTornApartPx;
+}
+
 double Tracker::Impl::significance_z() const noexcept {
   const double p = std::clamp(cfg.max_false_probability, 1e-12, 0.5);
   double lo = 0, hi = 10;  // 0.5·erfc(z/√2) = p, decreasing in z
@@ -631,11 +652,23 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         innov = {true, motion.innovation_px(e.x_px, e.y_px), motion.innovation_deg(e.phi_deg)};
       const bool fell = fell_below_search_level(m.score);  // against the level before this frame
       const bool fell_still = fell_while_still(e);          // against the last accepted pose
+      // The split check only where the stream says the target stood still (its smooth motion,
+      // turn or scale drift would shear the parts apart by themselves).
+      const bool still = motion.has_velocity() &&
+                         std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px()) <= kStillPx &&
+                         std::fabs(rt::wrap_deg(motion.predicted_phi_deg() - motion.phi_deg())) <= kStillDeg &&
+                         std::fabs(scale_step) <= kStillScale * scale;
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
+      const double scale_before = scale;
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
+      scale_step = scale - scale_before;
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
       if (flip_open || rival_within_noise || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
+      if (still && e.state == TrackState::kTracking && torn(m, bank, used_scale)) {
+        e.state = TrackState::kUncertain;
+        e.reason_bits |= kReasonUnexplained;
+      }
       // A good frame teaches the appearance model (RT: sums into a preallocated batch). It reads
       // the pixels the walk was scored on (the ROI resampled to the pattern's size if rescaled).
       if (learning && e.reason_bits == 0 && e.state == TrackState::kTracking && m.score >= cfg.appearance.min_score) {

@@ -144,6 +144,8 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.nm_per_px.push_back(sets[i].nm_per_px);
   }
   t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;
+  // The split check's noise: the score noise model's pixels per independent sample.
+  t.split.set_noise_inflation(static_cast<double>(t.fine_mask.count()) / std::max(1.0, t.score_samples));
   if (cfg.appearance.enabled) {
     // The learner's references: each set's recorded pattern, prefiltered like the frames; its
     // priors: the shape masks (the learned support never leaves them).

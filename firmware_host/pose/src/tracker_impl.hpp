@@ -29,6 +29,7 @@
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/pose/roi_rescaler.hpp"
 #include "sempose/pose/scale_probe.hpp"
+#include "sempose/pose/split_consistency.hpp"
 #include "sempose/pose/start_search.hpp"
 #include "sempose/pose/subpixel_fit.hpp"
 #include "sempose/rt/angle.hpp"
@@ -63,6 +64,7 @@ struct Tracker::Impl {
   AngleSweep sweep;
   StartSearch search;
   PoseRefinement refinement;
+  SplitConsistencyCheck split;
   PoseUncertainty uncertainty;
   LossPolicy loss;
   MotionModel motion;
@@ -155,6 +157,7 @@ struct Tracker::Impl {
         sweep(half, walk, angles, maps),
         search(cfg, sizes, angles, coarse, coarse_wide.get(), half, loader, rescaler, scale_probe, scale_evidence, walk, sweep, maps),
         refinement(scorer, c.refine, angles.step_deg),
+        split(scorer, 1.0),
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
                     c.sigma_noise_factor, c.sigma_angle_factor, angles.count, c.sigma_pattern_noise),
         loss(cfg),
@@ -229,6 +232,14 @@ struct Tracker::Impl {
   // the frame cannot tell which is the target (a torn frame: the target jumped mid-scan and
   // half the ROI shows it at each place). Followed, reported UNCERTAIN.
   bool rival_within_noise = false;
+  // A torn frame (tracker.cpp, torn()): the rows of the footprint scanned first and those
+  // scanned last put the target at places that differ by more than significance_z() noise SDs
+  // and by at least kTornApartPx (split_consistency.hpp): it moved mid-scan. Followed, reported
+  // UNCERTAIN with kReasonUnexplained.
+  bool torn(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept;
+  static constexpr double kTornApartPx = 0.75;
+  static constexpr double kStillPx = 1.0, kStillDeg = 1.0, kStillScale = 0.0025;
+  double scale_step = 0;  // the tracked scale's change on the last accepted ROI frame
   double frame_dwell_ns = 0;  // the pixel dwell of the frame being measured (0: not known)
 
   // Flip check (a near-symmetric target, e.g. a lamella, scores almost alike turned by 180°):

@@ -1,0 +1,134 @@
+#include "sempose/pose/split_consistency.hpp"
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+
+namespace sempose::pose {
+
+namespace {
+// Σ over one part of the regressors r = (t, ∂t/∂x, ∂t/∂y), the window f and their products.
+struct Sums {
+  double n = 0, r[3] = {}, f = 0, rr[6] = {}, rf[3] = {}, ff = 0;  // rr: 00 01 02 11 12 22
+  void add(const Sums& o) noexcept {
+    n += o.n, f += o.f, ff += o.ff;
+    for (int i = 0; i < 3; ++i) r[i] += o.r[i], rf[i] += o.rf[i];
+    for (int i = 0; i < 6; ++i) rr[i] += o.rr[i];
+  }
+};
+
+// One part's fit f ≈ b + a·t − a·δ·∇t (a rigid pattern shifted by δ, linearised): the
+// displacement δ and its covariance from the residual variance per pixel (× the noise's
+// correlation inflation).
+struct PartFit {
+  bool ok = false;
+  double dx = 0, dy = 0, cxx = 0, cxy = 0, cyy = 0;
+};
+
+PartFit fit(const Sums& s, double inflation) noexcept {
+  PartFit p;
+  if (s.n < 32) return p;
+  // Centred normal equations C β = d.
+  double c[3][3];
+  const int idx[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) c[i][k] = s.rr[idx[i][k]] - s.r[i] * s.r[k] / s.n;
+  double d[3];
+  for (int i = 0; i < 3; ++i) d[i] = s.rf[i] - s.r[i] * s.f / s.n;
+  const double ff = s.ff - s.f * s.f / s.n;
+  // Inverse of the symmetric 3×3 C.
+  const double m00 = c[1][1] * c[2][2] - c[1][2] * c[2][1], m01 = c[0][2] * c[2][1] - c[0][1] * c[2][2],
+               m02 = c[0][1] * c[1][2] - c[0][2] * c[1][1];
+  const double det = c[0][0] * m00 + c[1][0] * m01 + c[2][0] * m02;
+  if (!(std::fabs(det) > 0) || !(ff > 0)) return p;
+  double inv[3][3];
+  inv[0][0] = m00 / det, inv[0][1] = m01 / det, inv[0][2] = m02 / det;
+  inv[1][1] = (c[0][0] * c[2][2] - c[0][2] * c[2][0]) / det;
+  inv[1][2] = (c[0][2] * c[1][0] - c[0][0] * c[1][2]) / det;
+  inv[2][2] = (c[0][0] * c[1][1] - c[0][1] * c[1][0]) / det;
+  inv[1][0] = inv[0][1], inv[2][0] = inv[0][2], inv[2][1] = inv[1][2];
+  double b[3];
+  for (int i = 0; i < 3; ++i) b[i] = inv[i][0] * d[0] + inv[i][1] * d[1] + inv[i][2] * d[2];
+  if (!(b[0] > 0)) return p;
+  const double resid = std::max(0.0, ff - (b[0] * d[0] + b[1] * d[1] + b[2] * d[2])) / (s.n - 4) * inflation;
+  p.ok = true;
+  p.dx = -b[1] / b[0];
+  p.dy = -b[2] / b[0];
+  // δ = −(β1, β2)/β0: its covariance by the delta method, J Cov(β) Jᵀ with Cov(β) = resid·C⁻¹.
+  const double jx[3] = {b[1] / (b[0] * b[0]), -1.0 / b[0], 0.0}, jy[3] = {b[2] / (b[0] * b[0]), 0.0, -1.0 / b[0]};
+  double vx = 0, vxy = 0, vy = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) {
+      vx += jx[i] * inv[i][k] * jx[k];
+      vxy += jx[i] * inv[i][k] * jy[k];
+      vy += jy[i] * inv[i][k] * jy[k];
+    }
+  p.cxx = resid * vx, p.cxy = resid * vxy, p.cyy = resid * vy;
+  return p;
+}
+}  // namespace
+
+SplitConsistency SplitConsistencyCheck::measure(const PatternBank& bank, int j, int ux, int uy) const noexcept {
+  SplitConsistency r;
+  const int p = bank.size_px(), w = scorer_.roi_w(), h = scorer_.roi_h();
+  if (ux < 0 || uy < 0 || ux > w - p || uy > h - p || p < 8) return r;
+  const MaskBand* bands = bank.support_bands(j);
+  const int n_bands = bank.support_band_count(j);
+  int y_min = INT_MAX, y_max = INT_MIN;
+  for (int k = 0; k < n_bands; ++k) {
+    y_min = std::min(y_min, std::max(1, bands[k].y0));
+    y_max = std::max(y_max, std::min(p - 2, bands[k].y1));
+  }
+  if (y_max - y_min + 1 < kParts) return r;
+  const int rows = y_max - y_min + 1;
+  Sums part[kParts];
+  const float* t = bank.pattern(j);
+  const float* f = scorer_.roi() + static_cast<std::ptrdiff_t>(uy) * w + ux;
+  for (int k = 0; k < n_bands; ++k) {
+    const MaskBand& b = bands[k];
+    const int x0 = std::max(1, b.x0), x1 = std::min(p - 2, b.x1);
+    if (x1 < x0) continue;
+    for (int y = std::max(1, b.y0); y <= std::min(p - 2, b.y1); ++y) {
+      const float* tr = t + static_cast<std::ptrdiff_t>(y) * p;
+      const float* tu = tr - p;
+      const float* td = tr + p;
+      const float* fr = f + static_cast<std::ptrdiff_t>(y) * w;
+      float r0 = 0, r1 = 0, r2 = 0, sf = 0, q00 = 0, q01 = 0, q02 = 0, q11 = 0, q12 = 0, q22 = 0, g0 = 0, g1 = 0, g2 = 0,
+            sff = 0;
+#pragma omp simd reduction(+ : r0, r1, r2, sf, q00, q01, q02, q11, q12, q22, g0, g1, g2, sff)
+      for (int x = x0; x <= x1; ++x) {
+        const float a = tr[x], gx = 0.5f * (tr[x + 1] - tr[x - 1]), gy = 0.5f * (td[x] - tu[x]), v = fr[x];
+        r0 += a, r1 += gx, r2 += gy, sf += v;
+        q00 += a * a, q01 += a * gx, q02 += a * gy, q11 += gx * gx, q12 += gx * gy, q22 += gy * gy;
+        g0 += a * v, g1 += gx * v, g2 += gy * v, sff += v * v;
+      }
+      Sums& s = part[(y - y_min) * kParts / rows];
+      s.n += x1 - x0 + 1;
+      s.r[0] += r0, s.r[1] += r1, s.r[2] += r2, s.f += sf;
+      s.rr[0] += q00, s.rr[1] += q01, s.rr[2] += q02, s.rr[3] += q11, s.rr[4] += q12, s.rr[5] += q22;
+      s.rf[0] += g0, s.rf[1] += g1, s.rf[2] += g2, s.ff += sff;
+    }
+  }
+  for (int c = 1; c <= kCuts; ++c) {
+    Sums first, last;
+    for (int k = 0; k < c; ++k) first.add(part[k]);
+    for (int k = c; k < kParts; ++k) last.add(part[k]);
+    const PartFit a = fit(first, inflation_), b = fit(last, inflation_);
+    if (!a.ok || !b.ok) continue;  // a part that does not fit (flat, or no positive gain) says nothing
+    const double ddx = a.dx - b.dx, ddy = a.dy - b.dy;
+    const double sxx = a.cxx + b.cxx, sxy = a.cxy + b.cxy, syy = a.cyy + b.cyy;
+    const double det = sxx * syy - sxy * sxy;
+    if (!(det > 0)) continue;
+    const double d2 = (syy * ddx * ddx - 2 * sxy * ddx * ddy + sxx * ddy * ddy) / det;
+    const double z = std::sqrt(std::max(0.0, d2));
+    if (!r.valid || z > r.z) {
+      r.valid = true;
+      r.z = z;
+      r.apart_px = std::hypot(ddx, ddy);
+      r.cut = c;
+    }
+  }
+  return r;
+}
+
+}  // namespace sempose::pose
