@@ -296,16 +296,19 @@ bool Tracker::Impl::fell_while_still(const PoseEstimate& e) noexcept {
 
 // A torn frame (issue 13 item 6): the target jumped while its ROI was scanned, so the lines
 // scanned before the jump show it at one place and those after at another, and the pose sits
-// with one part or between them. Its score can stay at the level of the frames before and the
-// pose moves, so neither the score rules nor fell_while_still see it (the clutter control rows
-// of `pose_accuracy_bench --clutter`, frame 39: TRACKING 7-8.6 px off at 0.76-0.86). The split
+// with one part or between them. Its score can stay at the level of the frames before, so
+// neither the score rules nor fell_while_still see it (the clutter control rows of
+// `pose_accuracy_bench --clutter`, frame 39: TRACKING 7-8.6 px off at 0.76-0.86). The split
 // check (split_consistency.hpp) fits the rows scanned first and those scanned last apart at the
-// pose; parts whose displacements differ by more than significance_z() SDs of their noise and
-// by at least kTornApartPx say the target was not rigid during the scan. Both: at 20 e-/px a
-// whole frame of the needle over clutter it moved away from parts 0.3-0.6 px apart at 4-5 SD
-// (the clutter pulls each part by its own share), the torn frames 0.8-1.3 px (the linear step
-// reads an 8 px tear short) at 2.9-6.5 SD. Only on a pose otherwise TRACKING (one pass over the
-// footprint, RT).
+// pose; parts whose displacements differ significantly (χ², 2 dof, at max_false_probability
+// shared over the cuts) and by at least kTornApartPx say the target was not rigid during the
+// scan. Both: at 20 e-/px a whole frame of the needle over clutter it moved away from has
+// parts 0.3-0.6 px apart at 4-5 SD (the clutter pulls each part by its own share), the torn
+// frames 1.3 px (the linear step reads an 8 px tear short) at 5.7-6.5 SD. Only on a pose
+// otherwise TRACKING of a target the stream says stood still (the caller's gate: a target's
+// smooth motion, turn or scale drift during the scan shears the parts apart by themselves —
+// without the gate the check turned 175 `--quick` frames UNCERTAIN, most on the fast, scale
+// ramp and spin rows). One pass over the footprint, RT.
 bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept {
   if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
   const SplitConsistency s = split.measure(bank, m.j, m.ux, m.uy);
@@ -652,8 +655,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         innov = {true, motion.innovation_px(e.x_px, e.y_px), motion.innovation_deg(e.phi_deg)};
       const bool fell = fell_below_search_level(m.score);  // against the level before this frame
       const bool fell_still = fell_while_still(e);          // against the last accepted pose
-      // The split check only where the stream says the target stood still (its smooth motion,
-      // turn or scale drift would shear the parts apart by themselves).
+      // The split check only where the stream says the target stood still: its last move at
+      // most kStillPx / kStillDeg and the tracked scale's last step at most kStillScale of it.
+      // A part's displacement then drifts at most ~0.3 px during the scan (the parts' centres
+      // are ~0.3 of a frame apart, the pattern's rim ~60 px from its centre), well inside
+      // kTornApartPx.
       const bool still = motion.has_velocity() &&
                          std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px()) <= kStillPx &&
                          std::fabs(rt::wrap_deg(motion.predicted_phi_deg() - motion.phi_deg())) <= kStillDeg &&

@@ -233,9 +233,10 @@ struct Tracker::Impl {
   // half the ROI shows it at each place). Followed, reported UNCERTAIN.
   bool rival_within_noise = false;
   // A torn frame (tracker.cpp, torn()): the rows of the footprint scanned first and those
-  // scanned last put the target at places that differ by more than significance_z() noise SDs
-  // and by at least kTornApartPx (split_consistency.hpp): it moved mid-scan. Followed, reported
-  // UNCERTAIN with kReasonUnexplained.
+  // scanned last put the target at places that differ by more than their noise allows (χ², 2
+  // dof, at max_false_probability over the cuts) and by at least kTornApartPx
+  // (split_consistency.hpp): it moved mid-scan. Checked only on a target the stream says stood
+  // still (kStill*). Followed, reported UNCERTAIN with kReasonUnexplained.
   bool torn(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept;
   static constexpr double kTornApartPx = 0.75;
   static constexpr double kStillPx = 1.0, kStillDeg = 1.0, kStillScale = 0.0025;
