@@ -507,6 +507,8 @@ TEST(NoFalseTracking, FirstSearchFrameHeldByStaticClutterIsNotTracking) {
     } else {
       EXPECT_GT(err0, 3.0) << "the clutter must hold the search's pose at the recording spot, or the case tests nothing";
     }
+  }
+}
 
 // A torn frame (issue 13 item 6): the needle steps 10 px while its ROI is scanned, so the lines
 // scanned before the step show it at one place and those after at the other. In the clutter
