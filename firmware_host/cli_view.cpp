@@ -16,6 +16,7 @@
 
 #include "cli.hpp"
 #include "cli_options.hpp"
+#include "cli_signals.hpp"
 #include "sempose/config/reader.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
@@ -39,6 +40,19 @@ int usage(std::FILE* out) {
                "  --roi PX        ROI side drawn (default 192); --pattern-size PX without --pattern (default 128)\n"
                "  --scale K       enlarge the ROI pictures K times (default 2)\n");
   return out == stdout ? 0 : 2;
+}
+
+// A view stopped by a signal: the pictures it had drawn would look like a whole view of the
+// run (a track plot and ROI pictures that end early), so the ones this call wrote are removed
+// and the process ends by the signal, as replay and sim do (cli_signals.hpp). Each picture is
+// written whole before the signal is looked at, so no cut PNG is left either way.
+[[noreturn]] void stop_view(int sig, const std::string& out_dir, const std::vector<std::string>& written) {
+  std::size_t removed = 0;
+  for (const auto& f : written) removed += std::remove(f.c_str()) == 0;
+  char name[24];
+  std::fprintf(stderr, "sempose view: stopped by %s; removed the %zu file(s) it had written to %s\n",
+               sempose::cli::signal_name(sig, name), removed, out_dir.c_str());
+  sempose::cli::end_by_signal(sig);
 }
 
 }  // namespace
@@ -68,6 +82,8 @@ int sempose::cli::view(int argc, char** argv) {
     return 2;
   }
 
+  cli::catch_termination_signals();
+  std::vector<std::string> written;  // what this call wrote, removed if a signal stops it
   try {
     const auto rows = operator_view::read_pose_csv(poses_path);
     const auto targets = operator_view::targets_of(rows);
@@ -82,12 +98,17 @@ int sempose::cli::view(int argc, char** argv) {
     std::vector<std::string> frame_files;
     if (!frames_dir.empty()) frame_files = hal::list_pgm_frames(frames_dir);
 
+    if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
     std::filesystem::create_directories(out_dir);
     std::size_t tracked = 0;
     for (const auto& r : rows) tracked += r.status == "TRACKING";
     std::string title = std::filesystem::path(poses_path).filename().string();
     title.erase(std::remove(title.begin(), title.end(), '\''), title.end());
     const std::string plot_problem = operator_view::plot_track(rows, out_dir + "/track", title);
+    for (const char* ext : {".dat", ".gp", ".png"}) {
+      if (std::filesystem::exists(out_dir + "/track" + ext)) written.push_back(out_dir + "/track" + ext);
+    }
+    if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
 
     int pictures = 0;
     std::string first, last;
@@ -112,6 +133,8 @@ int sempose::cli::view(int argc, char** argv) {
         std::snprintf(name, sizeof name, "roi_%06llu%s%s.png", static_cast<unsigned long long>(r.frame),
                       r.target.empty() ? "" : "_", r.target.c_str());
         operator_view::write_png(out_dir + "/" + name, img);
+        written.push_back(out_dir + "/" + name);
+        if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
         if (first.empty()) first = name;
         last = name;
         ++pictures;

@@ -921,6 +921,52 @@ TEST(CliFaults, ReplayAndSimStoppedByASignalLeaveNoOutputThatLooksWhole) {
   }
 }
 
+// `sempose view` stopped by a signal died by it, leaving a track plot and the ROI pictures
+// drawn so far: a folder that looks like the whole view of the run. Now the files this call
+// wrote are removed (a file that was in the folder before stays) and it ends by the signal.
+TEST(CliFaults, ViewStoppedByASignalLeavesNoPicturesThatLookWhole) {
+  const std::string dir = work_dir() + "/view_sig";
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/v");
+  const std::string cfg = small_config(dir, "");
+  const Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "200", "--config", cfg}, 300);
+  ASSERT_EQ(made.code, 0) << made.err;
+  // One pose per recorded frame: every frame gets a large picture, so the view takes seconds.
+  {
+    std::ofstream csv(dir + "/poses.csv");
+    csv << "frame,t_ns,x_px,y_px,phi_deg,score,status\n";
+    for (int f = 0; f < 200; ++f) csv << f << "," << f * 1000000 << ",160,120,0,0.9,TRACKING\n";
+  }
+  std::ofstream(dir + "/v/notes.txt") << "the operator's own file\n";
+  for (int sig : {SIGTERM, SIGINT}) {
+    const std::string err = dir + "/view_err.txt";
+    const pid_t pid = fork();
+    if (pid == 0) {
+      const int null = ::open("/dev/null", O_WRONLY);
+      const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      dup2(null, 1);
+      dup2(e, 2);
+      execl(SEMPOSE_BIN, SEMPOSE_BIN, "view", "--poses", (dir + "/poses.csv").c_str(), "--out", (dir + "/v").c_str(),
+            "--frames", (dir + "/rec").c_str(), "--every", "1", "--scale", "8", static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    while (!fs::exists(dir + "/v/roi_000001.png") && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    kill(pid, sig);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    const std::string text = slurp(err);
+    ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig)
+        << "view ends by signal " << sig << " (status " << status << ")\n" << text;
+    EXPECT_NE(text.find("stopped by "), std::string::npos) << text;
+    std::vector<std::string> left;
+    for (const auto& e : fs::directory_iterator(dir + "/v")) left.push_back(e.path().filename().string());
+    EXPECT_EQ(left, std::vector<std::string>{"notes.txt"}) << "pictures left after signal " << sig << ":\n" << text;
+  }
+}
+
 // A control character in an output path (a newline, a tab, an escape, a NUL from a YAML
 // escape) was used as it stood: a file name with a newline breaks every line-oriented tool and
 // log, and "a\0b" from YAML was cut to "a". Refused naming the key or option and the

@@ -76,6 +76,10 @@ TEST(PoseCsv, ErrorsNameFileLineAndCell) {
       {"1.5,0,1,2,3,0.5,TRACKING", "frame '1.5' is not a whole number"},
       {"1e300,0,1,2,3,0.5,TRACKING", "frame '1e300' is not a whole number"},
       {"0,1e30,1,2,3,0.5,TRACKING", "t_ns '1e30' is not a whole number"},
+      // Positions and angles no field or wrap gives (were drawn: a picture of nothing).
+      {"0,0,1e300,2,3,0.5,TRACKING", "x_px '1e300' is not a number in [-1e+06, 1e+06]"},
+      {"0,0,1,-2e6,3,0.5,TRACKING", "y_px '-2e6' is not a number in [-1e+06, 1e+06]"},
+      {"0,0,1,2,1e200,0.5,TRACKING", "phi_deg '1e200' is not a number in [-360, 360]"},
   };
   for (const auto& [row, message] : cells) {
     std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n" << row << "\n";

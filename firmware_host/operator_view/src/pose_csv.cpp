@@ -10,6 +10,9 @@
 namespace sempose::operator_view {
 namespace {
 
+// Far beyond any scan field (a DAC of 16 bits addresses 65536 positions per axis).
+constexpr double kMaxPositionPx = 1e6;
+
 double number(const std::string& cell, const std::string& where) {
   char* end = nullptr;
   const double v = std::strtod(cell.c_str(), &end);
@@ -85,9 +88,11 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
     // Doubles hold every whole number up to 2^53 exactly; beyond it the conversion is not exact.
     r.frame = static_cast<std::uint64_t>(number_in(cells[0], where, "frame", 0, 9007199254740992.0, true));
     r.t_ns = static_cast<std::int64_t>(number_in(cells[1], where, "t_ns", -9007199254740992.0, 9007199254740992.0, true));
-    r.x_px = number(cells[2], where);
-    r.y_px = number(cells[3], where);
-    r.phi_deg = number(cells[4], where);
+    // Positions in a field and angles wrapped to (-180, 180] are what sempose writes; 1e300 px
+    // drew a picture of nothing and a track plot whose axis hid every real pose.
+    r.x_px = number_in(cells[2], where, "x_px", -kMaxPositionPx, kMaxPositionPx, false);
+    r.y_px = number_in(cells[3], where, "y_px", -kMaxPositionPx, kMaxPositionPx, false);
+    r.phi_deg = number_in(cells[4], where, "phi_deg", -360, 360, false);
     r.score = number_in(cells[5], where, "score", -1, 1, false);
     r.status = status(cells[6], where);
     if (with_target) r.target = cells[7];

@@ -46,6 +46,7 @@ void write_png(const std::string& path, const RgbImage& img) {
   if (setjmp(png_jmpbuf(png))) {
     png_destroy_write_struct(&png, &info);
     std::fclose(f);
+    std::remove(path.c_str());  // a cut PNG would look like a picture to a file browser
     throw std::runtime_error(path + ": PNG write failed (disk full?)");
   }
   png_init_io(png, f);
@@ -57,7 +58,11 @@ void write_png(const std::string& path, const RgbImage& img) {
   }
   png_write_end(png, nullptr);
   png_destroy_write_struct(&png, &info);
-  if (std::fclose(f) != 0) throw std::runtime_error(path + ": cannot write: " + std::strerror(errno));
+  if (std::fclose(f) != 0) {
+    const int err = errno;
+    std::remove(path.c_str());
+    throw std::runtime_error(path + ": cannot write: " + std::strerror(err));
+  }
 }
 
 }  // namespace sempose::operator_view
