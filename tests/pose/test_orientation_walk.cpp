@@ -14,6 +14,7 @@
 #include "sempose/pose/engine_sizes.hpp"
 #include "sempose/pose/orientation_walk.hpp"
 #include "sempose/pose/roi_loader.hpp"
+#include "sempose/pose/scale_probe.hpp"
 #include "sempose/pose/start_search.hpp"
 #include "analytic_scene.hpp"
 
@@ -105,6 +106,37 @@ TEST(OrientationWalk, WalksFromAWrongAngleToTheTargetAndFits) {
   EXPECT_GT(m.steps, 19);  // at least the fit's 19 exact scores
   // A walk bounded to 2 moves cannot get there: reported unsettled.
   EXPECT_TRUE(st.walk->measure(*st.bank, j_start, pk, 2).unsettled);
+}
+
+// The probe's reading takes its three stretches in one pass over the window: it must be the
+// parabola through the three scores score() gives one at a time, to the bit.
+TEST(ScaleProbe, ReadIsTheParabolaThroughItsThreeScores) {
+  Stages st;
+  for (const double phi : {20.6, 97.0}) {
+    const double cx = 13 + 15.5 + 0.3, cy = 9 + 15.5 - 0.2;
+    const auto roi = render(64, 64, cx, cy, phi);
+    ASSERT_TRUE(st.loader->load(roi.data(), 64, 64, 64, 16));
+    const int j = static_cast<int>(std::lround(phi / kStepDeg));
+    st.half->correlate(st.bank->spectrum(j), st.maps->work());
+    const Peak pk = find_peak(st.maps->work(), st.half->valid_w(), st.half->valid_h());
+    const Measurement m = st.walk->measure(*st.bank, j, pk, 8);
+    ASSERT_TRUE(m.valid);
+    const double k = ScaleProbe::kStep;
+    for (const int stride : {ScaleProbe::kStride, 1}) {
+      const double lo = st.probe->score(*st.bank, m, 1.0 - k, 1.0 - k, stride);
+      const double mid = st.probe->score(*st.bank, m, 1.0, 1.0 - k, stride);
+      const double hi = st.probe->score(*st.bank, m, 1.0 + k, 1.0 - k, stride);
+      ASSERT_GT(lo, -1.5);
+      ASSERT_GT(mid, -1.5);
+      ASSERT_GT(hi, -1.5);
+      if (stride != ScaleProbe::kStride) continue;  // read() uses kStride
+      const ScaleReading r = st.probe->read(*st.bank, m);
+      ASSERT_TRUE(r.valid);
+      const double curv = lo - 2.0 * mid + hi;
+      const double expected = curv < 0 ? 1.0 + std::clamp(0.5 * (lo - hi) / curv, -1.0, 1.0) * k : (hi > lo ? 1.0 + k : 1.0 - k);
+      EXPECT_EQ(r.factor, expected) << phi;
+    }
+  }
 }
 
 TEST(AngleSweep, FindsTheAngleFarOutsideTheWalksReach) {

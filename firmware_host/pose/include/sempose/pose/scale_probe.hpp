@@ -27,7 +27,9 @@ class ScaleProbe {
 
   // Setup (allocates the per-column scratch for the largest ROI the scorer loads).
   explicit ScaleProbe(const ExactScorer& scorer)
-      : scorer_(scorer), columns_(static_cast<std::size_t>(scorer.max_roi_px())) {}
+      : scorer_(scorer),
+        columns_(static_cast<std::size_t>(scorer.max_roi_px())),
+        columns3_(static_cast<std::size_t>(scorer.max_roi_px())) {}
 
   ScaleReading read(const PatternBank& bank, const Measurement& m) const noexcept;
   // The ZNCC at the pose of m with the pattern grid stretched by `factor`, over the ROI pixels
@@ -46,8 +48,20 @@ class ScaleProbe {
     int u_near = 0;   // nearest pattern column of the support stretched by `window`
     double wu = 0;    // weight of the right neighbour
   };
+  struct Column3 {
+    int u0[3] = {};
+    int u_near = 0;
+    double wu[3] = {};
+  };
+  // The three stretches over one window in one pass over its pixels: each score's sums are
+  // the same sequence of adds as score()'s (the same values to the bit), the window's own
+  // (Σf, Σf², n) taken once, and the three scores' independent sums interleaved.
+  void score3(const PatternBank& bank, const Measurement& m, const double factor[3], double window, int stride,
+              double out[3]) const noexcept;
+
   const ExactScorer& scorer_;
   mutable std::vector<Column> columns_;  // scratch, one per ROI column read (RT: no allocation)
+  mutable std::vector<Column3> columns3_;  // the same for score3  // scratch, one per ROI column read (RT: no allocation)
 };
 
 }  // namespace sempose::pose
