@@ -1,5 +1,6 @@
 // The sandwich covariance of a tracked pose (pose_uncertainty.hpp says what and why).
 #include "sempose/pose/pose_uncertainty.hpp"
+#include "sempose/pose/simd_clones.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -25,7 +26,7 @@ struct RowInputs {
 // (up/dn are valid rows) so that the loop vectorises. Not cloned for AVX-512 / AVX2: those
 // clones measured slower here (pose_speed_bench, 192²: +65 µs against +30 µs).
 template <bool kWithH>
-void row_terms(const RowInputs& in, float* gx, float* col, float* h) noexcept {
+[[gnu::always_inline]] inline void row_terms(const RowInputs& in, float* gx, float* col, float* h) noexcept {
   const float* t = in.t;
   const int x0 = in.x0, x1 = in.x1, P = in.P;
   gx[x0] = x1 > x0 ? t[x0 + 1] - t[x0] : 0.0f;
@@ -65,6 +66,14 @@ void row_terms(const RowInputs& in, float* gx, float* col, float* h) noexcept {
   if constexpr (!kWithH) return;
   const float out[20] = {h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, h24, h25, h33, h34, h35, h44, h45};
   for (int i = 0; i < 20; ++i) h[i] = out[i];
+}
+
+// The rows of an angle whose H0 is cached: element-wise terms only (no reduction, whose order
+// would follow the vector width), so cloned for AVX-512 / AVX2 — each element the same value
+// as the baseline's (this file is compiled without fused multiply-adds: CMakeLists.txt).
+// perf, pose_speed_bench --profile 192: estimate() was the largest cost of a tracked frame.
+SEMPOSE_CLONES void row_terms_cached(const RowInputs& in, float* gx, float* col) noexcept {
+  row_terms<false>(in, gx, col, nullptr);
 }
 
 // In-place inverse of a symmetric positive-definite 6×6 matrix by Gauss–Jordan with partial
@@ -247,7 +256,7 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
       in.ds = ds;
       in.dphi = dphi;
       if (cached_h) {
-        row_terms<false>(in, gx, col, nullptr);
+        row_terms_cached(in, gx, col);
         continue;
       }
       float hsum[20];
