@@ -3,13 +3,16 @@
 #pragma GCC diagnostic ignored "-Wnull-dereference"  // GCC 12 false positive inside gtest.h
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "sempose/pose/angle_grid.hpp"
 #include "sempose/pose/box_downsample.hpp"
+#include "sempose/pose/prefilter.hpp"
 #include "sempose/pose/summed_area_table.hpp"
 #include "sempose/rt/angle.hpp"
 
@@ -83,6 +86,45 @@ TEST(SummedAreaTables, EveryRectangleEqualsTheBruteSum) {
   t.build(px.data(), 10, 5, w);
   EXPECT_EQ(t.total(), 7 * 50);
   EXPECT_EQ(t.total_squares(), 49 * 50);
+}
+
+// The integer prefilter against a plain per-pass reference ([1 4 6 4 1] along x, then along y,
+// edges replicated, each pass shifted back to 20 bits): 1-3 passes, a row stride, small and
+// odd sizes (the filter streams its rows through a ring).
+TEST(Prefilter, EqualsThePlainSeparableFilter) {
+  std::mt19937 rng(5);
+  const int k[5] = {1, 4, 6, 4, 1};
+  for (const int passes : {1, 2, 3})
+    for (const auto& [w, h] : {std::pair{37, 23}, std::pair{64, 64}, std::pair{5, 3}, std::pair{9, 1}}) {
+      const int stride = w + 3, bits = 14;
+      std::uniform_int_distribution<int> u(0, (1 << bits) - 1);
+      std::vector<std::uint16_t> src(static_cast<std::size_t>(stride) * h);
+      for (auto& v : src) v = static_cast<std::uint16_t>(u(rng));
+      std::vector<std::int64_t> a(static_cast<std::size_t>(w) * h), b(a.size());
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) a[y * w + x] = src[y * stride + x];
+      int cur = bits;
+      for (int p = 0; p < passes; ++p) {
+        const int shift = std::max(0, cur + 8 - 20);
+        cur = std::min(20, cur + 8);
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) {
+            std::int64_t s = 0;
+            for (int i = 0; i < 5; ++i) s += k[i] * a[y * w + std::clamp(x + i - 2, 0, w - 1)];
+            b[y * w + x] = s;
+          }
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) {
+            std::int64_t s = 0;
+            for (int i = 0; i < 5; ++i) s += k[i] * b[std::clamp(y + i - 2, 0, h - 1) * w + x];
+            a[y * w + x] = s >> shift;
+          }
+      }
+      Prefilter f(passes, 64, 64);
+      std::vector<std::int32_t> out(static_cast<std::size_t>(w) * h, -1);
+      f.apply(src.data(), w, h, stride, bits, out.data());
+      for (int i = 0; i < w * h; ++i) ASSERT_EQ(out[i], a[i]) << passes << " passes, " << w << "x" << h << " at " << i;
+    }
 }
 
 TEST(WrapDeg, IntoTheHalfOpenInterval) {

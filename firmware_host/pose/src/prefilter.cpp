@@ -10,7 +10,7 @@ Prefilter::Prefilter(int passes, int max_w, int max_h)
       max_w_(max_w),
       max_h_(max_h),
       a_(static_cast<std::size_t>(max_w) * max_h),
-      b_(static_cast<std::size_t>(max_w) * max_h),
+      b_(static_cast<std::size_t>(max_w) * kRingRows),
       row_(static_cast<std::size_t>(max_w) + 4) {}
 
 namespace {
@@ -24,13 +24,10 @@ SEMPOSE_CLONES void horizontal(const T* src, int w, std::int32_t* row, std::int3
   row[w + 2] = row[w + 3] = row[w + 1];
   for (int x = 0; x < w; ++x) out[x] = row[x] + 4 * row[x + 1] + 6 * row[x + 2] + 4 * row[x + 3] + row[x + 4];
 }
-SEMPOSE_CLONES void vertical(const std::int32_t* in, int w, int h, int shift, std::int32_t* out) noexcept {
-  for (int y = 0; y < h; ++y) {
-    const std::int32_t* r[5];
-    for (int k = 0; k < 5; ++k) r[k] = in + static_cast<std::size_t>(std::clamp(y + k - 2, 0, h - 1)) * w;
-    std::int32_t* o = out + static_cast<std::size_t>(y) * w;
-    for (int x = 0; x < w; ++x) o[x] = (r[0][x] + 4 * r[1][x] + 6 * r[2][x] + 4 * r[3][x] + r[4][x]) >> shift;
-  }
+SEMPOSE_CLONES void vertical_row(const std::int32_t* __restrict r0, const std::int32_t* __restrict r1,
+                                 const std::int32_t* __restrict r2, const std::int32_t* __restrict r3,
+                                 const std::int32_t* __restrict r4, int w, int shift, std::int32_t* __restrict o) noexcept {
+  for (int x = 0; x < w; ++x) o[x] = (r0[x] + 4 * r1[x] + 6 * r2[x] + 4 * r3[x] + r4[x]) >> shift;
 }
 }  // namespace
 
@@ -56,16 +53,28 @@ void Prefilter::apply(const std::uint16_t* src, int w, int h, std::ptrdiff_t str
   }
   // Each pass's output is shifted back to at most 20 bits (the correlator's window sums and
   // the next pass both need that headroom); the last pass writes straight into out.
+  // The horizontal rows go through a ring of kRingRows rows, each computed just before the
+  // vertical pass first needs it: the rows stay in L1 (a whole horizontally filtered ROI was
+  // written to and read back from L2; perf, pose_speed_bench --profile 192). Integer
+  // arithmetic, the same values as any order. A later pass reads and writes a_ in place: the
+  // output row y is written after the input rows up to y + 2 were filtered into the ring.
   int cur_bits = bits;
   for (int p = 0; p < passes_; ++p) {
     const int shift = std::max(0, cur_bits + 8 - 20);
     cur_bits = std::min(20, cur_bits + 8);
+    std::int32_t* dst = p + 1 == passes_ ? out : a_.data();
+    int next = 0;  // the next input row to filter horizontally
+    const std::int32_t* r[5];
     for (int y = 0; y < h; ++y) {
-      std::int32_t* dst = b_.data() + static_cast<std::size_t>(y) * w;
-      if (p == 0) horizontal(src + y * stride, w, row_.data(), dst);
-      else horizontal(a_.data() + static_cast<std::size_t>(y) * w, w, row_.data(), dst);
+      for (const int last = std::min(y + 2, h - 1); next <= last; ++next) {
+        std::int32_t* ring = b_.data() + static_cast<std::size_t>(next % kRingRows) * w;
+        if (p == 0) horizontal(src + next * stride, w, row_.data(), ring);
+        else horizontal(a_.data() + static_cast<std::size_t>(next) * w, w, row_.data(), ring);
+      }
+      for (int k = 0; k < 5; ++k)
+        r[k] = b_.data() + static_cast<std::size_t>(std::clamp(y + k - 2, 0, h - 1) % kRingRows) * w;
+      vertical_row(r[0], r[1], r[2], r[3], r[4], w, shift, dst + static_cast<std::size_t>(y) * w);
     }
-    vertical(b_.data(), w, h, shift, p + 1 == passes_ ? out : a_.data());
   }
 }
 

@@ -21,8 +21,9 @@ class Prefilter {
   void apply(const std::uint16_t* src, int w, int h, std::ptrdiff_t stride, int bits, std::int32_t* out) noexcept;
 
  private:
+  static constexpr int kRingRows = 8;  // horizontally filtered rows in flight (5 read, 3 ahead)
   int passes_, max_w_, max_h_;
-  std::vector<std::int32_t> a_, b_, row_;
+  std::vector<std::int32_t> a_, b_, row_;  // a_: a pass's output before the last; b_: the ring
 };
 
 // The factor apply() scales a constant image by (256 per pass, less the shifts that keep
