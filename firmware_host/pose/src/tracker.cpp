@@ -656,18 +656,25 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       const bool fell = fell_below_search_level(m.score);  // against the level before this frame
       const bool fell_still = fell_while_still(e);          // against the last accepted pose
       // The split check only where the stream says the target stood still: its last move at
-      // most kStillPx / kStillDeg and the tracked scale's last step at most kStillScale of it.
-      // A part's displacement then drifts at most ~0.3 px during the scan (the parts' centres
-      // are ~0.3 of a frame apart, the pattern's rim ~60 px from its centre), well inside
-      // kTornApartPx.
+      // most kStillPx, its last turn at most kStillDeg or, once the stream's pose noise is
+      // known, the noise of a difference of two poses (significance_z() × √2 × pose_noise_deg:
+      // at 6 e-/px a still target's poses turn 1-2.3° from one frame to the next), and the
+      // tracked scale's rate (scale_rate, ~2 frames' memory) at most kStillScale of it with its
+      // last step at most kStillScaleStep. A part's displacement then drifts at most ~0.3 px
+      // during the scan (the parts' centres are ~0.3 of a frame apart, the pattern's rim ~60 px
+      // from its centre; a turn during a raster scan bends the parts rather than pulling them
+      // apart: rows above and below the centre shift alike), well inside kTornApartPx.
+      const double still_deg =
+          motion.pose_noise_known() ? std::max(kStillDeg, significance_z() * std::sqrt(2.0) * motion.pose_noise_deg()) : kStillDeg;
       const bool still = motion.has_velocity() &&
                          std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px()) <= kStillPx &&
-                         std::fabs(rt::wrap_deg(motion.predicted_phi_deg() - motion.phi_deg())) <= kStillDeg &&
-                         std::fabs(scale_step) <= kStillScale * scale;
+                         std::fabs(rt::wrap_deg(motion.predicted_phi_deg() - motion.phi_deg())) <= still_deg &&
+                         std::fabs(scale_rate) <= kStillScale * scale && std::fabs(scale_step) <= kStillScaleStep * scale;
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
       const double scale_before = scale;
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
       scale_step = scale - scale_before;
+      scale_rate += kScaleRateGain * (scale_step - scale_rate);
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
       if (flip_open || rival_within_noise || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
