@@ -851,6 +851,36 @@ TEST(CliFaults, EverySignalThatWouldEndARunStopsItCleanly) {
   }
 }
 
+namespace {
+
+// Starts sempose with `args` (stdout to /dev/null, stderr to `err_path`), sends `sig` once
+// `wait_for` exists (or after 60 s) and returns its wait status.
+int signal_once_written(const std::vector<std::string>& args, const std::string& wait_for, int sig,
+                        const std::string& err_path) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int null = ::open("/dev/null", O_WRONLY);
+    const int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(null, 1);
+    dup2(e, 2);
+    std::vector<char*> argv{const_cast<char*>(SEMPOSE_BIN)};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(SEMPOSE_BIN, argv.data());
+    _exit(127);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  while (!fs::exists(wait_for) && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  kill(pid, sig);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return status;
+}
+
+}  // namespace
+
 // `sempose replay` and `sempose sim` stopped by a signal mid-way used to die by it, leaving a
 // CSV of whole lines for the frames so far (replay) or a shorter recording (sim) that looked
 // like a whole one to the next replay or pattern. Now the output begun is removed and the
@@ -895,23 +925,8 @@ TEST(CliFaults, ReplayAndSimStoppedByASignalLeaveNoOutputThatLooksWhole) {
   for (int sig : {SIGTERM, SIGINT, SIGALRM}) {
     const std::string out = dir + "/poses.csv", err = dir + "/replay_err.txt";
     fs::remove(out);
-    const pid_t pid = fork();
-    if (pid == 0) {
-      const int null = ::open("/dev/null", O_WRONLY);
-      const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      dup2(null, 1);
-      dup2(e, 2);
-      execl(SEMPOSE_BIN, SEMPOSE_BIN, "replay", "--frames", (dir + "/rec").c_str(), "--pattern", (dir + "/p.pgm").c_str(),
-            "--out", out.c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    const auto t0 = std::chrono::steady_clock::now();
-    while (!fs::exists(out) && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    kill(pid, sig);
-    int status = 0;
-    waitpid(pid, &status, 0);
+    const int status = signal_once_written(
+        {"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", out}, out, sig, err);
     const std::string text = slurp(err);
     ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig)
         << "replay ends by signal " << sig << " (status " << status << ")\n" << text;
@@ -940,23 +955,9 @@ TEST(CliFaults, ViewStoppedByASignalLeavesNoPicturesThatLookWhole) {
   std::ofstream(dir + "/v/notes.txt") << "the operator's own file\n";
   for (int sig : {SIGTERM, SIGINT}) {
     const std::string err = dir + "/view_err.txt";
-    const pid_t pid = fork();
-    if (pid == 0) {
-      const int null = ::open("/dev/null", O_WRONLY);
-      const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      dup2(null, 1);
-      dup2(e, 2);
-      execl(SEMPOSE_BIN, SEMPOSE_BIN, "view", "--poses", (dir + "/poses.csv").c_str(), "--out", (dir + "/v").c_str(),
-            "--frames", (dir + "/rec").c_str(), "--every", "1", "--scale", "8", static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    const auto t0 = std::chrono::steady_clock::now();
-    while (!fs::exists(dir + "/v/roi_000001.png") && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    kill(pid, sig);
-    int status = 0;
-    waitpid(pid, &status, 0);
+    const int status = signal_once_written({"view", "--poses", dir + "/poses.csv", "--out", dir + "/v", "--frames",
+                                            dir + "/rec", "--every", "1", "--scale", "8"},
+                                           dir + "/v/roi_000001.png", sig, err);
     const std::string text = slurp(err);
     ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig)
         << "view ends by signal " << sig << " (status " << status << ")\n" << text;

@@ -510,6 +510,68 @@ TEST(NoFalseTracking, FirstSearchFrameHeldByStaticClutterIsNotTracking) {
   }
 }
 
+namespace {
+
+// The needle stepping (8, 6) px every 78 ms over procedural clutter of contrast C, brightness 1
+// (pose_accuracy_bench --clutter's control rows), 60 frames.
+pt::Scenario torn_step_scene(double contrast, double dose, double start_phi_deg) {
+  pt::Scenario s;
+  s.target = "needle_tip";
+  s.motion = "step";
+  s.step_x_px = 8;
+  s.step_y_px = 6;
+  s.step_period_s = 0.078;
+  s.background_contrast = contrast;
+  s.target_brightness = 1.0;
+  s.dose_e = dose;
+  s.frames = 60;
+  s.start_phi_deg = start_phi_deg;
+  return s;
+}
+
+// A run's frames split into torn ones (a step between the scan's start and end) and whole ones.
+struct TornTally {
+  int torn_n = 0, torn_off = 0, torn_off_tracking = 0;
+  int whole_n = 0, whole_tracking = 0, whole_false = 0, whole_split = 0;
+};
+
+TornTally tally_torn_frames(const pt::SimHarness& h, const pt::Scenario& s) {
+  TornTally c;
+  for (std::size_t f = 0; f < h.poses().size(); ++f) {
+    const auto& e = h.poses()[f];
+    const auto& t = h.records()[f].truth;
+    const double t0 = 1e-9 * static_cast<double>(h.records()[f].t_start_ns - sempose::hal::SimSource::kVirtualEpochNs);
+    const double t1 = 2.0 * h.records()[f].t_mid_s - t0;
+    const bool torn = std::floor(t0 / s.step_period_s) != std::floor(t1 / s.step_period_s);
+    const double off_px = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
+    const bool off = off_px > sempose::pose::LossPolicy::kFalsePx ||
+                     std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)) > sempose::pose::LossPolicy::kFalseDeg;
+    const bool tracking = e.state == TrackState::kTracking;
+    if (torn) {
+      ++c.torn_n;
+      c.torn_off += off && !e.searched;
+      c.torn_off_tracking += off && tracking;
+      if (off && !e.searched) {
+        std::printf("torn frame %zu: %.1f px off, state %d, reasons %d\n", f, off_px, static_cast<int>(e.state),
+                    static_cast<int>(e.reason_bits));
+      }
+    } else if (!e.searched) {
+      ++c.whole_n;
+      c.whole_tracking += tracking;
+      c.whole_false += off && tracking;
+      // The split check's verdict (UNCERTAIN with reason 128) on a whole frame.
+      c.whole_split += e.state == TrackState::kUncertain && (e.reason_bits & 128) != 0;
+    }
+  }
+  std::printf("torn step C %.2g B 1 dose %4.1f: torn frames %d (%d off the needle, %d of them TRACKING); whole frames %d, "
+              "TRACKING %d, false %d, split-check UNCERTAIN %d\n",
+              s.background_contrast, s.dose_e, c.torn_n, c.torn_off, c.torn_off_tracking, c.whole_n, c.whole_tracking,
+              c.whole_false, c.whole_split);
+  return c;
+}
+
+}  // namespace
+
 // A torn frame (issue 13 item 6): the needle steps 10 px while its ROI is scanned, so the lines
 // scanned before the step show it at one place and those after at the other. In the clutter
 // control cases (the needle outweighs the clutter: the pose follows it) frame 39 was TRACKING
@@ -530,50 +592,19 @@ TEST(NoFalseTracking, TornFrameOfAStepIsNotTracking) {
   };
   const Case cases[] = {{0.12, 20, true}, {0.3, 20, true}, {0.12, 6, false}, {0.3, 6, false}};
   for (const Case& c : cases) {
-    pt::Scenario s;
-    s.target = "needle_tip";
-    s.motion = "step";
-    s.step_x_px = 8;
-    s.step_y_px = 6;
-    s.step_period_s = 0.078;
-    s.background_contrast = c.contrast;
-    s.target_brightness = 1.0;
-    s.dose_e = c.dose;
-    s.frames = 60;
-    s.start_phi_deg = 30;  // as pose_accuracy_bench --clutter
+    // Started at 30° (the bench's clutter rows start at 0°: the next test).
+    const pt::Scenario s = torn_step_scene(c.contrast, c.dose, 30);
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
     h.run();
-    int torn_n = 0, torn_off = 0, torn_off_tracking = 0, whole_n = 0, whole_tracking = 0, whole_false = 0;
-    for (std::size_t f = 0; f < h.poses().size(); ++f) {
-      const auto& e = h.poses()[f];
-      const auto& t = h.records()[f].truth;
-      const double t0 = 1e-9 * static_cast<double>(h.records()[f].t_start_ns - sempose::hal::SimSource::kVirtualEpochNs);
-      const double t1 = 2.0 * h.records()[f].t_mid_s - t0;
-      const bool torn = std::floor(t0 / s.step_period_s) != std::floor(t1 / s.step_period_s);
-      const bool off = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) > sempose::pose::LossPolicy::kFalsePx ||
-                       std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)) > sempose::pose::LossPolicy::kFalseDeg;
-      const bool tracking = e.state == TrackState::kTracking;
-      if (torn) {
-        ++torn_n;
-        torn_off += off && !e.searched;
-        torn_off_tracking += off && tracking;
-      } else if (!e.searched) {
-        ++whole_n;
-        whole_tracking += tracking;
-        whole_false += off && tracking;
-      }
-    }
-    std::printf("torn step C %.2g B 1 dose %4.1f: torn frames %d (%d off the needle, %d of them TRACKING); whole frames %d, "
-                "TRACKING %d, false %d\n",
-                c.contrast, c.dose, torn_n, torn_off, torn_off_tracking, whole_n, whole_tracking, whole_false);
-    EXPECT_GT(torn_n, 0) << "the case must contain a torn frame, or it tests nothing";
+    const TornTally t = tally_torn_frames(h, s);
+    EXPECT_GT(t.torn_n, 0) << "the case must contain a torn frame, or it tests nothing";
     if (c.torn_caught) {
-      EXPECT_GT(torn_off, 0) << "the case must contain a torn frame off the needle, or it tests nothing";
-      EXPECT_EQ(torn_off_tracking, 0) << "a torn frame TRACKING off the needle (frame 39 before the split check)";
+      EXPECT_GT(t.torn_off, 0) << "the case must contain a torn frame off the needle, or it tests nothing";
+      EXPECT_EQ(t.torn_off_tracking, 0) << "a torn frame TRACKING off the needle (frame 39 before the split check)";
     }
-    EXPECT_EQ(whole_false, 0);
-    EXPECT_GE(whole_tracking, whole_n - 3) << "whole frames of the same scene must stay TRACKING";
+    EXPECT_EQ(t.whole_false, 0);
+    EXPECT_GE(t.whole_tracking, t.whole_n - 3) << "whole frames of the same scene must stay TRACKING";
   }
 }
 
@@ -584,52 +615,15 @@ TEST(NoFalseTracking, TornFrameOfAStepIsNotTracking) {
 // noise in angle and the scale's running rate, the torn frame is UNCERTAIN and the whole frames
 // of the same scene at the same dose stay TRACKING (no more than 3 lost, as at 20 e-/px).
 TEST(NoFalseTracking, TornFrameOfAStepAtSixElectronsIsNotTracking) {
-  pt::Scenario s;
-  s.target = "needle_tip";
-  s.motion = "step";
-  s.step_x_px = 8;
-  s.step_y_px = 6;
-  s.step_period_s = 0.078;
-  s.background_contrast = 0.3;
-  s.target_brightness = 1.0;
-  s.dose_e = 6;
-  s.frames = 60;
-  s.start_phi_deg = 0;  // as pose_accuracy_bench --clutter (its clutter rows start at 0°, not 30°)
+  // Started at 0°, as pose_accuracy_bench --clutter's rows are.
+  const pt::Scenario s = torn_step_scene(0.3, 6, 0);
   pt::SimHarness h(s, default_tracker());
   ASSERT_TRUE(h.status().ok) << h.status().message;
   h.run();
-  int torn_n = 0, torn_off = 0, torn_off_tracking = 0, whole_n = 0, whole_tracking = 0, whole_false = 0, whole_split = 0;
-  for (std::size_t f = 0; f < h.poses().size(); ++f) {
-    const auto& e = h.poses()[f];
-    const auto& t = h.records()[f].truth;
-    const double t0 = 1e-9 * static_cast<double>(h.records()[f].t_start_ns - sempose::hal::SimSource::kVirtualEpochNs);
-    const double t1 = 2.0 * h.records()[f].t_mid_s - t0;
-    const bool torn = std::floor(t0 / s.step_period_s) != std::floor(t1 / s.step_period_s);
-    const bool off = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) > sempose::pose::LossPolicy::kFalsePx ||
-                     std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)) > sempose::pose::LossPolicy::kFalseDeg;
-    const bool tracking = e.state == TrackState::kTracking;
-    if (torn) {
-      ++torn_n;
-      torn_off += off && !e.searched;
-      torn_off_tracking += off && tracking;
-      if (off && !e.searched)
-        std::printf("torn frame %zu: %.1f px off, state %d, reasons %d\n", f, std::hypot(e.x_px - t.x_px, e.y_px - t.y_px),
-                    static_cast<int>(e.state), static_cast<int>(e.reason_bits));
-    } else if (!e.searched) {
-      ++whole_n;
-      whole_tracking += tracking;
-      whole_false += off && tracking;
-      // The split check's verdict (UNCERTAIN with reason 128) on a whole frame.
-      whole_split += e.state == TrackState::kUncertain && (e.reason_bits & 128) != 0;
-      if (!tracking) std::printf("whole frame %zu: state %d, reasons %d\n", f, static_cast<int>(e.state), static_cast<int>(e.reason_bits));
-    }
-  }
-  std::printf("torn step C 0.3 B 1 dose 6: torn frames %d (%d off the needle, %d of them TRACKING); whole frames %d, TRACKING %d, "
-              "false %d\n",
-              torn_n, torn_off, torn_off_tracking, whole_n, whole_tracking, whole_false);
-  ASSERT_GT(torn_off, 0) << "the case must contain a torn frame off the needle, or it tests nothing";
-  EXPECT_EQ(torn_off_tracking, 0) << "a torn frame TRACKING off the needle at 6 e-/px (frame 39 before the noise-aware still gate)";
-  EXPECT_EQ(whole_false, 0);
-  EXPECT_EQ(whole_split, 0) << "a whole frame turned UNCERTAIN by the split check";
-  EXPECT_GE(whole_tracking, whole_n - 3) << "whole frames of the same scene at the same dose must stay TRACKING";
+  const TornTally t = tally_torn_frames(h, s);
+  ASSERT_GT(t.torn_off, 0) << "the case must contain a torn frame off the needle, or it tests nothing";
+  EXPECT_EQ(t.torn_off_tracking, 0) << "a torn frame TRACKING off the needle at 6 e-/px (frame 39 before the noise-aware still gate)";
+  EXPECT_EQ(t.whole_false, 0);
+  EXPECT_EQ(t.whole_split, 0) << "a whole frame turned UNCERTAIN by the split check";
+  EXPECT_GE(t.whole_tracking, t.whole_n - 3) << "whole frames of the same scene at the same dose must stay TRACKING";
 }

@@ -53,34 +53,27 @@ TEST(SummedAreaTables, EveryRectangleEqualsTheBruteSum) {
   for (auto v : img) all += v, all2 += static_cast<std::int64_t>(v) * v;
   EXPECT_EQ(t.total(), all);
   EXPECT_EQ(t.total_squares(), all2);
-  for (int k = 0; k < 500; ++k) {
-    int x0 = static_cast<int>(rng() % w), x1 = static_cast<int>(rng() % w);
-    int y0 = static_cast<int>(rng() % h), y1 = static_cast<int>(rng() % h);
-    if (x0 > x1) std::swap(x0, x1);
-    if (y0 > y1) std::swap(y0, y1);
-    std::int64_t s = 0, s2 = 0, rs = 0, rs2 = 0;
-    t.add_rect(x0, y0, x1, y1, s, s2);
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) rs += img[y * w + x], rs2 += static_cast<std::int64_t>(img[y * w + x]) * img[y * w + x];
-    ASSERT_EQ(s, rs);
-    ASSERT_EQ(s2, rs2);
-  }
+  // Random rectangles' sums against a direct sum over the image.
+  auto check_rects = [&](int n) {
+    for (int k = 0; k < n; ++k) {
+      int x0 = static_cast<int>(rng() % w), x1 = static_cast<int>(rng() % w);
+      int y0 = static_cast<int>(rng() % h), y1 = static_cast<int>(rng() % h);
+      if (x0 > x1) std::swap(x0, x1);
+      if (y0 > y1) std::swap(y0, y1);
+      std::int64_t s = 0, s2 = 0, rs = 0, rs2 = 0;
+      t.add_rect(x0, y0, x1, y1, s, s2);
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) rs += img[y * w + x], rs2 += static_cast<std::int64_t>(img[y * w + x]) * img[y * w + x];
+      ASSERT_EQ(s, rs);
+      ASSERT_EQ(s2, rs2);
+    }
+  };
+  check_rects(500);
   // Signed values (the running sum is taken eight at a time in a vector: its square and carry
   // must hold for negative values too), a width with whole vectors and a tail.
   for (auto& v : img) v -= 1 << 19;
   t.build(img.data(), w, h, w);
-  for (int k = 0; k < 200; ++k) {
-    int x0 = static_cast<int>(rng() % w), x1 = static_cast<int>(rng() % w);
-    int y0 = static_cast<int>(rng() % h), y1 = static_cast<int>(rng() % h);
-    if (x0 > x1) std::swap(x0, x1);
-    if (y0 > y1) std::swap(y0, y1);
-    std::int64_t s = 0, s2 = 0, rs = 0, rs2 = 0;
-    t.add_rect(x0, y0, x1, y1, s, s2);
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) rs += img[y * w + x], rs2 += static_cast<std::int64_t>(img[y * w + x]) * img[y * w + x];
-    ASSERT_EQ(s, rs);
-    ASSERT_EQ(s2, rs2);
-  }
+  check_rects(200);
   // A region with a row stride and 16-bit pixels.
   std::vector<std::uint16_t> px(static_cast<std::size_t>(w) * h, 7);
   t.build(px.data(), 10, 5, w);
