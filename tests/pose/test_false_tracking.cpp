@@ -207,6 +207,14 @@ namespace {
 struct FalseCount {
   int tracked = 0, false_n = 0, searches = 0;
 };
+// Frame f of a "step" run was scanned while the target stepped (a torn frame): a step time lies
+// between the ROI scan's start and end.
+bool scanned_across_a_step(const pt::SimHarness& h, std::size_t f, double step_period_s) {
+  const double t0 = 1e-9 * static_cast<double>(h.records()[f].t_start_ns - sempose::hal::SimSource::kVirtualEpochNs);
+  const double t1 = 2.0 * h.records()[f].t_mid_s - t0;
+  return std::floor(t0 / step_period_s) != std::floor(t1 / step_period_s);
+}
+
 FalseCount count_false(const pt::SimHarness& h) {
   FalseCount c;
   for (std::size_t f = 0; f < h.poses().size(); ++f) {
@@ -439,9 +447,7 @@ TEST(NoFalseTracking, StaticClutterHoldingThePoseIsNotTracking) {
       const auto& t = h.records()[f].truth;
       // A torn frame: the needle stepped while its ROI was scanned (half the ROI shows it at
       // each place; frame 39 of every row, Known limitations), told by the step times.
-      const double t0 = 1e-9 * static_cast<double>(h.records()[f].t_start_ns - sempose::hal::SimSource::kVirtualEpochNs);
-      const double t1 = 2.0 * h.records()[f].t_mid_s - t0;
-      const bool torn = std::floor(t0 / s.step_period_s) != std::floor(t1 / s.step_period_s);
+      const bool torn = scanned_across_a_step(h, f, s.step_period_s);
       const double err = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
       const double err_deg = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
       const bool off = err > sempose::pose::LossPolicy::kFalsePx || err_deg > sempose::pose::LossPolicy::kFalseDeg;
@@ -540,9 +546,7 @@ TornTally tally_torn_frames(const pt::SimHarness& h, const pt::Scenario& s) {
   for (std::size_t f = 0; f < h.poses().size(); ++f) {
     const auto& e = h.poses()[f];
     const auto& t = h.records()[f].truth;
-    const double t0 = 1e-9 * static_cast<double>(h.records()[f].t_start_ns - sempose::hal::SimSource::kVirtualEpochNs);
-    const double t1 = 2.0 * h.records()[f].t_mid_s - t0;
-    const bool torn = std::floor(t0 / s.step_period_s) != std::floor(t1 / s.step_period_s);
+    const bool torn = scanned_across_a_step(h, f, s.step_period_s);
     const double off_px = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
     const bool off = off_px > sempose::pose::LossPolicy::kFalsePx ||
                      std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)) > sempose::pose::LossPolicy::kFalseDeg;
