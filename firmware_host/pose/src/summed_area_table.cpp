@@ -14,15 +14,14 @@ using V8 = std::int64_t __attribute__((vector_size(64)));
 // row so far): the scalar running sum was two dependent adds and two 8-byte stores per
 // pixel, and the table build was the largest single cost of a tracked frame (perf,
 // pose_speed_bench --profile 192). Integer arithmetic: the same sums, to the bit, as any
-// order of adding them. Compiled for AVX-512, AVX2 and the baseline.
+// order of adding them. Compiled for AVX-512, AVX2 and the baseline; __builtin_shufflevector
+// (GCC ≥ 12 and clang alike, unlike GCC's __builtin_shuffle).
 template <typename T>
 SEMPOSE_CLONES void add_row(const T* __restrict row, int w, const std::int64_t* __restrict b1,
                             const std::int64_t* __restrict b2, std::int64_t* __restrict a1,
                             std::int64_t* __restrict a2) noexcept {
   typedef T VT __attribute__((vector_size(8 * sizeof(T))));
   const V8 zero = {};
-  const V8 sh1 = {8, 0, 1, 2, 3, 4, 5, 6}, sh2 = {8, 8, 0, 1, 2, 3, 4, 5}, sh4 = {8, 8, 8, 8, 0, 1, 2, 3};
-  const V8 last = {7, 7, 7, 7, 7, 7, 7, 7};
   V8 c1 = {}, c2 = {};
   int x = 0;
   for (; x + 8 <= w; x += 8) {
@@ -30,16 +29,16 @@ SEMPOSE_CLONES void add_row(const T* __restrict row, int w, const std::int64_t* 
     __builtin_memcpy(&in, row + x, sizeof(VT));
     V8 v = __builtin_convertvector(in, V8);
     V8 q = v * v;
-    v += __builtin_shuffle(v, zero, sh1);
-    q += __builtin_shuffle(q, zero, sh1);
-    v += __builtin_shuffle(v, zero, sh2);
-    q += __builtin_shuffle(q, zero, sh2);
-    v += __builtin_shuffle(v, zero, sh4);
-    q += __builtin_shuffle(q, zero, sh4);
+    v += __builtin_shufflevector(v, zero, 8, 0, 1, 2, 3, 4, 5, 6);
+    q += __builtin_shufflevector(q, zero, 8, 0, 1, 2, 3, 4, 5, 6);
+    v += __builtin_shufflevector(v, zero, 8, 8, 0, 1, 2, 3, 4, 5);
+    q += __builtin_shufflevector(q, zero, 8, 8, 0, 1, 2, 3, 4, 5);
+    v += __builtin_shufflevector(v, zero, 8, 8, 8, 8, 0, 1, 2, 3);
+    q += __builtin_shufflevector(q, zero, 8, 8, 8, 8, 0, 1, 2, 3);
     v += c1;
     q += c2;
-    c1 = __builtin_shuffle(v, last);
-    c2 = __builtin_shuffle(q, last);
+    c1 = __builtin_shufflevector(v, v, 7, 7, 7, 7, 7, 7, 7, 7);
+    c2 = __builtin_shufflevector(q, q, 7, 7, 7, 7, 7, 7, 7, 7);
     V8 u1, u2;
     __builtin_memcpy(&u1, b1 + x + 1, sizeof(V8));
     __builtin_memcpy(&u2, b2 + x + 1, sizeof(V8));
