@@ -479,3 +479,50 @@ TEST(Tracker, OnePoseOffTheLineIsNotDoubledIntoThePrediction) {
     }
   }
 }
+
+// Issue 13 item 5, σ with every pose: a start search's pose carries σ as an ROI frame's does
+// (it was 0, "not measured", on every search frame — a pose re-acquired after a jump TRACKING on
+// its search frame came with no uncertainty). A found search frame's σx, σy, σφ, σscale are > 0
+// and of the size the ROI frames right after it show (the same fit on the same target, one
+// frame apart); at a scale the search found (1.25: the ROI loaded resampled) too.
+TEST(Tracker, SearchFramePoseCarriesItsSigma) {
+  struct Case {
+    const char* target;
+    double scale, dose;
+  };
+  for (const Case& c : {Case{"needle_tip", 1.0, 6.0}, Case{"needle_tip", 1.25, 6.0}, Case{"lamella_post", 1.0, 2.5}}) {
+    Scenario s;
+    s.target = c.target;
+    s.scale_from = s.scale_to = c.scale;
+    s.motion = "jump";
+    s.dose_e = c.dose;
+    s.frames = 90;
+    SimHarness h(s, small_config());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    h.run();
+    const auto& poses = h.poses();
+    int checked = 0;
+    for (std::size_t f = 0; f + 3 < poses.size(); ++f) {
+      const PoseEstimate& e = poses[f];
+      if (!e.searched || (e.state != TrackState::kTracking && e.state != TrackState::kUncertain)) continue;
+      const std::string at = std::string(c.target) + " scale " + std::to_string(c.scale) + " frame " + std::to_string(f);
+      EXPECT_GT(e.sigma_x_px, 0.0) << at;
+      EXPECT_GT(e.sigma_y_px, 0.0) << at;
+      EXPECT_GT(e.sigma_phi_deg, 0.0) << at;
+      EXPECT_GT(e.sigma_scale, 0.0) << at;
+      // The next ROI frames' σ (those measured): the search frame's within a factor of 2.5.
+      for (std::size_t g = f + 1; g <= f + 3; ++g) {
+        const PoseEstimate& n = poses[g];
+        if (n.searched || n.sigma_x_px <= 0) continue;
+        const double sp = std::hypot(e.sigma_x_px, e.sigma_y_px), np = std::hypot(n.sigma_x_px, n.sigma_y_px);
+        EXPECT_LT(sp, 2.5 * np) << at << " σ " << sp << " px, frame " << g << " " << np << " px";
+        EXPECT_GT(sp, np / 2.5) << at << " σ " << sp << " px, frame " << g << " " << np << " px";
+        EXPECT_LT(e.sigma_phi_deg, 2.5 * n.sigma_phi_deg) << at;
+        EXPECT_GT(e.sigma_phi_deg, n.sigma_phi_deg / 2.5) << at;
+        break;
+      }
+      ++checked;
+    }
+    EXPECT_GE(checked, 2) << c.target << ": the first start and at least one re-search after a jump";
+  }
+}

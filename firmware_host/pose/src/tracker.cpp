@@ -169,6 +169,46 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
   e.sigma_scale = s.scale * used_scale;
 }
 
+// σ with every pose (issue 13 item 5), a search frame's too: it was reported as 0 ("not
+// measured"), so a pose re-acquired after a loss, TRACKING on its search frame, came with no
+// uncertainty at all, and above the explained check's bound it was trusted on σ = 0. The ROI
+// the next frame would scan (the ROI size, centred on the pose, inside the field) is cut from
+// the field, loaded at the scale found (resampled by 1/scale as an ROI frame is) and σ taken at
+// the search's pose and angle, as for an ROI frame. It misses what a field scan adds: the
+// target moving during the ~80 ms scan. Setup sized every buffer this uses; ~60 µs, on a
+// search frame only.
+void Tracker::Impl::search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px,
+                                 const Roi& field_roi, int bits, PoseEstimate& e) noexcept {
+  const int w = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.w}), h = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.h});
+  const int pattern_px = sizes.pattern_px;
+  if (!m.valid || w < pattern_px || h < pattern_px) return;
+  const double fx = e.x_px - field_roi.x, fy = e.y_px - field_roi.y;  // the pose in this frame's pixels
+  const int x0 = std::clamp(static_cast<int>(std::lround(fx - (w - 1) / 2.0)), 0, field_roi.w - w);
+  const int y0 = std::clamp(static_cast<int>(std::lround(fy - (h - 1) / 2.0)), 0, field_roi.h - h);
+  const std::uint16_t* cut = px + static_cast<std::size_t>(y0) * field_roi.w + x0;
+  const bool rescaled = std::fabs(e.scale - 1.0) > kRescaleFrom;
+  const double used_scale = rescaled ? e.scale : 1.0;
+  const std::uint16_t* load_px = cut;
+  std::ptrdiff_t load_stride = field_roi.w;
+  int load_bits = bits;
+  if (rescaled) {
+    load_px = rescaler.rescale(cut, w, h, field_roi.w, bits, used_scale);
+    load_stride = w;
+    load_bits = RoiRescaler::out_bits(bits);
+  }
+  if (!loader.load(load_px, w, h, load_stride, load_bits)) return;
+  // The pattern's top-left in the loaded ROI (RoiRescaler::to_raw inverted about its centre).
+  const double c = (pattern_px - 1) / 2.0;
+  const double lx = (w - 1) / 2.0 + (fx - x0 - (w - 1) / 2.0) / used_scale - c;
+  const double ly = (h - 1) / 2.0 + (fy - y0 - (h - 1) / 2.0) / used_scale - c;
+  Measurement at = m;
+  at.ux = static_cast<int>(std::floor(lx));
+  at.uy = static_cast<int>(std::floor(ly));
+  at.dx = lx - at.ux;
+  at.dy = ly - at.uy;
+  set_sigma(uncertainty.estimate(bank, at, e.scale / used_scale), used_scale, e);
+}
+
 // The pose is trusted when its error SD — the larger of its own σ (the fit's covariance) and
 // the pose noise the accepted poses show frame to frame (the motion model's innovations with
 // the target's acceleration taken out) — makes a pose beyond the false-pose rule unlikely
@@ -560,6 +600,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;
     if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
+    if (loss.found(m, attainable)) search_sigma(bank, m, px, roi, frame.bits, e);
     if (loss.found(m, attainable) && !search_settled(m, e)) {
       // Found, but not told from a look-alike elsewhere yet: reported UNCERTAIN, searched again.
       e.state = TrackState::kUncertain;
@@ -574,7 +615,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       scale_tracked = true;
       open_flip_check(m, prior_known);
       // The search frame's pose is judged like a tracked one (trusted_pose: below the explained
-      // bound it waits for the stream's pose noise; above it σ = 0, not measured, passes as before).
+      // bound it waits for the stream's pose noise; above it by its own σ, search_sigma).
       if (flip_open || unconfirmed || !trusted_pose(e, Innovation{})) e.state = TrackState::kUncertain;
     } else {
       e.state = TrackState::kAcquiring;

@@ -203,6 +203,10 @@ struct Tracker::Impl {
                     double scale, const Place& place) noexcept;
   void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
   static void set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept;
+  // A start search's pose gets σ as an ROI frame's does: the ROI around it cut from the field,
+  // loaded at the found scale, the fit's covariance at the search's pose (tracker.cpp).
+  void search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px, const Roi& field_roi, int bits,
+                    PoseEstimate& e) noexcept;
   void go_lost() noexcept;
   void hold() noexcept;
   // How far an accepted pose landed from a prediction made from two ROI poses (known: there was one).
