@@ -54,6 +54,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("explained_threshold", c.explained_threshold, 0.0, 1.0);
   s.opt("lost_after_frames", c.lost_after_frames, 1, 1000);
   s.opt("max_false_probability", c.max_false_probability, 0.0, 0.5);
+  s.opt("detector_tau_ns", c.detector_tau_ns, 0.0, 1e6);
   s.opt("search_downsample", c.search_downsample, 1, 32);
   s.opt("search_angle_step_deg", c.search_angle_step_deg, 0.25, 90.0);
   s.opt("search_candidates", c.search_candidates, 1, 64);
@@ -99,6 +100,7 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
       ps.req("file", p.file);
       ps.opt("nm_per_px", p.nm_per_px, 1e-6, 1e9);
       ps.opt("mask", p.mask);
+      ps.opt("dwell_ns", p.dwell_ns, 0u, 100'000'000u);
       tc.pattern_sets.push_back(p);
     }
     if (tc.pattern_sets.empty()) t.error("pattern_sets", "a target needs at least one pattern set ({file, nm_per_px})");

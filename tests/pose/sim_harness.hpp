@@ -59,6 +59,8 @@ struct Scenario {
   bool jaws = false;              // target "gripper": each jaw opens and closes 8 px (period 0.4 s)
   double jaws_open_px = 0;        // target "gripper": each jaw held this far open (the pattern is recorded closed)
   double detector_tau_ns = 0;     // > 0: the detector's line low-pass alone (250 ns = 1 px at 250 ns dwell)
+  std::uint32_t pattern_dwell_ns = 0;  // > 0: the pattern recorded at this dwell (else at the frames' dwell_ns)
+  bool tell_detector_tau = true;       // the tracker is told the simulated detector's τ (tracker.detector_tau_ns)
   // Approximate frame period (192² ROI at 250 ns + flyback + modelled compute), for ramps over the run.
   double run_s() const { return frames * 0.0101 * (dwell_ns / 250.0); }
   // Faults (the pattern is always recorded from the target as configured above):
@@ -255,7 +257,8 @@ class SimHarness {
       pat_cfg.targets[0].y_px = s.field_h / 2.0;
       pat_cfg.targets[0].scale = config::TimeProfile::constant(1.0);  // recorded at the pattern's own size
       if (s.jaws_open_px != 0) pat_cfg.targets[0].jaws = config::TimeProfile::constant(0.0);  // recorded closed
-      pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, s.pattern_frames, s.dwell_ns, 777);
+      pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, s.pattern_frames, pattern_dwell(), 777);
+      sets[0].dwell_ns = pattern_dwell();
       if (s.shape_mask)
         sets[0].mask = pipeline::to_pattern_image(hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px));
       sim_ = std::make_unique<hal::SimSource>(limits_, sim_cfg_);
@@ -279,6 +282,7 @@ class SimHarness {
     // warped crop (Poisson electrons scaled to the image's levels).
     config::TrackerConfig tcd = tc;
     tcd.refine.black_level = warped_ ? 0.0 : sim_cfg_.output_offset;
+    if (!warped_ && s.tell_detector_tau && !(tcd.detector_tau_ns > 0)) tcd.detector_tau_ns = sim_cfg_.detector_tau_ns;
     tracker_ = Tracker::create(tcd, std::move(sets), limits_, status_);
     pixels_.assign(static_cast<std::size_t>(s.field_w) * s.field_h, 0);
     out_.resize(static_cast<std::size_t>(s.frames));
@@ -286,6 +290,7 @@ class SimHarness {
     records_.resize(static_cast<std::size_t>(s.frames));
     next_rois_.resize(static_cast<std::size_t>(s.frames));
   }
+  std::uint32_t pattern_dwell() const { return s_.pattern_dwell_ns > 0 ? s_.pattern_dwell_ns : s_.dwell_ns; }
   // The ROI the tracker asked for after frame f (centred on its prediction for frame f + 1).
   const std::vector<pose::Roi>& next_rois() const { return next_rois_; }
   const hal::Image& pattern() const { return pattern_; }

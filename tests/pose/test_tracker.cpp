@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "sempose/rt/alloc_counter.hpp"
+#include "sempose/pose/detector_lag.hpp"
 #include "sempose/pose/roi_rescaler.hpp"
 #include "sim_harness.hpp"
 
@@ -524,5 +525,42 @@ TEST(Tracker, SearchFramePoseCarriesItsSigma) {
       ++checked;
     }
     EXPECT_GE(checked, 2) << c.target << ": the first start and at least one re-search after a jump";
+  }
+}
+
+// The detector's bandwidth (tracker.detector_tau_ns): a first-order low-pass along each line
+// delays the image by exp(-d/τ)/(1 - exp(-d/τ)) px at pixel dwell d — 0.77 px at 100 ns for
+// τ = 120 ns, ~0 at the 2 µs a pattern is recorded at. The governor scans at short dwells, so a
+// pose matched against that pattern sat 0.77 px along the line from the target, and moved
+// whenever the dwell changed. Told τ, the tracker takes the difference out of x.
+TEST(Tracker, DetectorLagAtAnotherDwellIsTakenOutOfX) {
+  for (const char* target : {"needle_tip", "lamella_post"}) {
+    double mean_dx[2] = {0, 0}, mean_dy[2] = {0, 0};
+    for (int told = 0; told < 2; ++told) {
+      Scenario s;
+      s.target = target;
+      s.motion = "static";
+      s.dose_e = 6;
+      s.frames = 40;
+      s.dwell_ns = 100;
+      s.pattern_dwell_ns = 2000;
+      s.detector_tau_ns = 120;
+      s.tell_detector_tau = told == 1;
+      SimHarness h(s, small_config());
+      ASSERT_TRUE(h.status().ok) << h.status().message;
+      h.run();
+      const RunStats r = h.stats();
+      ASSERT_GT(r.err_n, 30) << target;
+      mean_dx[told] = r.sum_dx / r.err_n;
+      mean_dy[told] = r.sum_dy / r.err_n;
+    }
+    const double lag = DetectorLag::px(120, 100) - DetectorLag::px(120, 2000);
+    std::printf("%s: mean x error %+.3f px untold, %+.3f px told (lag %.3f px); y %+.3f / %+.3f px\n", target, mean_dx[0],
+                mean_dx[1], lag, mean_dy[0], mean_dy[1]);
+    EXPECT_NEAR(lag, 0.769, 0.001);
+    EXPECT_GT(mean_dx[0], 0.5 * lag) << target << ": not told τ, x lags along the line";
+    EXPECT_LT(std::fabs(mean_dx[1]), 0.25 * lag) << target << ": told τ, mean x error " << mean_dx[1] << " px (untold "
+                                                 << mean_dx[0] << ")";
+    EXPECT_NEAR(mean_dy[1], mean_dy[0], 0.05) << target << ": y is not along the line";
   }
 }

@@ -30,6 +30,7 @@ rt::Status load_pattern_set(const config::PatternSetConfig& ps, pose::PatternSet
   out.image = to_pattern_image(std::move(image));
   out.mask = to_pattern_image(std::move(mask));
   out.nm_per_px = ps.nm_per_px;
+  out.dwell_ns = ps.dwell_ns;
   return rt::Status::success();
 }
 
@@ -79,6 +80,7 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
                                    e.what());
       }
       set.nm_per_px = kSimNmPerPx;
+      set.dwell_ns = dwell;
       per_target.push_back({std::move(set)});
       out.names.push_back("sim" + std::to_string(i));
       out.pattern_origins.push_back("recorded from simulator target " + std::to_string(i));
@@ -88,9 +90,13 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
     return rt::Status::failure(cfg.path + ": targets: no target to track (add a targets: list with pattern files" +
                                std::string(cfg.source == "sim" ? ", or enable a sim target)" : ")"));
   }
+  // The detector's time constant: the config's, or on the simulated SEM its simulated
+  // detector's (what a calibration of that detector would measure).
+  config::TrackerConfig tracker_cfg = cfg.tracker;
+  if (!(tracker_cfg.detector_tau_ns > 0) && cfg.source == "sim") tracker_cfg.detector_tau_ns = cfg.sim.detector_tau_ns;
   for (std::size_t i = 0; i < per_target.size(); ++i) {
     rt::Status st;
-    auto tracker = pose::Tracker::create(cfg.tracker, std::move(per_target[i]), limits, st);
+    auto tracker = pose::Tracker::create(tracker_cfg, std::move(per_target[i]), limits, st);
     if (!tracker) return rt::Status::failure("target " + out.names[i] + ": " + st.message);
     out.memory_bytes += tracker->memory_bytes();
     // Learned appearance: its rebuilds run on a non-RT worker thread (created here, on the

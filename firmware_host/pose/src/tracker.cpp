@@ -182,7 +182,7 @@ void Tracker::Impl::search_sigma(const PatternBank& bank, const Measurement& m, 
   const int w = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.w}), h = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.h});
   const int pattern_px = sizes.pattern_px;
   if (!m.valid || w < pattern_px || h < pattern_px) return;
-  const double fx = e.x_px - field_roi.x, fy = e.y_px - field_roi.y;  // the pose in this frame's pixels
+  const double fx = e.x_px + lag_shift_px - field_roi.x, fy = e.y_px - field_roi.y;  // the pose in this frame's pixels
   const int x0 = std::clamp(static_cast<int>(std::lround(fx - (w - 1) / 2.0)), 0, field_roi.w - w);
   const int y0 = std::clamp(static_cast<int>(std::lround(fy - (h - 1) / 2.0)), 0, field_roi.h - h);
   const std::uint16_t* cut = px + static_cast<std::size_t>(y0) * field_roi.w + x0;
@@ -533,6 +533,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   e.y_px = motion.y_px();
   e.phi_deg = motion.phi_deg();
   frame_dwell_ns = static_cast<double>(frame.dwell_ns);
+  // The detector's lag at this dwell against the pattern's (0 when either dwell is unknown).
+  lag_shift_px = frame.dwell_ns > 0 && set < pattern_lag_px.size()
+                     ? DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns) - pattern_lag_px[set]
+                     : 0.0;
   if (frame.field_w > 0 && frame.field_h > 0) {
     field.field_w = frame.field_w;
     field.field_h = frame.field_h;
@@ -596,9 +600,12 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     }
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), scale_prior, rx, ry,
                                         found_scale, held);
-    if (m.valid) to_estimate(m, roi.x + rx, roi.y + ry, e);
+    if (m.valid) {
+      to_estimate(m, roi.x + rx, roi.y + ry, e);
+      unlag(e);
+    }
     e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
-    const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y) : 0.0;
+    const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y) : 0.0;
     if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
     if (loss.found(m, attainable)) search_sigma(bank, m, px, roi, frame.bits, e);
     if (loss.found(m, attainable) && !search_settled(m, e)) {
@@ -665,6 +672,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       out.meas_x_px = out.x_px;
       out.meas_y_px = out.y_px;
     }
+    unlag(out);
   };
   bool swept = false;
   rival_within_noise = false;
@@ -672,7 +680,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   place(m, e);
   // The loaded ROI's origin in the field (a rescaled ROI is resampled about its centre).
   const int loaded_w = std::min(scored.w, sizes.roi_fft_px), loaded_h = std::min(scored.h, sizes.roi_fft_px);
-  check_motion(bank, m, e, swept, scored.x + (rescaled ? 0.5 * (loaded_w - 1) * (1.0 - used_scale) : 0.0),
+  // (Its origin where the target's true place is: the frame shows it lag_shift_px further on.)
+  check_motion(bank, m, e, swept, scored.x - lag_shift_px + (rescaled ? 0.5 * (loaded_w - 1) * (1.0 - used_scale) : 0.0),
                scored.y + (rescaled ? 0.5 * (loaded_h - 1) * (1.0 - used_scale) : 0.0), used_scale, place);
   // The flip check before the scale probe and σ, which read the hypothesis kept.
   const bool flipped = flip_open && settle_flip(bank, m, e, place);
@@ -682,7 +691,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   // The attainable score is ≤ 1, so a score at or above the explained check's upper bound
   // passes whatever it is: measured only when it can matter (~30 µs a frame saved).
   if (e.score < loss.explained_bound()) {
-    m.attainable = static_cast<float>(attainable_score(frame.pixels, roi.w, roi.h, e.x_px - roi.x, e.y_px - roi.y));
+    m.attainable = static_cast<float>(attainable_score(frame.pixels, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y));
     e.chi2 = normalised_chi2(e.score, m.attainable);
   }
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;

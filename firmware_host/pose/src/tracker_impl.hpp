@@ -15,6 +15,7 @@
 #include "sempose/pose/angle_sweep.hpp"
 #include "sempose/pose/appearance_model.hpp"
 #include "sempose/pose/appearance_observer.hpp"
+#include "sempose/pose/detector_lag.hpp"
 #include "sempose/pose/engine_sizes.hpp"
 #include "sempose/pose/exact_scorer.hpp"
 #include "sempose/pose/fft_correlator.hpp"
@@ -71,6 +72,10 @@ struct Tracker::Impl {
   PoseFilter filter;
   std::vector<std::unique_ptr<const PatternBank>> banks;
   std::vector<double> nm_per_px;
+  // Per pattern set, the detector's lag along the line at the dwell it was recorded at, and
+  // this frame's lag minus the active set's (px, taken out of every pose's x: tracker.cpp).
+  std::vector<double> pattern_lag_px;
+  double lag_shift_px = 0;
 
   bool tracking = false;
   // Held: the last frames were LOST only because the rigid pattern did not explain the window
@@ -203,6 +208,12 @@ struct Tracker::Impl {
                     double scale, const Place& place) noexcept;
   void to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept;
   static void set_sigma(const PoseSigma& s, double used_scale, PoseEstimate& e) noexcept;
+  // A pose measured in the frame's pixels, to where the target is: the detector's lag at this
+  // frame's dwell against the pattern's taken out of x (lag_shift_px).
+  void unlag(PoseEstimate& e) const noexcept {
+    e.x_px -= lag_shift_px;
+    e.meas_x_px = e.x_px;
+  }
   // A start search's pose gets σ as an ROI frame's does: the ROI around it cut from the field,
   // loaded at the found scale, the fit's covariance at the search's pose (tracker.cpp).
   void search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px, const Roi& field_roi, int bits,

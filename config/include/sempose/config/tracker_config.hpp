@@ -52,6 +52,13 @@ struct TrackerConfig {
   // (MotionModel::pose_noise_*), is at most this; otherwise UNCERTAIN (0 = off). 0.01: the
   // rule's own bound at 1 e-/px.
   double max_false_probability = 0.01;
+  // The detector chain's time constant (a first-order low-pass along each scanned line): an
+  // edge lags exp(-d/τ)/(1 - exp(-d/τ)) px behind at pixel dwell d (τ 120 ns: 0.77 px at 100 ns,
+  // 0.14 px at 250 ns, ~0 at 2 µs). A pose measured at one dwell against a pattern recorded at
+  // another is shifted along the line by the difference; with τ known it is taken out, so the
+  // governor's dwell changes do not move the pose. 0: no correction (a sim source: the
+  // simulated detector's sim.detector_tau_ns, as a calibration would measure it).
+  double detector_tau_ns = 0;
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
   double search_angle_step_deg = 20.0;
@@ -113,6 +120,7 @@ struct PatternSetConfig {
   std::string file;            // PGM of the pattern at this magnification step
   double nm_per_px = 1.0;      // scale of this magnification step
   std::string mask;            // optional PGM, pattern-sized: non-zero = the target's own pixels
+  std::uint32_t dwell_ns = 0;  // pixel dwell the pattern was recorded at (0: lag-free, e.g. a long dwell)
 };
 
 struct TargetConfig {

@@ -64,6 +64,9 @@ struct PatternSet {
   // Optional shape mask, pattern-sized, non-zero = the target's own pixels (the rest, e.g.
   // the substrate around a needle, is left out of the exact scores). Empty = the circle.
   PatternImage mask;
+  // The pixel dwell it was recorded at (0: lag-free): with TrackerConfig::detector_tau_ns the
+  // detector's lag at this dwell against the frame's is taken out of x.
+  std::uint32_t dwell_ns = 0;
 };
 
 class Tracker {
