@@ -127,7 +127,12 @@ void pin_non_rt_thread(int cpu) {
   cpu_set_t set;
   CPU_ZERO(&set);
   CPU_SET(cpu, &set);
-  pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+  // A core that does not exist or is outside the cpuset: said, as for the RT stages (it used
+  // to be left unpinned without a word).
+  if (const int rc = pthread_setaffinity_np(pthread_self(), sizeof set, &set); rc != 0) {
+    std::fprintf(stderr, "warning: pipeline.non_rt_cpu: cannot pin the main thread to cpu %d (%s: offline, missing or "
+                 "outside this cpuset); not pinned\n", cpu, std::strerror(rc));
+  }
 }
 
 }  // namespace
@@ -221,6 +226,10 @@ int sempose::cli::run(int argc, char** argv) {
     std::printf("stopped by %s during setup (no output written)\n", stop_signal_name(sig));
     return 0;
   }
+  // The main thread on its core before setup: the threads setup creates (the learned
+  // appearance's worker) inherit its placement, off the RT cores. It used to be pinned after
+  // setup, so the worker could run on any core, an RT stage's included.
+  pin_non_rt_thread(cfg.pipeline.non_rt_cpu);
   // ---- setup: everything that allocates (session::RunSetup), inputs first
   session::RunSetup run;
   rt::Status st = session::build_inputs(cfg, run);
@@ -261,7 +270,6 @@ int sempose::cli::run(int argc, char** argv) {
               run.csv ? cfg.output.poses_csv.c_str() : "");
 
   // ---- RT memory and latency setup, then start
-  pin_non_rt_thread(cfg.pipeline.non_rt_cpu);
   if (cfg.pipeline.lock_memory) {
     st = rt::lock_process_memory(strict);
     if (!st) {

@@ -17,6 +17,19 @@ constexpr const char* kGrantHint =
     "(ulimit -r 99; 'rtprio 99' in /etc/security/limits.conf)";
 
 std::string errno_text(int err) { return std::strerror(err); }
+
+// The cores the process may use as it started, before `sempose run` pins its main thread to
+// pipeline.non_rt_cpu: an unpinned stage gets these. A new thread inherits its creator's
+// affinity, so with non_rt_cpu: 1 a stage configured `cpu: -1` ran on core 1 only, beside the
+// main thread, while the run said "unpinned".
+const cpu_set_t g_process_cpus = [] {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) != 0) {
+    for (int c = 0; c < CPU_SETSIZE; ++c) CPU_SET(c, &set);
+  }
+  return set;
+}();
 }  // namespace
 
 __attribute__((noinline)) void prefault_stack(std::size_t bytes) noexcept {
@@ -75,6 +88,8 @@ Status RtThread::start(const RtThreadConfig& config, std::function<void()> body)
       CPU_ZERO(&set);
       CPU_SET(config.cpu, &set);
       pthread_attr_setaffinity_np(&attr, sizeof set, &set);
+    } else {
+      pthread_attr_setaffinity_np(&attr, sizeof g_process_cpus, &g_process_cpus);
     }
     const int rc = pthread_create(&handle_, &attr, &RtThread::trampoline, this);
     pthread_attr_destroy(&attr);

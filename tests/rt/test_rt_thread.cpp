@@ -43,6 +43,34 @@ TEST(RtThread, RunsTheBodyPinnedWithTheRequestedPolicyOrSaysWhy) {
   }
 }
 
+// A stage configured `cpu: -1` (not pinned) may run on every core the process may use, also when
+// the thread starting it is pinned (`sempose run` pins its main thread to pipeline.non_rt_cpu
+// first): it used to inherit that one core and share it with the main thread, said "unpinned".
+TEST(RtThread, AnUnpinnedThreadDoesNotInheritItsCreatorsCore) {
+  cpu_set_t process;
+  ASSERT_EQ(sched_getaffinity(0, sizeof process, &process), 0);
+  if (CPU_COUNT(&process) < 2) GTEST_SKIP() << "needs two cores";
+  int first = 0;
+  while (!CPU_ISSET(first, &process)) ++first;
+  cpu_set_t one;
+  CPU_ZERO(&one);
+  CPU_SET(first, &one);
+  ASSERT_EQ(pthread_setaffinity_np(pthread_self(), sizeof one, &one), 0);  // as run's main thread
+  std::atomic<int> cores{-1};
+  RtThread t;
+  RtThreadConfig cfg;
+  cfg.name = "test-unpinned";
+  const auto status = t.start(cfg, [&] {
+    cpu_set_t mine;
+    if (pthread_getaffinity_np(pthread_self(), sizeof mine, &mine) == 0) cores = CPU_COUNT(&mine);
+  });
+  t.join();
+  pthread_setaffinity_np(pthread_self(), sizeof process, &process);
+  ASSERT_TRUE(status.ok) << status.message;
+  EXPECT_EQ(cores.load(), CPU_COUNT(&process)) << t.placement();
+  EXPECT_NE(t.placement().find("unpinned"), std::string::npos) << t.placement();
+}
+
 TEST(RtThread, RejectsAnImpossiblePriorityWithAMessage) {
   RtThreadConfig cfg;
   cfg.priority = 150;
