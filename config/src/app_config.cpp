@@ -204,6 +204,7 @@ bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, A
       read_section(root, "gpio", read_gpio, out.gpio);
       read_section(root, "service", read_service, out.service);
       check_service_against_scan(root, out.service, out.scan, out.governor.initial_dwell_ns);
+      check_governor_against_scan(root, out.governor, out.scan);
       cross_check(root, out);
       resolve_sim_data(root, path, out);
     }  // root's destructor reports unknown top-level sections

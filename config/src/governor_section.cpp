@@ -26,4 +26,20 @@ void read_governor(Section& s, GovernorConfig& c) {
   }
 }
 
+void check_governor_against_scan(Section& root, const GovernorConfig& c, const ScanLimits& scan) {
+  const std::string scan_range =
+      " (allowed: 0, or within scan.min_dwell_ns..scan.max_dwell_ns [" + std::to_string(scan.min_dwell_ns) + ", " +
+      std::to_string(scan.max_dwell_ns) + "])";
+  if (c.min_dwell_ns > scan.max_dwell_ns) {
+    root.errors().add(root.mark(), "governor.min_dwell_ns",
+                      std::to_string(c.min_dwell_ns) + " is above scan.max_dwell_ns " + std::to_string(scan.max_dwell_ns) +
+                          ": the scan generator would refuse every scan" + scan_range);
+  }
+  if (c.max_dwell_ns != 0 && c.max_dwell_ns < scan.min_dwell_ns) {
+    root.errors().add(root.mark(), "governor.max_dwell_ns",
+                      std::to_string(c.max_dwell_ns) + " is below scan.min_dwell_ns " + std::to_string(scan.min_dwell_ns) +
+                          ": no dwell could keep to it" + scan_range);
+  }
+}
+
 }  // namespace sempose::config

@@ -248,6 +248,26 @@ TEST(AppConfig, CrossSectionChecks) {
   EXPECT_NE(e.find("pipeline.frame_pool_slots: 9 is below frame_ring + 3 = 11"), std::string::npos) << e;
 }
 
+// The governor's dwell limits must overlap the scan's. governor.min_dwell_ns above
+// scan.max_dwell_ns ran with every scan request refused (`sempose run`: exit 0, frames=0, or
+// exit 5 "stalled" after 2 s); a governor.max_dwell_ns below scan.min_dwell_ns was raised to
+// it without a word. Limits inside the scan's, and 0 (= the scan's), still load.
+TEST(AppConfig, GovernorDwellLimitsMustOverlapTheScans) {
+  const std::string scan = "scan: {min_dwell_ns: 100, max_dwell_ns: 10000}\n";
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config(scan + "governor: {min_dwell_ns: 20000, max_dwell_ns: 30000}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("governor.min_dwell_ns: 20000 is above scan.max_dwell_ns 10000"), std::string::npos) << e;
+  e.clear();
+  EXPECT_FALSE(parse_app_config(scan + "governor: {max_dwell_ns: 50}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("governor.max_dwell_ns: 50 is below scan.min_dwell_ns 100"), std::string::npos) << e;
+  for (const char* fine : {"governor: {min_dwell_ns: 10000, max_dwell_ns: 0}\n", "governor: {min_dwell_ns: 0, max_dwell_ns: 100}\n",
+                           "governor: {min_dwell_ns: 0, max_dwell_ns: 0}\n"}) {
+    e.clear();
+    EXPECT_TRUE(parse_app_config(scan + fine, "g.yaml", c, e)) << fine << e;
+  }
+}
+
 TEST(AppConfig, MissingFileIsAnError) {
   AppConfig c;
   std::string e;

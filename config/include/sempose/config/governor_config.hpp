@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "sempose/config/reader.hpp"
+#include "sempose/config/scan_config.hpp"
 
 namespace sempose::config {
 
@@ -31,5 +32,10 @@ struct GovernorConfig {
 
 // Reads the `governor:` section (config/src/governor_section.cpp).
 void read_governor(Section& section, GovernorConfig& out);
+
+// The governor's own dwell limits must overlap the scan's: a governor.min_dwell_ns above
+// scan.max_dwell_ns left every scan request refused (exit 0 with no frame, or a "stall"), and
+// a governor.max_dwell_ns below scan.min_dwell_ns was raised to it without a word.
+void check_governor_against_scan(Section& root, const GovernorConfig& governor, const ScanLimits& scan);
 
 }  // namespace sempose::config
