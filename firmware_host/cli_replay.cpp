@@ -32,6 +32,7 @@
 #include "sempose/config/reader.hpp"
 #include "sempose/config/target_name.hpp"
 #include "sempose/hal/frames_csv.hpp"
+#include "sempose/hal/replay_source.hpp"
 #include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/offline_runner.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
@@ -247,14 +248,27 @@ int run_replay(int argc, char** argv) {
 
   std::map<std::pair<long, int>, Truth> truth;
   if (!truth_path.empty()) {
-    for (const auto& r : hal::read_numeric_csv(truth_path, 4)) {
-      // A row naming no frame or target, or with a non-finite value, is not truth (and a NaN
-      // or huge value must not reach an integer conversion).
-      if (!(std::fabs(r[0]) < 1e15) || (r.size() >= 5 && !(std::fabs(r[4]) < 1e6)) || !std::isfinite(r[1]) ||
-          !std::isfinite(r[2]) || !std::isfinite(r[3])) {
-        continue;
+    std::vector<hal::TruthRow> rows;
+    try {
+      rows = hal::read_truth_csv(truth_path, hal::kMaxTargets);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "sempose replay: --truth: %s\n", e.what());
+      return 2;
+    }
+    // Rows for frames the recording does not hold: the truth of another (longer) recording.
+    const long long recorded = static_cast<long long>(hal::list_pgm_frames(frames_dir).size());
+    long long beyond = 0, first_beyond = -1;
+    for (const hal::TruthRow& r : rows) {
+      if (r.frame >= recorded) {
+        ++beyond;
+        if (first_beyond < 0 || r.frame < first_beyond) first_beyond = r.frame;
       }
-      truth[{static_cast<long>(r[0]), r.size() >= 5 ? static_cast<int>(r[4]) : 0}] = {r[1], r[2], r[3]};
+      truth[{static_cast<long>(r.frame), r.target}] = {r.x_px, r.y_px, r.phi_deg};
+    }
+    if (beyond > 0) {
+      std::fprintf(stderr, "sempose replay: warning: --truth '%s': %lld of its %zu rows name frames the recording does not "
+                   "hold (it has frames 0..%lld; the first such row is frame %lld): is it this recording's truth?\n",
+                   truth_path.c_str(), beyond, rows.size(), recorded - 1, first_beyond);
     }
     // A truth of no usable row (an empty file, a header only — `sempose sim` of a target never
     // in the field —, every row non-finite) says the target is on no frame: every TRACKING pose

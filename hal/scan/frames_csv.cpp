@@ -4,6 +4,10 @@
 
 #include <cerrno>
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <utility>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -21,6 +25,12 @@ std::string trim(const std::string& s) {
   while (a < b && (s[a] == ' ' || s[a] == '\t' || s[a] == '\r')) ++a;
   while (b > a && (s[b - 1] == ' ' || s[b - 1] == '\t' || s[b - 1] == '\r')) --b;
   return s.substr(a, b - a);
+}
+
+std::string shown_number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.17g", v);
+  return text;
 }
 
 std::string shown(const std::string& s) {
@@ -116,7 +126,8 @@ std::vector<std::int64_t> read_frames_csv(const std::string& path, std::size_t f
   return parse_frames_csv(text, frame_count, path);
 }
 
-std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::size_t min_cols) {
+std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::size_t min_cols,
+                                                  std::vector<std::size_t>* lines) {
   // Only a regular file is read: a FIFO named ground_truth.csv in a recording blocked replay in
   // open() for ever, a directory read as a file of no rows (no truth, no word).
   struct stat st {};
@@ -152,8 +163,36 @@ std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::
       throw std::runtime_error(path + ":" + std::to_string(line_no) + ": expected at least " + std::to_string(min_cols) + " columns");
     }
     rows.push_back(std::move(row));
+    if (lines) lines->push_back(line_no);
   }
   return rows;
+}
+
+std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets) {
+  std::vector<std::size_t> lines;
+  const std::vector<std::vector<double>> rows = read_numeric_csv(path, 4, &lines);
+  std::vector<TruthRow> truth;
+  std::map<std::pair<long long, int>, std::size_t> line_of;  // (frame, target) -> its line
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const std::vector<double>& r = rows[i];
+    const std::string at = path + ":" + std::to_string(lines[i]) + ": ";
+    auto whole = [](double v, double below) { return v >= 0 && v < below && v == std::floor(v); };
+    if (!whole(r[0], 1e15)) {
+      throw std::runtime_error(at + "frame " + shown_number(r[0]) + " is not a frame index (a whole number >= 0)");
+    }
+    if (r.size() >= 5 && !whole(r[4], max_targets)) {
+      throw std::runtime_error(at + "target " + shown_number(r[4]) + " is not a target index in [0, " +
+                               std::to_string(max_targets - 1) + "]");
+    }
+    TruthRow t{static_cast<long long>(r[0]), r.size() >= 5 ? static_cast<int>(r[4]) : 0, r[1], r[2], r[3]};
+    if (const auto [it, fresh] = line_of.emplace(std::make_pair(t.frame, t.target), lines[i]); !fresh) {
+      throw std::runtime_error(at + "a second row for frame " + std::to_string(t.frame) + " target " +
+                               std::to_string(t.target) + " (the first is on line " + std::to_string(it->second) +
+                               "): which one is the truth?");
+    }
+    if (std::isfinite(t.x_px) && std::isfinite(t.y_px) && std::isfinite(t.phi_deg)) truth.push_back(t);
+  }
+  return truth;
 }
 
 }  // namespace sempose::hal

@@ -89,16 +89,10 @@ ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig&
   const fs::path gt = fs::path(cfg.frames_dir) / "ground_truth.csv";
   if (fs::exists(gt)) {
     truth_.assign(frames_.size(), {});
-    for (const auto& row : read_numeric_csv(gt.string(), 4)) {
-      // Rows that name no frame or target here, or carry a non-finite value, are not truth.
-      if (!(row[0] >= 0 && row[0] < static_cast<double>(frames_.size())) || (row.size() >= 5 && !(row[4] >= 0 && row[4] < kMaxTargets)) ||
-          !std::isfinite(row[1]) || !std::isfinite(row[2]) || !std::isfinite(row[3])) {
-        continue;
-      }
-      const auto i = static_cast<long long>(row[0]);
-      const auto target = row.size() >= 5 ? static_cast<int>(row[4]) : 0;
-      truth_[static_cast<std::size_t>(i)][static_cast<std::size_t>(target)] = {row[1], row[2], row[3], true};
-      truth_count_ = static_cast<std::uint8_t>(std::max<int>(truth_count_, target + 1));
+    for (const TruthRow& row : read_truth_csv(gt.string(), kMaxTargets)) {
+      if (row.frame >= static_cast<long long>(frames_.size())) continue;  // a frame this recording does not hold
+      truth_[static_cast<std::size_t>(row.frame)][static_cast<std::size_t>(row.target)] = {row.x_px, row.y_px, row.phi_deg, true};
+      truth_count_ = static_cast<std::uint8_t>(std::max<int>(truth_count_, row.target + 1));
     }
   }
 }

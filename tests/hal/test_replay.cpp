@@ -206,6 +206,41 @@ TEST(FramesCsv, TruthCellsMustBeWholeNumbersAndTheFileARegularOne) {
   }
 }
 
+// A truth file names each frame and target once, by a whole index: a frame of 1.5 was read as
+// frame 1, a frame of -3 or a target of 0.5 dropped without a word, and of two rows for one
+// frame the last one won (a truth concatenated with a wrong one compared against the wrong one).
+TEST(FramesCsv, TruthRowsNameOneWholeFrameAndTargetEach) {
+  const auto dir = test::temp_dir("truth_rows");
+  const std::string path = (dir / "truth.csv").string();
+  struct Case {
+    const char* rows;
+    const char* expect;
+  };
+  const Case cases[] = {
+      {"0,10,20,0\n1.5,10,20,0\n", ":3: frame 1.5 is not a frame index"},
+      {"-3,10,20,0\n", ":2: frame -3 is not a frame index"},
+      {"0,10,20,0,0.5\n", ":2: target 0.5 is not a target index in [0, 3]"},
+      {"0,10,20,0,4\n", ":2: target 4 is not a target index in [0, 3]"},
+      {"0,10,20,0\n1,10,20,0\n\n0,60,20,0\n", ":5: a second row for frame 0 target 0 (the first is on line 2)"},
+  };
+  for (const Case& c : cases) {
+    std::ofstream(path) << "frame,x_px,y_px,phi_deg\n" << c.rows;
+    try {
+      read_truth_csv(path, 4);
+      ADD_FAILURE() << "accepted: " << c.rows;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(path + c.expect), std::string::npos) << e.what();
+    }
+  }
+  // One row per frame and target, several targets, a non-finite pose skipped.
+  std::ofstream(path) << "frame,x_px,y_px,phi_deg,target\n0,10,20,1,0\n0,30,40,2,1\n1,nan,20,0,0\n";
+  const std::vector<TruthRow> rows = read_truth_csv(path, 4);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[1].frame, 0);
+  EXPECT_EQ(rows[1].target, 1);
+  EXPECT_DOUBLE_EQ(rows[1].x_px, 30);
+}
+
 }  // namespace
 }  // namespace sempose::hal
 

@@ -21,6 +21,21 @@ std::vector<std::int64_t> read_frames_csv(const std::string& path, std::size_t f
 // The other CSVs of a recording (ground_truth.csv: frame,x_px,y_px,phi_deg[,target]): the
 // numeric fields of every row after the header; a cell that is no number, a row with fewer
 // than min_cols fields or a file that cannot be opened throws, naming file and line.
-std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::size_t min_cols);
+// `lines`, when given, gets each row's line number in the file.
+std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::size_t min_cols,
+                                                  std::vector<std::size_t>* lines = nullptr);
+
+// One row of a ground_truth.csv (frame,x_px,y_px,phi_deg[,target]; target 0 when absent).
+struct TruthRow {
+  long long frame = 0;
+  int target = 0;
+  double x_px = 0, y_px = 0, phi_deg = 0;
+};
+// The truth as replay compares with it: frame and target whole numbers >= 0 (target below
+// max_targets) and at most one row per frame and target — a frame of 1.5 was read as frame 1,
+// -3 or a target of 0.5 dropped without a word, and of two rows for one frame the last one won
+// silently. Each of these throws naming the file, the line and the cell (a second row: both
+// lines). A row whose pose is not finite is skipped (no truth on that frame).
+std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets);
 
 }  // namespace sempose::hal
