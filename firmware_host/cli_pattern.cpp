@@ -3,7 +3,9 @@
 // pattern's centre pixel ((size-1)/2, (size-1)/2) lies at (X, Y) (README: Conventions). A crop that
 // falls between pixels is bilinearly interpolated. Only the leading frames in which the window
 // stands still are averaged (pattern_stillness.hpp): a moving target would be smeared.
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <cstdlib>
@@ -153,6 +155,14 @@ int sempose::cli::pattern(int argc, char** argv) {
                          (at(ix, iy + 1) * (1 - ax) + at(ix + 1, iy + 1) * ax) * ay;
         pat.pixels[static_cast<std::size_t>(y) * size + x] = static_cast<std::uint16_t>(std::lround(std::min(maxv, v)));
       }
+    }
+    // A flat window (blank or saturated frames, the beam off) makes a pattern `run` and `replay`
+    // refuse: it used to be written (exit 0) and refused only there, naming no frame.
+    if (std::all_of(pat.pixels.begin(), pat.pixels.end(), [&](std::uint16_t v) { return v == pat.pixels[0]; })) {
+      std::fprintf(stderr, "sempose pattern: the %ldx%ld window around (%g, %g) in %s is flat (every sample %u in the "
+                   "mean of %zu frames): nothing to track there; %s not written\n",
+                   size, size, cx, cy, dir.c_str(), static_cast<unsigned>(pat.pixels[0]), used, out.c_str());
+      return 2;
     }
     if (const int sig = cli::stop_requested()) stopped_by(sig, used, n, out);
     try {

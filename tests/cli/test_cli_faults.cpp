@@ -1115,3 +1115,46 @@ TEST(CliFaults, SimOnAFullDiskLeavesNoHalfRecording) {
   const Outcome again = run({"sim", "--out", dir + "/rec", "--frames", "2", "--config", cfg}, 120);
   EXPECT_EQ(again.code, 0) << again.err;
 }
+
+// Fourth round: well-formed but degenerate input. `pattern` on blank frames wrote a flat
+// pattern (exit 0) that run and replay then refuse; a truth file with two rows for one frame
+// compared against the last one without a word (a wrong truth appended to the right one gave
+// false_tracking=3, the other order 0); a truth naming frames the recording does not hold
+// (another recording's) was used without a word.
+TEST(CliFaults, DegenerateRecordingsPatternsAndTruthsAreNamed) {
+  const std::string dir = work_dir() + "/degenerate";
+  fs::create_directories(dir + "/blank");
+  sempose::hal::Image blank;
+  blank.width = 320;
+  blank.height = 240;
+  blank.pixels.assign(320 * 240, 0);
+  for (int f = 0; f < 3; ++f) sempose::hal::write_pgm(dir + "/blank/frame_00000" + std::to_string(f) + ".pgm", blank);
+  Outcome r = run({"pattern", "--frames", dir + "/blank", "--center", "160,120", "--size", "64", "--out", dir + "/flat.pgm"}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("window around (160, 120) in " + dir + "/blank is flat (every sample 0 in the mean of 3 frames)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/flat.pgm")) << "a flat pattern was written";
+
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 4));
+  const std::string truth = slurp(dir + "/rec/ground_truth.csv");
+  ASSERT_NE(truth.find("\n3,"), std::string::npos) << truth;
+  std::ofstream(dir + "/twice.csv") << truth << "2,10.0,10.0,0.0\n";
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--truth", dir + "/twice.csv", "--out",
+           dir + "/o.csv"},
+          60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--truth: " + dir + "/twice.csv:6: a second row for frame 2 target 0 (the first is on line 4)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/o.csv")) << "output made before the truth was refused";
+  std::ofstream(dir + "/other.csv") << "frame,x_px,y_px,phi_deg\n0,160,120,0\n1000,160,120,0\n1001,160,120,0\n";
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--truth", dir + "/other.csv", "--out",
+           dir + "/o.csv"},
+          60);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("2 of its 3 rows name frames the recording does not hold (it has frames 0..3; the first such "
+                       "row is frame 1000)"),
+            std::string::npos)
+      << r.err;
+}
