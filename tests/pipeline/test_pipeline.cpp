@@ -169,8 +169,9 @@ TEST(Pipeline, CommandsReachTheTrackersWithoutLocks) {
   EXPECT_GE(rig.pipeline->counters().targets[0].searches.get(), 2u) << "start search + commanded re-acquisition";
 }
 
-// A command naming a pattern set or target that does not exist does nothing, is counted as
-// rejected and is never acknowledged; a valid one is acknowledged with its seq once applied.
+// A command naming a pattern set or target that does not exist, or a scale the tracker cannot
+// follow, does nothing, is counted as rejected and is never acknowledged; a valid one is
+// acknowledged with its seq once applied.
 TEST(Pipeline, CommandsNamingNothingAreRejectedNotAcknowledged) {
   Rig rig(kVirtualYaml, 4096);
   rig.pipeline->stop_after_frames(900);
@@ -196,10 +197,18 @@ TEST(Pipeline, CommandsNamingNothingAreRejectedNotAcknowledged) {
   reacquire_missing.target = 3;  // one target configured
   reacquire_missing.seq = 22;
   send(reacquire_missing);
-  EXPECT_EQ(rig.pipeline->counters().commands_rejected.get(), 2u);
+  // An existing set told an nm/px at which the target would be 1000x its pattern's size (a
+  // typo in the controller: pm instead of nm) used to be clamped to the tracked range and taken.
+  Command select_beyond_scale;
+  select_beyond_scale.kind = CommandKind::kSelectPatternSet;
+  select_beyond_scale.arg = 0;
+  select_beyond_scale.nm_per_px = 0.04;  // the simulator's pattern is recorded at 40 nm/px
+  select_beyond_scale.seq = 24;
+  send(select_beyond_scale);
+  EXPECT_EQ(rig.pipeline->counters().commands_rejected.get(), 3u);
   EXPECT_EQ(rig.pipeline->counters().commands.get(), 0u);
   EXPECT_EQ(rig.sink->last_ack(), 0) << "a refused command must not be acknowledged";
-  EXPECT_EQ(rig.sink->rejected(), 2u);
+  EXPECT_EQ(rig.sink->rejected(), 3u);
   EXPECT_EQ(rig.pipeline->counters().targets[0].searches.get(), 1u) << "nothing was re-acquired";
   Command reacquire;
   reacquire.kind = CommandKind::kReacquire;

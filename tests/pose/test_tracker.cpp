@@ -237,8 +237,12 @@ TEST(Tracker, SelectsExpectedScaleFromMicroscopeNmPerPx) {
   Tracker& t = *h.tracker();
   EXPECT_TRUE(t.select_pattern_set(0, 40.0));
   EXPECT_NE(t.next_roi().w, 640) << "same set, same scale: keeps tracking";
-  EXPECT_TRUE(t.select_pattern_set(0, 20.0));
-  EXPECT_EQ(t.next_roi().w, 640) << "same set at twice the magnification: searched again";
+  // Told a size the tracker cannot follow (2x, 1000x, 1/1000x the pattern's): refused, nothing
+  // searched (the 2x one used to be clamped to 1.45 and taken).
+  for (const double nm : {20.0, 0.04, 40000.0}) EXPECT_FALSE(t.select_pattern_set(0, nm)) << nm << " nm/px";
+  EXPECT_NE(t.next_roi().w, 640) << "a refused SELECT changes nothing";
+  EXPECT_TRUE(t.select_pattern_set(0, 30.0));
+  EXPECT_EQ(t.next_roi().w, 640) << "same set at 1.33 times the magnification: searched again";
 }
 
 // No SELECT, the target at 0.8 or 1.25 of its pattern's size from the first frame: the start

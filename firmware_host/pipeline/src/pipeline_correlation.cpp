@@ -17,7 +17,8 @@ bool Pipeline::apply_command(const Command& c) noexcept {
   bool ok = target_ok;
   if (ok && c.kind == CommandKind::kSelectPatternSet) {
     for (std::size_t t = 0; t < n; ++t) {
-      if ((c.target == 0xFF || c.target == t) && c.arg >= trackers_[t]->pattern_set_count()) ok = false;
+      // A set that does not exist, or an nm/px at which its target is beyond the tracked scales.
+      if ((c.target == 0xFF || c.target == t) && !trackers_[t]->selectable(c.arg, c.nm_per_px)) ok = false;
     }
   }
   StatusWords st = status_.read();

@@ -777,9 +777,18 @@ PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
   return e;
 }
 
+bool Tracker::selectable(std::uint8_t set, double nm_per_px) const noexcept {
+  const Impl& t = *impl_;
+  if (set >= t.banks.size()) return false;
+  if (!(nm_per_px > 0 && std::isfinite(nm_per_px) && t.nm_per_px[set] > 0)) return true;  // not told: scale 1
+  const double expected = t.nm_per_px[set] / nm_per_px;
+  constexpr double kRounding = 1e-9;  // a told nm/px at the range's end computed back from it
+  return expected >= Impl::kScaleMin * (1 - kRounding) && expected <= Impl::kScaleMax * (1 + kRounding);
+}
+
 bool Tracker::select_pattern_set(std::uint8_t set, double nm_per_px) noexcept {
   Impl& t = *impl_;
-  if (set >= t.banks.size()) return false;
+  if (!selectable(set, nm_per_px)) return false;
   const bool told = nm_per_px > 0 && std::isfinite(nm_per_px) && t.nm_per_px[set] > 0;
   const double expected = told ? std::clamp(t.nm_per_px[set] / nm_per_px, Impl::kScaleMin, Impl::kScaleMax) : 1.0;
   // Being told the size already assumed is no new look: it only narrows the next search.

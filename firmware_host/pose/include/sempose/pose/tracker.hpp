@@ -86,9 +86,14 @@ class Tracker {
   // Switches the magnification step; out of range: ignored, returns false. nm_per_px > 0 is
   // the microscope's scale now (a SELECT command's): the target is expected at the set's
   // recorded nm/px over it times the pattern's size, and tracking after the new search starts
-  // at that scale (clamped to the tracked range) instead of 1. A new set or a new expected
-  // scale means the target looks different: it is searched again.
+  // at that scale instead of 1. A new set or a new expected scale means the target looks
+  // different: it is searched again. A scale outside the tracked range (0.7..1.45: the ROI
+  // cannot hold the target, or the pattern is too coarse for it) is refused too, returns false:
+  // it used to be clamped to the range's end and acknowledged, so the target was searched at a
+  // size it does not have while the controller believed the step taken.
   bool select_pattern_set(std::uint8_t set, double nm_per_px = 0) noexcept;
+  // Whether select_pattern_set(set, nm_per_px) would take it (nothing changes).
+  bool selectable(std::uint8_t set, double nm_per_px) const noexcept;
   std::size_t pattern_set_count() const noexcept;
   // The noise floors measured at setup (the best score pure noise reaches, mean + 5 sd over
   // 8 noise frames) for the tracking ROI and the full-field search: never TRACKING at or
