@@ -31,10 +31,11 @@ void cross_check(Section& root, const AppConfig& c) {
                           " can be tracked");
   }
   // A tracking ROI the scan generator refuses would stall after the first pose: the ROI
-  // (clamped to the field, as the tracker does) must fit scan.max_roi_w/h unless it is the
-  // whole field, which is always allowed.
-  const int roi_w = std::min(c.tracker.roi_size_px, c.scan.field_w);
-  const int roi_h = std::min(c.tracker.roi_size_px, c.scan.field_h);
+  // (square, its side clamped to the field's shorter side, as the tracker does:
+  // pose::EngineSizes) must fit scan.max_roi_w/h unless it is the whole field, which is
+  // always allowed.
+  const int roi_w = std::min({c.tracker.roi_size_px, c.scan.field_w, c.scan.field_h});
+  const int roi_h = roi_w;
   const bool whole_field = roi_w == c.scan.field_w && roi_h == c.scan.field_h;
   if (c.source == "sim" && !whole_field && (roi_w > c.scan.max_roi_w || roi_h > c.scan.max_roi_h)) {
     root.errors().add(root.mark(), "tracker.roi_size_px",

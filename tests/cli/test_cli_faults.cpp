@@ -1157,4 +1157,15 @@ TEST(CliFaults, DegenerateRecordingsPatternsAndTruthsAreNamed) {
                        "row is frame 1000)"),
             std::string::npos)
       << r.err;
+  // A 512 ROI on the recording's 320x240 field is 240x240, above max_roi 128: it was taken for
+  // the whole field and replay ended "100 scans in a row failed" after 3 poses.
+  std::ofstream(dir + "/roi512.yaml") << "source: replay\nreplay: {frames_dir: " << dir << "/rec}\n"
+                                         << "scan: {max_roi_w: 128, max_roi_h: 128}\n"
+                                         << "tracker: {pattern_size_px: 64, roi_size_px: 512}\n";
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--config", dir + "/roi512.yaml", "--out",
+           dir + "/o512.csv"},
+          60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("tracker.roi_size_px: 512 gives a 240x240 ROI"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/o512.csv"));
 }

@@ -248,6 +248,23 @@ TEST(AppConfig, CrossSectionChecks) {
   EXPECT_NE(e.find("pipeline.frame_pool_slots: 9 is below frame_ring + 3 = 11"), std::string::npos) << e;
 }
 
+// The tracker's ROI is square, its side at most the field's shorter side: roi_size_px 512 on a
+// 320x240 field is a 240x240 ROI, above max_roi 128x128. It was taken for the whole field
+// (320x240, always allowed): `sempose run` made 7 poses, then thousands of refused scans.
+TEST(AppConfig, TrackingRoiIsSquareAgainstTheScanLimits) {
+  const std::string scan = "scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}\n";
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config(scan + "tracker: {roi_size_px: 512, pattern_size_px: 64}\n", "r.yaml", c, e));
+  EXPECT_NE(e.find("tracker.roi_size_px: 512 gives a 240x240 ROI, larger than scan.max_roi_w/h 128x128"), std::string::npos)
+      << e;
+  e.clear();  // a square field: the ROI is the whole field
+  EXPECT_TRUE(parse_app_config("scan: {field_w: 240, field_h: 240, max_roi_w: 128, max_roi_h: 128}\n"
+                               "tracker: {roi_size_px: 512, pattern_size_px: 64}\n",
+                               "r.yaml", c, e))
+      << e;
+}
+
 // The governor's dwell limits must overlap the scan's. governor.min_dwell_ns above
 // scan.max_dwell_ns ran with every scan request refused (`sempose run`: exit 0, frames=0, or
 // exit 5 "stalled" after 2 s); a governor.max_dwell_ns below scan.min_dwell_ns was raised to

@@ -36,9 +36,12 @@ rt::Status load_pattern_set(const config::PatternSetConfig& ps, pose::PatternSet
 
 rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& limits, TrackerSetup& out) {
   // The tracking ROI must be a scan the source accepts (config checks the sim's limits; a
-  // replay's field comes from its frames): otherwise the run would stall after one pose.
-  const int roi_w = std::min(cfg.tracker.roi_size_px, limits.field_w);
-  const int roi_h = std::min(cfg.tracker.roi_size_px, limits.field_h);
+  // replay's field comes from its frames): otherwise the run would stall after one pose. The
+  // tracker's ROI is square, min(roi_size_px, field_w, field_h) a side (pose::EngineSizes): a
+  // 512 ROI on a 320x240 field is 240x240, not the whole field (it passed as 320x240 and the
+  // run stalled with thousands of refused scans).
+  const int roi_w = std::min({cfg.tracker.roi_size_px, limits.field_w, limits.field_h});
+  const int roi_h = roi_w;
   if (!(roi_w == limits.field_w && roi_h == limits.field_h) && (roi_w > limits.max_roi_w || roi_h > limits.max_roi_h)) {
     return rt::Status::failure(cfg.path + ": tracker.roi_size_px: " + std::to_string(cfg.tracker.roi_size_px) +
                                " gives a " + std::to_string(roi_w) + "x" + std::to_string(roi_h) +
