@@ -114,6 +114,7 @@ int sempose::cli::view(int argc, char** argv) {
     std::string first, last;
     if (!frame_files.empty()) {
       std::map<std::string, std::size_t> seen;  // poses per target so far
+      std::size_t outside = 0;                   // drawn poses outside their frame
       std::vector<std::vector<std::pair<float, float>>> edges;
       for (const auto& img : pattern_images) edges.push_back(operator_view::pattern_edge_points(img));
       for (const auto& r : rows) {
@@ -126,6 +127,15 @@ int sempose::cli::view(int argc, char** argv) {
         }
         const std::size_t t = static_cast<std::size_t>(std::find(targets.begin(), targets.end(), r.target) - targets.begin());
         const hal::Image frame = hal::read_pgm(frame_files[r.frame]);
+        // sempose's poses lie in the field: one outside these frames is from another recording
+        // (its pictures used to be drawn of whatever lay there, or of nothing, without a word).
+        if (!(r.x_px >= -0.5 && r.x_px <= frame.width - 0.5 && r.y_px >= -0.5 && r.y_px <= frame.height - 0.5) &&
+            outside++ == 0) {
+          std::fprintf(stderr, "sempose view: warning: the pose of frame %llu at (%g, %g) lies outside the %dx%d frames of "
+                       "%s: are the poses from this recording?\n",
+                       static_cast<unsigned long long>(r.frame), r.x_px, r.y_px, frame.width, frame.height,
+                       frames_dir.c_str());
+        }
         const int side = pattern_images.empty() ? pattern_size : pattern_images[t].width;
         static const std::vector<std::pair<float, float>> kNoEdges;
         const auto img = operator_view::render_roi(frame, r, roi, side, edges.empty() ? kNoEdges : edges[t], scale);

@@ -1168,4 +1168,22 @@ TEST(CliFaults, DegenerateRecordingsPatternsAndTruthsAreNamed) {
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("tracker.roi_size_px: 512 gives a 240x240 ROI"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir + "/o512.csv"));
+  // view of these poses over the blank 320x240 frames is fine; over a 40x30 recording every
+  // pose lies outside the frames: said (it drew pictures of nothing without a word).
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/poses.csv"}, 60);
+  ASSERT_EQ(r.code, 0) << r.err;
+  fs::create_directories(dir + "/small");
+  sempose::hal::Image small = blank;
+  small.width = 40;
+  small.height = 30;
+  small.pixels.assign(40 * 30, 7);
+  for (int f = 0; f < 4; ++f) sempose::hal::write_pgm(dir + "/small/frame_00000" + std::to_string(f) + ".pgm", small);
+  for (const std::string frames : {"/blank", "/small"}) {
+    r = run({"view", "--poses", dir + "/poses.csv", "--frames", dir + frames, "--every", "1", "--out", dir + "/view" + frames},
+            60);
+    EXPECT_EQ(r.code, 0) << r.err;
+    const bool said = r.err.find("lies outside the 40x30 frames of " + dir + "/small: are the poses from this recording?") !=
+                      std::string::npos;
+    EXPECT_EQ(said, frames == "/small") << frames << ": " << r.err;
+  }
 }
