@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <utility>
 
 namespace sempose::check_rt {
 
@@ -57,12 +58,15 @@ std::vector<std::string> SystemTree::list(const std::string& rel_dir) const {
 }
 
 std::optional<std::vector<int>> parse_cpu_list(const std::string& text) {
-  std::vector<int> out;
+  // Ranges are collected, then listed once each: a 1 MiB file of "0-65535,0-65535,…" (a fake
+  // or corrupt tree) used to be expanded range by range — over a minute and 10 GB of memory.
+  constexpr int kMaxCpu = 65535;
+  std::vector<std::pair<int, int>> ranges;
   std::string t;
   for (char c : text) {
     if (!std::isspace(static_cast<unsigned char>(c))) t += c;
   }
-  if (t.empty() || t == "(null)") return out;
+  if (t.empty() || t == "(null)") return std::vector<int>{};
   std::stringstream ss(t);
   std::string part;
   while (std::getline(ss, part, ',')) {
@@ -71,21 +75,26 @@ std::optional<std::vector<int>> parse_cpu_list(const std::string& text) {
       std::size_t used = 0;
       if (dash == std::string::npos) {
         const int v = std::stoi(part, &used);
-        if (used != part.size() || v < 0) return std::nullopt;
-        out.push_back(v);
+        if (used != part.size() || v < 0 || v > kMaxCpu) return std::nullopt;
+        ranges.emplace_back(v, v);
       } else {
         std::size_t used2 = 0;
         const std::string a = part.substr(0, dash), b = part.substr(dash + 1);
         const int lo = std::stoi(a, &used), hi = std::stoi(b, &used2);
-        if (used != a.size() || used2 != b.size() || lo < 0 || hi < lo || hi > 65535) return std::nullopt;
-        for (int v = lo; v <= hi; ++v) out.push_back(v);
+        if (used != a.size() || used2 != b.size() || lo < 0 || hi < lo || hi > kMaxCpu) return std::nullopt;
+        ranges.emplace_back(lo, hi);
       }
     } catch (const std::exception&) {
       return std::nullopt;
     }
   }
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
+  std::sort(ranges.begin(), ranges.end());
+  std::vector<int> out;
+  int next = 0;  // the lowest CPU not listed yet
+  for (const auto& [lo, hi] : ranges) {
+    for (int v = std::max(lo, next); v <= hi; ++v) out.push_back(v);
+    next = std::max(next, hi + 1);
+  }
   return out;
 }
 
