@@ -1116,19 +1116,25 @@ TEST(CliFaults, SimOnAFullDiskLeavesNoHalfRecording) {
   EXPECT_EQ(again.code, 0) << again.err;
 }
 
+// `count` frames of w x h, every sample `value`, recorded into the folder `frames`.
+void write_uniform_frames(const std::string& frames, int w, int h, std::uint16_t value, int count) {
+  fs::create_directories(frames);
+  sempose::hal::Image img;
+  img.width = w;
+  img.height = h;
+  img.pixels.assign(static_cast<std::size_t>(w) * h, value);
+  for (int f = 0; f < count; ++f) sempose::hal::write_pgm(frames + "/frame_00000" + std::to_string(f) + ".pgm", img);
+}
+
 // Fourth round: well-formed but degenerate input. `pattern` on blank frames wrote a flat
 // pattern (exit 0) that run and replay then refuse; a truth file with two rows for one frame
 // compared against the last one without a word (a wrong truth appended to the right one gave
 // false_tracking=3, the other order 0); a truth naming frames the recording does not hold
-// (another recording's) was used without a word.
+// (another recording's) was used without a word; a 512 ROI on a 320x240 recording passed as
+// the whole field; view drew poses outside the frames of another recording without a word.
 TEST(CliFaults, DegenerateRecordingsPatternsAndTruthsAreNamed) {
   const std::string dir = work_dir() + "/degenerate";
-  fs::create_directories(dir + "/blank");
-  sempose::hal::Image blank;
-  blank.width = 320;
-  blank.height = 240;
-  blank.pixels.assign(320 * 240, 0);
-  for (int f = 0; f < 3; ++f) sempose::hal::write_pgm(dir + "/blank/frame_00000" + std::to_string(f) + ".pgm", blank);
+  write_uniform_frames(dir + "/blank", 320, 240, 0, 3);
   Outcome r = run({"pattern", "--frames", dir + "/blank", "--center", "160,120", "--size", "64", "--out", dir + "/flat.pgm"}, 60);
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("window around (160, 120) in " + dir + "/blank is flat (every sample 0 in the mean of 3 frames)"),
@@ -1172,12 +1178,7 @@ TEST(CliFaults, DegenerateRecordingsPatternsAndTruthsAreNamed) {
   // pose lies outside the frames: said (it drew pictures of nothing without a word).
   r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/poses.csv"}, 60);
   ASSERT_EQ(r.code, 0) << r.err;
-  fs::create_directories(dir + "/small");
-  sempose::hal::Image small = blank;
-  small.width = 40;
-  small.height = 30;
-  small.pixels.assign(40 * 30, 7);
-  for (int f = 0; f < 4; ++f) sempose::hal::write_pgm(dir + "/small/frame_00000" + std::to_string(f) + ".pgm", small);
+  write_uniform_frames(dir + "/small", 40, 30, 7, 4);
   for (const std::string frames : {"/blank", "/small"}) {
     r = run({"view", "--poses", dir + "/poses.csv", "--frames", dir + frames, "--every", "1", "--out", dir + "/view" + frames},
             60);
