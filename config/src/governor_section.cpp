@@ -1,5 +1,7 @@
 #include "sempose/config/governor_config.hpp"
 
+#include <algorithm>
+#include <cstdint>
 #include <string>
 
 namespace sempose::config {
@@ -39,6 +41,19 @@ void check_governor_against_scan(Section& root, const GovernorConfig& c, const S
     root.errors().add(root.mark(), "governor.max_dwell_ns",
                       std::to_string(c.max_dwell_ns) + " is below scan.min_dwell_ns " + std::to_string(scan.min_dwell_ns) +
                           ": no dwell could keep to it" + scan_range);
+    return;
+  }
+  // Both ranges overlap; the governor's dwells are multiples of the scan's step inside both.
+  const std::uint64_t step = scan.dwell_step_ns == 0 ? 1 : scan.dwell_step_ns;
+  const std::uint64_t lo = std::max(scan.min_dwell_ns, c.min_dwell_ns);
+  const std::uint64_t hi = c.max_dwell_ns == 0 ? scan.max_dwell_ns : std::min(scan.max_dwell_ns, c.max_dwell_ns);
+  const bool scan_has_one = (scan.min_dwell_ns + step - 1) / step * step <= scan.max_dwell_ns;  // else scan's error
+  if (lo <= hi && scan_has_one && (lo + step - 1) / step * step > hi) {
+    root.errors().add(root.mark(), "governor.min_dwell_ns",
+                      std::to_string(c.min_dwell_ns) + " and governor.max_dwell_ns " + std::to_string(c.max_dwell_ns) +
+                          " leave [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                          "] within the scan's limits: no multiple of scan.dwell_step_ns " +
+                          std::to_string(scan.dwell_step_ns) + " in it: no dwell keeps to both");
   }
 }
 

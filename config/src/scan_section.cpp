@@ -22,6 +22,13 @@ void read_scan(Section& s, ScanLimits& out) {
   if (out.min_dwell_ns > out.max_dwell_ns) {
     s.error("min_dwell_ns", std::to_string(out.min_dwell_ns) + " is above max_dwell_ns (" +
                                 std::to_string(out.max_dwell_ns) + ")");
+  } else if (const std::uint64_t step = out.dwell_step_ns == 0 ? 1 : out.dwell_step_ns;
+             (out.min_dwell_ns + step - 1) / step * step > out.max_dwell_ns) {
+    // Dwells are multiples of the step: with none in the limits every scan request was refused
+    // (`sempose run` exit 0 with frames=0, scan_errors=1).
+    s.error("dwell_step_ns", std::to_string(out.dwell_step_ns) + " has no multiple in min_dwell_ns..max_dwell_ns [" +
+                                 std::to_string(out.min_dwell_ns) + ", " + std::to_string(out.max_dwell_ns) +
+                                 "]: no dwell could be scanned");
   }
   // A max ROI left at its default follows a smaller field; one set explicitly must fit.
   if (!s.has("max_roi_w") && out.max_roi_w > out.field_w) out.max_roi_w = out.field_w;

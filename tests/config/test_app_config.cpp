@@ -265,7 +265,8 @@ TEST(AppConfig, TrackingRoiIsSquareAgainstTheScanLimits) {
       << e;
 }
 
-// The governor's dwell limits must overlap the scan's. governor.min_dwell_ns above
+// The governor's dwell limits must overlap the scan's, and hold a multiple of the scan's dwell
+// step. governor.min_dwell_ns above
 // scan.max_dwell_ns ran with every scan request refused (`sempose run`: exit 0, frames=0, or
 // exit 5 "stalled" after 2 s); a governor.max_dwell_ns below scan.min_dwell_ns was raised to
 // it without a word. Limits inside the scan's, and 0 (= the scan's), still load.
@@ -283,6 +284,19 @@ TEST(AppConfig, GovernorDwellLimitsMustOverlapTheScans) {
     e.clear();
     EXPECT_TRUE(parse_app_config(scan + fine, "g.yaml", c, e)) << fine << e;
   }
+  // Dwells are multiples of scan.dwell_step_ns: scan limits holding none refused every scan
+  // (step 1000000 in [100, 10000]: exit 0 with frames=0); governor limits between two steps
+  // ([210, 240] at 50 ns) ran at 250 ns, above the governor's maximum, without a word.
+  e.clear();
+  EXPECT_FALSE(parse_app_config("scan: {min_dwell_ns: 100, max_dwell_ns: 10000, dwell_step_ns: 1000000}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("scan.dwell_step_ns: 1000000 has no multiple in min_dwell_ns..max_dwell_ns [100, 10000]"),
+            std::string::npos)
+      << e;
+  e.clear();
+  EXPECT_FALSE(parse_app_config(scan + "governor: {min_dwell_ns: 210, max_dwell_ns: 240}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("governor.min_dwell_ns: 210 and governor.max_dwell_ns 240 leave [210, 240] within the scan's limits: no "
+                       "multiple of scan.dwell_step_ns 50"), std::string::npos)
+      << e;
 }
 
 TEST(AppConfig, MissingFileIsAnError) {
