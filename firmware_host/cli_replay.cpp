@@ -190,6 +190,23 @@ int run_replay(int argc, char** argv) {
     std::fprintf(stderr, "sempose replay: %zu targets, at most %d\n", app.targets.size(), hal::kMaxTargets);
     return 2;
   }
+  // The config's schedule was checked against its own targets; --pattern may give more (a
+  // target it never names got no frame and no pose, without a word) or fewer.
+  for (std::size_t t = 0; t < app.targets.size() && !app.pipeline.schedule.empty(); ++t) {
+    const auto& s = app.pipeline.schedule;
+    if (std::find(s.begin(), s.end(), static_cast<int>(t)) == s.end()) {
+      std::fprintf(stderr, "sempose replay: %s: pipeline.schedule never names target %zu ('%s'): it would get no frame\n",
+                   config_path.c_str(), t, app.targets[t].name.c_str());
+      return 2;
+    }
+  }
+  for (const int t : app.pipeline.schedule) {
+    if (t >= static_cast<int>(app.targets.size())) {
+      std::fprintf(stderr, "sempose replay: %s: pipeline.schedule names target %d; there are %zu\n", config_path.c_str(), t,
+                   app.targets.size());
+      return 2;
+    }
+  }
   // A FIFO as --out or --truth blocked in open() (found probing: the process hung); a
   // directory as --truth was read as a truth of no rows (exit 0, nothing compared).
   if (const std::string why = config::output_path_problem(out_path); out_path != "-" && !why.empty()) {

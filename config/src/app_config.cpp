@@ -93,6 +93,15 @@ void cross_check(Section& root, const AppConfig& c) {
                             ", allowed [0, " + std::to_string(std::max(0, targets - 1)) + "])");
     }
   }
+  // A target the schedule leaves out is never scanned: no pose, no state, not even LOST, for
+  // the whole run (it used to run so, its summary line poses=0).
+  for (int t = 0; !c.pipeline.schedule.empty() && t < targets && t <= kMaxTrackedTargets; ++t) {
+    if (std::find(c.pipeline.schedule.begin(), c.pipeline.schedule.end(), t) == c.pipeline.schedule.end()) {
+      root.errors().add(root.mark(), "pipeline.schedule",
+                        "target " + std::to_string(t) + " is never named: it would never be scanned or reported " +
+                            "(name every target at least once, or remove it from the targets)");
+    }
+  }
 }
 
 // Reads one top-level section with its part's reader; the child Section reports its unknown

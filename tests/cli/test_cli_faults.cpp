@@ -1174,6 +1174,23 @@ TEST(CliFaults, DegenerateRecordingsPatternsAndTruthsAreNamed) {
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("tracker.roi_size_px: 512 gives a 240x240 ROI"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir + "/o512.csv"));
+  // A schedule naming only target 0 with two --pattern: target 1 got no frame, no word; one
+  // naming target 1 with one --pattern failed after the CSV was made.
+  std::ofstream(dir + "/sched00.yaml") << "pipeline: {schedule: [0, 0]}\n";
+  std::ofstream(dir + "/sched01.yaml") << "sim:\n  targets:\n    - {texture: {source: lamella}, size: [60, 40], start: [100, 120, 0]}\n"
+                                       << "    - {texture: {source: lamella}, size: [60, 40], start: [220, 120, 0]}\n"
+                                       << "pipeline: {schedule: [0, 1]}\n";
+  const std::vector<std::vector<std::string>> schedule_cases = {
+      {"--config", dir + "/sched00.yaml", "--pattern", dir + "/p.pgm", "--pattern", dir + "/p.pgm"},
+      {"--config", dir + "/sched01.yaml", "--pattern", dir + "/p.pgm"}};
+  for (const auto& extra : schedule_cases) {
+    std::vector<std::string> args = {"replay", "--frames", dir + "/rec", "--out", dir + "/osched.csv"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    r = run(args, 60);
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find(": pipeline.schedule "), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir + "/osched.csv")) << r.err;
+  }
   // view of these poses over the blank 320x240 frames is fine; over a 40x30 recording every
   // pose lies outside the frames: said (it drew pictures of nothing without a word).
   r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/poses.csv"}, 60);

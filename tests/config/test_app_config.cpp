@@ -248,6 +248,21 @@ TEST(AppConfig, CrossSectionChecks) {
   EXPECT_NE(e.find("pipeline.frame_pool_slots: 9 is below frame_ring + 3 = 11"), std::string::npos) << e;
 }
 
+// A target the schedule never names is never scanned: no pose or state for it all run (`sempose
+// run` with two sim targets and schedule [0, 0]: target 1 poses=0, no word).
+TEST(AppConfig, EveryTargetIsInTheSchedule) {
+  const std::string two = "sim:\n  targets:\n    - {texture: {source: lamella}, size: [60, 40], start: [100, 120, 0]}\n"
+                          "    - {texture: {source: lamella}, size: [60, 40], start: [220, 120, 0]}\n";
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config(two + "pipeline: {schedule: [0, 0]}\n", "s.yaml", c, e));
+  EXPECT_NE(e.find("pipeline.schedule: target 1 is never named: it would never be scanned"), std::string::npos) << e;
+  for (const char* fine : {"pipeline: {schedule: [0, 1, 0]}\n", "pipeline: {schedule: []}\n"}) {
+    e.clear();
+    EXPECT_TRUE(parse_app_config(two + fine, "s.yaml", c, e)) << fine << e;
+  }
+}
+
 // The tracker's ROI is square, its side at most the field's shorter side: roi_size_px 512 on a
 // 320x240 field is a 240x240 ROI, above max_roi 128x128. It was taken for the whole field
 // (320x240, always allowed): `sempose run` made 7 poses, then thousands of refused scans.
