@@ -64,6 +64,10 @@ int usage(std::FILE* out) {
   return out == stdout ? 0 : 2;
 }
 
+// The histogram files' names in the histogram folder.
+constexpr const char* kHistogramTxt = "latency_hist.txt";
+constexpr const char* kHistogramJson = "latency_hist.json";
+
 // False when a file could not be written in full (a full disk shows only when the buffer is
 // flushed, so both files are closed before they are judged).
 bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
@@ -71,10 +75,10 @@ bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   const auto series = p.histograms().snapshot();
-  std::ofstream txt(dir + "/latency_hist.txt");
+  std::ofstream txt(dir + "/" + kHistogramTxt);
   rt::write_cyclictest_histogram(txt, series);
   txt.close();
-  std::ofstream json(dir + "/latency_hist.json");
+  std::ofstream json(dir + "/" + kHistogramJson);
   rt::write_histogram_json(json, series);
   json.close();
   if (!txt || !json) {
@@ -215,6 +219,21 @@ int sempose::cli::run(int argc, char** argv) {
         !ec1 && !ec2) {
       bad += std::string("  ") + can_log_key + ": '" + can_log + "' is also output.poses_csv: the CAN log and the poses " +
              "would be written into one file; name two files\n";
+    }
+    // The histograms are written at exit (and on SIGUSR1) into hist_dir under fixed names: a
+    // CSV or CAN log of such a name there was overwritten by them, the whole run's poses gone.
+    for (const char* name : {kHistogramTxt, kHistogramJson}) {
+      if (hist_dir.empty()) break;
+      const std::string hist = hist_dir + "/" + name;
+      for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
+                                      {can_log_key, can_log}}) {
+        std::error_code e1, e2;
+        if (!path.empty() && std::filesystem::weakly_canonical(path, e1) == std::filesystem::weakly_canonical(hist, e2) &&
+            !e1 && !e2) {
+          bad += std::string("  ") + key + ": '" + path + "' is the histogram file " + hist + " (" +
+                 (opt.hist_dir.empty() ? "output.hist_dir" : "--hist-dir") + "), written over it at exit; name another file\n";
+        }
+      }
     }
     if (!bad.empty()) {
       std::fprintf(stderr, "sempose run: invalid output:\n%s", bad.c_str());

@@ -596,7 +596,8 @@ TEST(CliFaults, HostileOptionValuesAreRefusedByName) {
 
 // An output that names one of the command's inputs: each used to exit 0 having written over
 // the input (found probing: replay's CSV over its pattern, the recording's frames.csv or a
-// frame, its --truth; run's CAN log over its config; the CAN log and the poses into one file).
+// frame, its --truth; run's CAN log over its config; the CAN log and the poses into one file;
+// the poses or the CAN log named like a histogram file in the histogram folder).
 TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
   const std::string dir = work_dir() + "/out_is_in";
   fs::create_directories(dir);
@@ -621,10 +622,20 @@ TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
       {{"run", "--config", small_config(dir, "output: {poses_csv: " + dir + "/both.txt}\ncan: {log_file: " + dir + "/both.txt}\n"),
         "--duration", "0.2"},
        "can.log_file: '" + dir + "/both.txt' is also output.poses_csv"},
+      // The histograms' own names in the histogram folder: written over the CSV or log at exit.
+      {{"run", "--config",
+        small_config(dir, "output: {poses_csv: " + dir + "/h/latency_hist.txt, hist_dir: " + dir + "/h}\ncan: {log_file: " +
+                              dir + "/h/can.log}\n"),
+        "--duration", "0.2"},
+       "output.poses_csv: '" + dir + "/h/latency_hist.txt' is the histogram file"},
+      {{"run", "--config", cfg, "--duration", "0.2", "--hist-dir", dir + "/h", "--can-log", dir + "/h/latency_hist.json"},
+       "--can-log: '" + dir + "/h/latency_hist.json' is the histogram file"},
   };
+  fs::create_directories(dir + "/h");
   for (const Case& c : cases) {
     ASSERT_NO_FATAL_FAILURE(expect_refused(c, 60));
   }
+  EXPECT_TRUE(fs::is_empty(dir + "/h")) << "an output was made before the histogram clash was refused";
   EXPECT_EQ(slurp(pat), pattern_bytes);
   EXPECT_EQ(slurp(rec + "/frames.csv"), frames_csv);
   EXPECT_EQ(slurp(rec + "/frame_000001.pgm"), frame1);
