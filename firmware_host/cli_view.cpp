@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli.hpp"
@@ -80,6 +81,23 @@ int sempose::cli::view(int argc, char** argv) {
     std::fprintf(stderr, "sempose view: --poses: '%s' is %s (need the CSV of a run or a replay)\n", poses_path.c_str(),
                  why.c_str());
     return 2;
+  }
+
+  // view writes track.dat/.gp/.png and roi_*.png into --out: an input of such a name there
+  // was written over (a poses CSV called track.dat became the plot's data, exit 0).
+  std::vector<std::pair<std::string, std::string>> inputs = {{"--poses", poses_path}};
+  for (const auto& p : patterns) inputs.emplace_back("--pattern", p);
+  for (const auto& [option, path] : inputs) {
+    const std::filesystem::path input(path);
+    const std::string name = input.filename().string();
+    const bool view_writes = name == "track.dat" || name == "track.gp" || name == "track.png" ||
+                             (name.rfind("roi_", 0) == 0 && input.extension() == ".png");
+    std::error_code ec;
+    if (view_writes && std::filesystem::equivalent(std::filesystem::absolute(input, ec).parent_path(), out_dir, ec) && !ec) {
+      std::fprintf(stderr, "sempose view: %s '%s' is in --out '%s' under a name view writes (%s): it would be written "
+                   "over; choose another --out\n", option.c_str(), path.c_str(), out_dir.c_str(), name.c_str());
+      return 2;
+    }
   }
 
   cli::catch_termination_signals();

@@ -597,7 +597,8 @@ TEST(CliFaults, HostileOptionValuesAreRefusedByName) {
 // An output that names one of the command's inputs: each used to exit 0 having written over
 // the input (found probing: replay's CSV over its pattern, the recording's frames.csv or a
 // frame, its --truth; run's CAN log over its config; the CAN log and the poses into one file;
-// the poses or the CAN log named like a histogram file in the histogram folder).
+// the poses or the CAN log named like a histogram file in the histogram folder; view's poses
+// named like a file view writes into its --out).
 TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
   const std::string dir = work_dir() + "/out_is_in";
   fs::create_directories(dir);
@@ -630,12 +631,20 @@ TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
        "output.poses_csv: '" + dir + "/h/latency_hist.txt' is the histogram file"},
       {{"run", "--config", cfg, "--duration", "0.2", "--hist-dir", dir + "/h", "--can-log", dir + "/h/latency_hist.json"},
        "--can-log: '" + dir + "/h/latency_hist.json' is the histogram file"},
+      // view's own output names in --out: the poses CSV became the plot's data.
+      {{"view", "--poses", dir + "/track.dat", "--out", dir}, "--poses '" + dir + "/track.dat' is in --out"},
+      {{"view", "--poses", dir + "/roi_000000.png", "--out", dir + "/."}, "under a name view writes (roi_000000.png)"},
   };
+  std::ofstream(dir + "/track.dat") << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,1,2,3,4,0.5,TRACKING\n";
+  std::ofstream(dir + "/roi_000000.png") << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,1,2,3,4,0.5,TRACKING\n";
+  const std::string view_input = slurp(dir + "/track.dat");
   fs::create_directories(dir + "/h");
   for (const Case& c : cases) {
     ASSERT_NO_FATAL_FAILURE(expect_refused(c, 60));
   }
   EXPECT_TRUE(fs::is_empty(dir + "/h")) << "an output was made before the histogram clash was refused";
+  EXPECT_EQ(slurp(dir + "/track.dat"), view_input);
+  EXPECT_EQ(slurp(dir + "/roi_000000.png"), view_input);
   EXPECT_EQ(slurp(pat), pattern_bytes);
   EXPECT_EQ(slurp(rec + "/frames.csv"), frames_csv);
   EXPECT_EQ(slurp(rec + "/frame_000001.pgm"), frame1);
