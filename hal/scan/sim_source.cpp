@@ -279,7 +279,8 @@ Image render_sim_pattern(const config::SimConfig& cfg_in, const ScanLimits& limi
   return img;
 }
 
-Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px) {
+Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px,
+                              bool rigid_only) {
   if (target_index < 0 || target_index >= static_cast<int>(cfg.targets.size())) {
     throw std::runtime_error("render_sim_pattern_mask: target " + std::to_string(target_index) + " is not configured");
   }
@@ -289,6 +290,24 @@ Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& li
   std::int32_t ox = 0, oy = 0;
   pattern_origin(t, limits, size_px, ox, oy);
   const double half = (size_px - 1) / 2.0;
+  // rigid_only: the parts fixed to the pose point (jaw_dir 0), less every layer pixel a moving
+  // part can cover at any opening the profile reaches (its PSF-blurred alpha slid along texture
+  // y by up to max_abs, plus 1 px) — the pixels whose brightness depends on the pose alone.
+  const int reach = rigid_only ? static_cast<int>(std::ceil(t.jaws.max_abs())) + 1 : 0;
+  std::vector<std::uint8_t> moving_reach(static_cast<std::size_t>(layer.w()) * layer.h(), 0);
+  for (const SimPart& part : layer.parts) {
+    if (!rigid_only || part.jaw_dir == 0.0f) continue;
+    for (int v = 0; v < layer.h(); ++v)
+      for (int u = 0; u < layer.w(); ++u) {
+        if (part.alpha.at(u, v) < 0.01f) continue;
+        for (int dv = -reach; dv <= reach; ++dv)
+          for (int du = -1; du <= 1; ++du) {
+            const int uu = u + du, vv = v + dv;
+            if (uu >= 0 && vv >= 0 && uu < layer.w() && vv < layer.h())
+              moving_reach[static_cast<std::size_t>(vv) * layer.w() + uu] = 1;
+          }
+      }
+  }
   Image img;
   img.width = img.height = size_px;
   img.bits = 8;
@@ -300,13 +319,19 @@ Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& li
       if (!(u >= 0 && v >= 0 && u < layer.w() - 1 && v < layer.h() - 1)) continue;
       const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
       const double au = u - u0, av = v - v0;
+      if (rigid_only && (moving_reach[static_cast<std::size_t>(v0) * layer.w() + u0] ||
+                         moving_reach[static_cast<std::size_t>(v0 + 1) * layer.w() + u0 + 1]))
+        continue;
       double a = 0;  // every part at rest (jaws at their configured start opening are not shifted here)
       for (const SimPart& part : layer.parts) {
+        if (rigid_only && part.jaw_dir != 0.0f) continue;
         const FloatImage& A = part.alpha;
         a = std::max(a, (1 - au) * (1 - av) * A.at(u0, v0) + au * (1 - av) * A.at(u0 + 1, v0) +
                             (1 - au) * av * A.at(u0, v0 + 1) + au * av * A.at(u0 + 1, v0 + 1));
       }
-      if (a >= 0.5) img.pixels[static_cast<std::size_t>(y) * size_px + x] = 255;
+      // The outline: alpha ≥ 0.5; the rigid part: every pixel it affects (its PSF-blurred
+      // alpha ≥ 0.02), so that the edge against the background counts whole.
+      if (a >= (rigid_only ? 0.02 : 0.5)) img.pixels[static_cast<std::size_t>(y) * size_px + x] = 255;
     }
   }
   return img;

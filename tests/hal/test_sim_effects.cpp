@@ -188,6 +188,48 @@ TEST(SimEffects, GripperJawsOpenWhileTheBodyStays) {
   EXPECT_EQ(shut[0].y_px, open[0].y_px);
 }
 
+// The rigid-only shape mask (the bench's --mask body): no pixel in it changes at any jaw
+// opening the profile reaches, and it keeps the body (not only a sliver). The whole outline
+// does hold pixels the jaws change — the mask the rigid option must not give.
+TEST(SimEffects, RigidOnlyMaskHoldsNoPixelTheJawsChange) {
+  const ScanLimits lim = limits(320, 240);
+  config::SimConfig c = one_target("gripper", 110, 84, 160.5, 120.5);
+  c.psf_sigma_px = 0.8;
+  c.targets[0].jaws.amplitude = 8;
+  c.targets[0].jaws.period_s = 0.4;
+  const int n = 128;
+  const Image rigid = render_sim_pattern_mask(c, lim, 0, n, true);
+  const Image outline = render_sim_pattern_mask(c, lim, 0, n);
+  // The crop's pixel (x, y) is field pixel (97 + x, 57 + y): the target at rest in its centre.
+  const Roi roi{97, 57, n, n};
+  const SimScene scene(c, lim);
+  auto mean_at = [&](double jaw) {
+    SimTargetPose pose{true, 160.5, 120.5, 0.0, 1.0, jaw};
+    std::vector<float> mean;
+    scene.render_mean(roi, &pose, 1.0, 0.0, 0.0, mean, nullptr);
+    return mean;
+  };
+  const std::vector<float> shut = mean_at(0);
+  std::vector<std::uint8_t> changes(shut.size(), 0);
+  for (double jaw : {-8.0, -4.0, 4.0, 8.0}) {
+    const std::vector<float> m = mean_at(jaw);
+    for (std::size_t i = 0; i < m.size(); ++i) changes[i] |= std::fabs(m[i] - shut[i]) > 1e-4f;
+  }
+  int rigid_n = 0, outline_n = 0, rigid_changing = 0, outline_changing = 0;
+  for (std::size_t i = 0; i < shut.size(); ++i) {
+    rigid_n += rigid.pixels[i] != 0;
+    outline_n += outline.pixels[i] != 0;
+    rigid_changing += rigid.pixels[i] != 0 && changes[i];
+    outline_changing += outline.pixels[i] != 0 && changes[i];
+  }
+  EXPECT_EQ(rigid_changing, 0);
+  EXPECT_GT(outline_changing, 500);  // the jaws' edges: what the rigid mask leaves out
+  // The body is 45 % of the 110 px width at 84 % of the 84 px height (~3500 px); the mask keeps
+  // it less what the jaws reach, plus its blurred rim against the background.
+  EXPECT_GT(rigid_n, 2500);
+  EXPECT_LT(rigid_n, outline_n);
+}
+
 TEST(SimEffects, ChargingStepsAndRampsMoveTheMeanBrightness) {
   const ScanLimits lim = limits(256, 256);
   config::SimConfig c = test::clean_config();

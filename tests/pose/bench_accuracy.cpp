@@ -147,7 +147,7 @@ CrlbNuisance run_nuisance(const Scenario& s) {
 }
 
 // The single-frame bound along a run: the variances averaged over every 10th frame's true state.
-CrlbMean run_bound(const Scenario& s, const SimHarness& h) {
+CrlbMean run_bound(const Scenario& s, const SimHarness& h, double rigid_only_reach_px = 0) {
   const std::int64_t t0 = rt::now_ns();
   CrlbMean m;
   const int P = 128;
@@ -158,7 +158,7 @@ CrlbMean run_bound(const Scenario& s, const SimHarness& h) {
     }
   } else {
     const SimMeanRenderer sim(h.sim_config(), s.field_w, s.field_h, s.dwell_ns);
-    for (const SimState& st : run_states(h)) m.add(crlb_sim(sim, st, run_nuisance(s)));
+    for (const SimState& st : run_states(h)) m.add(crlb_sim(sim, st, run_nuisance(s), {}, rigid_only_reach_px));
   }
   g_bound_s += (rt::now_ns() - t0) * 1e-9;
   return m;
@@ -373,6 +373,10 @@ int main(int argc, char** argv) {
   double require_low_dose = -1;    // --require-low-dose-false F: exit 3 when > F of the poses below 2.5 e-/px are false
   int visp_levels = 3;
   std::string only_target, only_motion;
+  // --mask outline|body: give each row's tracker its target's shape mask — the whole outline, or
+  // only the part rigid with the pose point (the gripper's body without what its jaws reach;
+  // the outline for one-part targets). The bound rows are not changed by it.
+  std::string mask_mode;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--full") quick = false;
@@ -413,12 +417,14 @@ int main(int argc, char** argv) {
       tc.sigma_floor_px = std::atof(argv[++i]);
       tc.sigma_floor_deg = std::atof(argv[++i]);
     }
+    else if (a == "--mask" && i + 1 < argc && (std::string(argv[i + 1]) == "outline" || std::string(argv[i + 1]) == "body"))
+      mask_mode = argv[++i];
     else if (a == "--only" && i + 1 < argc) {
       only = true;
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off]\n", argv[0]);
       return 2;
     }
   }
@@ -474,6 +480,7 @@ int main(int argc, char** argv) {
       "  circle (r %.0f px), 256² crop on its last estimate, started at the truth on the first frame\n",
       tc.pattern_size_px, tc.roi_size_px, frames, tc.appearance.enabled ? "on" : "off",
       tc.appearance.enabled && tc.appearance.refine_template ? " (refined template)" : "", refine_label.c_str(), visp_levels, zone_r);
+  if (!mask_mode.empty()) std::printf("shape mask given to the tracker: %s\n", mask_mode == "body" ? "the rigid part only (the gripper's body)" : "the whole outline");
   std::printf("%-12s %-12s %4s | %5s %5s %5s %6s %7s %5s %5s %7s | %5s %5s %5s %6s %7s %5s %5s %7s | %7s %7s\n", "target",
               "case", "dose", "trk%", "false", "recov", "rms_px", "rms_deg", "x_px", "x_deg", "us/pose", "ok%", "false",
               "recov", "rms_px", "rms_deg", "x_px", "x_deg", "ms/frm", "bnd_px", "bnd_deg");
@@ -556,6 +563,8 @@ int main(int argc, char** argv) {
     if (row.scaled_start) s.scale_from = row.scale_to;
     s.charging_defocus = row.charging;
     s.jaws = row.jaws;
+    s.shape_mask = !mask_mode.empty();
+    s.shape_mask_rigid_only = mask_mode == "body";
     s.detector_tau_ns = row.tau_ns;
     if (row.bg_contrast > 0) {
       // Still at the recording pose (the field's centre, 0°) while the start search scans the
@@ -643,6 +652,14 @@ int main(int argc, char** argv) {
                 fmt(z.zx(), "%.2f").c_str(), fmt(z.zy(), "%.2f").c_str(), fmt(z.zphi(), "%.2f").c_str(),
                 fmt(z.zscale(), "%.2f").c_str(), z.n, fmt(z.n ? z.sigma_px / z.n : NAN, "%.4f").c_str(),
                 fmt(z.n ? z.sigma_deg / z.n : NAN, "%.4f").c_str());
+    if (s.shape_mask_rigid_only && s.jaws) {
+      // What a body-only estimator could reach: the bound over the pixels the jaws never change
+      // (±8 px and the PSF); the row's ratios stay against the full bound.
+      const CrlbMean rigid = run_bound(s, h, 8.0);
+      std::printf("  body-only bound %s px %s deg (x the full bound %.2f / %.2f); sempose x the body-only bound %.2f / %.2f\n",
+                  fmt(rigid.pos_rms_px()).c_str(), fmt(rigid.phi_deg()).c_str(), rigid.pos_rms_px() / bound.pos_rms_px(),
+                  rigid.phi_deg() / bound.phi_deg(), a.rms_px() / rigid.pos_rms_px(), a.rms_deg() / rigid.phi_deg());
+    }
     if (decompose) {
       // Bias: the same row (same trajectory, frame times and scene) without noise; the noise
       // part is what the noisy run adds on top, sqrt(RMS² − bias²).

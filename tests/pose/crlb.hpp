@@ -190,7 +190,10 @@ class SimMeanRenderer {
 // The bound for the simulator's target 0 in state s (the static background stays: its pixels
 // do not move with θ, so they carry no pose information by themselves). Variance: the
 // simulator's cascade, λ·(1 + 1/k) + read_noise².
-inline Crlb crlb_sim(const SimMeanRenderer& sim, const SimState& s, CrlbNuisance nu = {}, CrlbStep step = {}) {
+// rigid_only_reach_px > 0: only the pixels the gripper's jaws leave unchanged at every opening
+// within ±that (the bound of an estimator that masks the jaws out: a shape mask of the body).
+inline Crlb crlb_sim(const SimMeanRenderer& sim, const SimState& s, CrlbNuisance nu = {}, CrlbStep step = {},
+                     double rigid_only_reach_px = 0) {
   const hal::Roi roi = sim.support_window(s);
   const double D = sim.electrons_per_unit();
   std::vector<double> b, p, m;
@@ -198,6 +201,13 @@ inline Crlb crlb_sim(const SimMeanRenderer& sim, const SimState& s, CrlbNuisance
   sim.render(roi, s, b, &cover);
   std::vector<std::uint8_t> use(b.size());
   for (std::size_t i = 0; i < b.size(); ++i) use[i] = cover[i] > 1e-3f;
+  for (int k = -4; rigid_only_reach_px > 0 && k <= 4; ++k) {
+    SimState o = s;
+    o.jaw_px = rigid_only_reach_px * k / 4.0;
+    sim.render(roi, o, p);
+    for (std::size_t i = 0; i < b.size(); ++i)
+      if (std::fabs(p[i] - b[i]) > 1e-4) use[i] = 0;
+  }
   std::vector<double> mean_e(b.size());
   for (std::size_t i = 0; i < b.size(); ++i) mean_e[i] = D * std::max(0.0, s.gain * b[i] + s.offset);
   std::vector<std::vector<double>> jac;

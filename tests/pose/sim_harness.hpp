@@ -51,6 +51,7 @@ struct Scenario {
   // step_y_px) every step_period_s (the sim's staircase, one step up, one down).
   double step_x_px = 0, step_y_px = 0, step_period_s = 0.1;
   bool shape_mask = false;  // give the tracker the target's shape mask with its pattern (opt-in, see README)
+  bool shape_mask_rigid_only = false;  // with shape_mask: only the part rigid with the pose (the gripper's body)
   int pattern_frames = 10;  // frames averaged into the recorded pattern (its own noise: 1/√ of a frame's)
   // Effects (issue 13's hard cases), all off by default:
   double scale_from = 1.0;        // the target's scale ramps from this ...
@@ -260,7 +261,8 @@ class SimHarness {
       pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, s.pattern_frames, pattern_dwell(), 777);
       sets[0].dwell_ns = pattern_dwell();
       if (s.shape_mask)
-        sets[0].mask = pipeline::to_pattern_image(hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px));
+        sets[0].mask = pipeline::to_pattern_image(
+            hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px, s.shape_mask_rigid_only));
       sim_ = std::make_unique<hal::SimSource>(limits_, sim_cfg_);
     }
     sets[0].image = pipeline::to_pattern_image(pattern_);

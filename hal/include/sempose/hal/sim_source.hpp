@@ -85,7 +85,10 @@ Image render_sim_pattern(const config::SimConfig& cfg, const ScanLimits& limits,
                          int average_frames, std::uint32_t dwell_ns, std::uint64_t seed);
 
 // The same crop's shape mask: 255 where the target covers the pixel (its alpha >= 0.5), 0 on
-// the background — what an operator draws around a recorded pattern. Setup-time; throws.
-Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px);
+// the background — what an operator draws around a recorded pattern. rigid_only: only the
+// parts rigid with the pose point (a gripper's body), without the pixels its moving jaws can
+// reach at any opening of their profile. Setup-time; throws.
+Image render_sim_pattern_mask(const config::SimConfig& cfg, const ScanLimits& limits, int target_index, int size_px,
+                              bool rigid_only = false);
 
 }  // namespace sempose::hal
