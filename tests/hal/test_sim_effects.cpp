@@ -195,8 +195,7 @@ TEST(SimEffects, RigidOnlyMaskHoldsNoPixelTheJawsChange) {
   const ScanLimits lim = limits(320, 240);
   config::SimConfig c = one_target("gripper", 110, 84, 160.5, 120.5);
   c.psf_sigma_px = 0.8;
-  c.targets[0].jaws.amplitude = 8;
-  c.targets[0].jaws.period_s = 0.4;
+  c.targets[0].jaws.amplitude = 8, c.targets[0].jaws.period_s = 0.4;  // the bench's jaws rows
   const int n = 128;
   const Image rigid = render_sim_pattern_mask(c, lim, 0, n, true);
   const Image outline = render_sim_pattern_mask(c, lim, 0, n);
