@@ -656,9 +656,10 @@ int main(int argc, char** argv) {
       // What a body-only estimator could reach: the bound over the pixels the jaws never change
       // (±8 px and the PSF); the row's ratios stay against the full bound.
       const CrlbMean rigid = run_bound(s, h, 8.0);
-      std::printf("  body-only bound %s px %s deg (x the full bound %.2f / %.2f); sempose x the body-only bound %.2f / %.2f\n",
-                  fmt(rigid.pos_rms_px()).c_str(), fmt(rigid.phi_deg()).c_str(), rigid.pos_rms_px() / bound.pos_rms_px(),
-                  rigid.phi_deg() / bound.phi_deg(), a.rms_px() / rigid.pos_rms_px(), a.rms_deg() / rigid.phi_deg());
+      std::printf("  body-only bound %s px %s deg (x the full bound %s / %s); sempose x the body-only bound %s / %s\n",
+                  fmt(rigid.pos_rms_px()).c_str(), fmt(rigid.phi_deg()).c_str(),
+                  fmt(rigid.pos_rms_px() / bound.pos_rms_px(), "%.2f").c_str(), fmt(rigid.phi_deg() / bound.phi_deg(), "%.2f").c_str(),
+                  fmt(a.rms_px() / rigid.pos_rms_px(), "%.2f").c_str(), fmt(a.rms_deg() / rigid.phi_deg(), "%.2f").c_str());
     }
     if (decompose) {
       // Bias: the same row (same trajectory, frame times and scene) without noise; the noise
