@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -73,6 +74,13 @@ struct Scenario {
   // follows it).
   int kick_frame = -1;
   double kick_x_px = 0, kick_y_px = 0, kick_phi_deg = 0;
+  // Cases outside the benchmark's envelope (probe_envelope.cpp, test_false_tracking.cpp),
+  // simulator targets only: edit_run changes the scene of the run after the pattern was
+  // recorded (a magnification step, a second target, charging, defocus); frame_fault changes
+  // each rendered ROI frame (seq = frame index; a beam blanked mid-scan, saturated lines),
+  // max_level is full scale.
+  std::function<void(config::SimConfig&)> edit_run;
+  std::function<void(std::uint64_t seq, const hal::Roi& roi, hal::Pixel* px, hal::Pixel max_level)> frame_fault;
 };
 
 // The warped real SEM target: lamella_on_post_eb.pgm seen through a σ 1 px PSF; the pattern is
@@ -263,6 +271,7 @@ class SimHarness {
       if (s.shape_mask)
         sets[0].mask = pipeline::to_pattern_image(
             hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px, s.shape_mask_rigid_only));
+      if (s.edit_run) s.edit_run(sim_cfg_);
       sim_ = std::make_unique<hal::SimSource>(limits_, sim_cfg_);
     }
     sets[0].image = pipeline::to_pattern_image(pattern_);
@@ -314,6 +323,7 @@ class SimHarness {
         const hal::Pixel v = s_.frames_kind == Scenario::Frames::kBlank ? 0 : 255;
         std::fill(out, out + static_cast<std::ptrdiff_t>(roi.w) * roi.h, v);
       }
+      if (s_.frame_fault) s_.frame_fault(seq, roi, out, static_cast<hal::Pixel>((1u << limits_.bits) - 1));
       return;
     }
     // Test helper: WarpScene::render allocates its output (warp_out_ keeps its capacity).

@@ -1,0 +1,288 @@
+// Cases just outside pose_accuracy_bench's envelope (issue 13: "a pose stream must never lie"):
+// scale beyond the tracked range, spins and motion faster than the walk and the ROI, a target
+// leaving the field, strong defocus, a slow detector, brightness steps, contrast inversion, a
+// second target of the same pattern, beam faults. Closed loop on the simulator (sim_harness.hpp);
+// prints one row per case × target × dose: frames, TRACKING share, false TRACKING poses (> 3 px or
+// > 10° off target 0's truth, or TRACKING while its centre is outside the field) and the largest
+// error of a TRACKING pose. Not a test: it measures (README, Tests: pose_false_tracking_test).
+//   pose_envelope_probe [--case SUBSTRING] [--target NAME] [--dose D] [--frames-list] [--trace]
+// --frames-list: every false TRACKING pose; --trace: every frame's state, pose and truth (stderr).
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "sim_harness.hpp"
+
+namespace pt = sempose::pose::testing;
+namespace cfg = sempose::config;
+using sempose::pose::TrackState;
+
+namespace {
+
+struct Case {
+  std::string name;
+  std::function<void(pt::Scenario&)> setup;
+};
+
+cfg::TimeProfile step_at(double from, double to, double t_s) {
+  cfg::TimeProfile p;
+  p.from = from;
+  p.to = to;
+  p.start_s = t_s;
+  return p;
+}
+
+void linear(pt::Scenario& s, double x, double y, double vx, double vy, double margin_px) {
+  s.start_x_px = x;
+  s.start_y_px = y;
+  s.motion = "static";
+  auto prev = s.edit_run;
+  s.edit_run = [=](cfg::SimConfig& c) {
+    if (prev) prev(c);
+    auto& tr = c.targets[0].trajectory;
+    tr = cfg::TrajectoryConfig{};
+    tr.kind = "linear";
+    tr.vx_px_s = vx;
+    tr.vy_px_s = vy;
+    tr.margin_px = margin_px;
+  };
+}
+
+// The target alternates between its start and dx px to the right every period_s.
+void hop(pt::Scenario& s, double dx, double period_s) {
+  s.start_x_px = 320 - dx / 2;
+  s.motion = "static";
+  s.edit_run = [=](cfg::SimConfig& c) {
+    auto& tr = c.targets[0].trajectory;
+    tr = cfg::TrajectoryConfig{};
+    tr.kind = "steps";
+    tr.steps = 1;
+    tr.period_s = period_s;
+    tr.amplitude_x_px = dx;
+  };
+}
+
+void spin(pt::Scenario& s, double deg_per_frame) {
+  s.motion = "spin";
+  s.edit_run = [=](cfg::SimConfig& c) { c.targets[0].trajectory.omega_deg_s = deg_per_frame / 0.0101; };
+}
+
+// A second target of the same pattern entering from the right at dy px from target 0's line and
+// passing over it (target 0 moves right slowly).
+void second_target(pt::Scenario& s, double dy) {
+  s.start_x_px = 220;
+  s.frames = 180;
+  s.motion = "static";
+  s.edit_run = [=](cfg::SimConfig& c) {
+    auto& a = c.targets[0].trajectory;
+    a = cfg::TrajectoryConfig{};
+    a.kind = "linear";
+    a.vx_px_s = 100;
+    a.margin_px = 110;
+    cfg::SimTargetConfig b = c.targets[0];
+    b.enabled = true;
+    b.x_px = 760;
+    b.y_px = c.targets[0].y_px + dy;
+    b.trajectory = cfg::TrajectoryConfig{};
+    b.trajectory.kind = "linear";
+    b.trajectory.vx_px_s = -300;
+    b.trajectory.margin_px = -200;
+    c.targets[1] = b;
+  };
+}
+
+void fault(pt::Scenario& s, int from, int to, std::function<void(const sempose::hal::Roi&, sempose::hal::Pixel*, sempose::hal::Pixel)> f) {
+  s.frame_fault = [=](std::uint64_t seq, const sempose::hal::Roi& roi, sempose::hal::Pixel* px, sempose::hal::Pixel max) {
+    if (static_cast<int>(seq) >= from && static_cast<int>(seq) <= to) f(roi, px, max);
+  };
+}
+
+std::vector<Case> cases() {
+  using sempose::hal::Pixel;
+  using sempose::hal::Roi;
+  std::vector<Case> v;
+  // 1. Scale beyond the tracked range (~0.75-1.33), ramps and a 20 % step (a magnification change without SELECT).
+  v.push_back({"scale_ramp_to_1.6", [](pt::Scenario& s) { s.scale_to = 1.6; s.frames = 100; }});
+  v.push_back({"scale_ramp_to_0.6", [](pt::Scenario& s) { s.scale_to = 0.6; s.frames = 100; }});
+  v.push_back({"scale_step_up_20", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.edit_run = [](cfg::SimConfig& c) { c.targets[0].scale = step_at(1.0, 1.2, 0.4); };
+               }});
+  v.push_back({"scale_step_down_20", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.edit_run = [](cfg::SimConfig& c) { c.targets[0].scale = step_at(1.0, 1.0 / 1.2, 0.4); };
+               }});
+  // 2. Spin faster than the walk follows; a sudden 180° turn (and back).
+  for (double d : {15.0, 25.0, 45.0})
+    v.push_back({"spin_" + std::to_string(static_cast<int>(d)) + "deg_per_frame", [d](pt::Scenario& s) { s.frames = 80; spin(s, d); }});
+  v.push_back({"turn_180", [](pt::Scenario& s) {
+                 s.frames = 100;
+                 s.motion = "static";
+                 s.edit_run = [](cfg::SimConfig& c) {
+                   auto& tr = c.targets[0].trajectory;
+                   tr = cfg::TrajectoryConfig{};
+                   tr.kind = "steps";
+                   tr.steps = 1;
+                   tr.period_s = 0.4;
+                   tr.amplitude_phi_deg = 180;
+                 };
+               }});
+  // 3. Motion faster than the ROI: hops of 1 and 2 ROI widths, steady drift of 30 / 60 / 100 px per frame.
+  v.push_back({"hop_200px_every_5_frames", [](pt::Scenario& s) { s.frames = 80; hop(s, 200, 0.0505); }});
+  v.push_back({"hop_380px_every_5_frames", [](pt::Scenario& s) { s.frames = 80; hop(s, 380, 0.0505); }});
+  v.push_back({"hop_200px_every_frame", [](pt::Scenario& s) { s.frames = 60; hop(s, 200, 0.0101); }});
+  v.push_back({"drift_30px_per_frame", [](pt::Scenario& s) { s.frames = 80; linear(s, 320, 240, 2800, 1100, 110); }});
+  v.push_back({"drift_60px_per_frame", [](pt::Scenario& s) { s.frames = 80; linear(s, 320, 240, 5600, 2200, 110); }});
+  v.push_back({"drift_100px_per_frame", [](pt::Scenario& s) { s.frames = 80; linear(s, 320, 240, 9300, 3700, 110); }});
+  // 4. Leaving the field partly (centre on the edge), wholly across an edge and a corner, and back.
+  v.push_back({"leave_edge_half", [](pt::Scenario& s) { s.frames = 150; linear(s, 200, 240, -300, 0, 0); }});
+  v.push_back({"leave_edge_whole", [](pt::Scenario& s) { s.frames = 250; linear(s, 200, 240, -300, 0, -170); }});
+  v.push_back({"leave_corner_whole", [](pt::Scenario& s) { s.frames = 250; linear(s, 200, 180, -300, -285, -170); }});
+  // 5. Strong defocus, a slow detector (recorded with a fast one), brightness steps, contrast inversion.
+  v.push_back({"defocus_3px", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.edit_run = [](cfg::SimConfig& c) { c.defocus_px = step_at(0, 3, 0.25); };
+               }});
+  v.push_back({"defocus_5px", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.edit_run = [](cfg::SimConfig& c) { c.defocus_px = step_at(0, 5, 0.25); };
+               }});
+  v.push_back({"detector_tau_2px", [](pt::Scenario& s) {
+                 s.frames = 60;
+                 s.edit_run = [](cfg::SimConfig& c) { c.detector_tau_ns = 500; };
+               }});
+  v.push_back({"detector_tau_4px", [](pt::Scenario& s) {
+                 s.frames = 60;
+                 s.edit_run = [](cfg::SimConfig& c) { c.detector_tau_ns = 1000; };
+               }});
+  v.push_back({"gain_step_x0.5", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.edit_run = [](cfg::SimConfig& c) { c.charging_gain = step_at(1, 0.5, 0.3); };
+               }});
+  v.push_back({"gain_step_x2", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.edit_run = [](cfg::SimConfig& c) { c.charging_gain = step_at(1, 2, 0.3); };
+               }});
+  v.push_back({"contrast_inversion", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.edit_run = [](cfg::SimConfig& c) {
+                   c.charging_gain = step_at(1, -1, 0.3);
+                   c.charging_offset = step_at(0, 1, 0.3);
+                 };
+               }});
+  // 6. A second target of the same pattern passing over / close to / near this one.
+  v.push_back({"twin_passes_over", [](pt::Scenario& s) { second_target(s, 0); }});
+  v.push_back({"twin_passes_30px", [](pt::Scenario& s) { second_target(s, 30); }});
+  v.push_back({"twin_passes_70px", [](pt::Scenario& s) { second_target(s, 70); }});
+  // 7. Beam faults mid-run: saturated frames, a band of saturated lines, the lower half blanked
+  // (black level), the lower half shifted 12 px (a scan glitch), a field region gone dark (an occluder).
+  v.push_back({"saturated_frames_40_41", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 fault(s, 40, 41, [](const Roi& r, Pixel* p, Pixel m) { std::fill(p, p + r.w * r.h, m); });
+               }});
+  v.push_back({"saturated_band_frames_40_49", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 fault(s, 40, 49, [](const Roi& r, Pixel* p, Pixel m) { std::fill(p + r.w * (r.h / 3), p + r.w * (r.h / 2), m); });
+               }});
+  v.push_back({"half_blanked_frames_40_49", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 fault(s, 40, 49, [](const Roi& r, Pixel* p, Pixel m) {
+                   std::fill(p + r.w * (r.h / 2), p + r.w * r.h, static_cast<Pixel>(0.04 * m));
+                 });
+               }});
+  v.push_back({"half_shifted_12px_frames_40_49", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 fault(s, 40, 49, [](const Roi& r, Pixel* p, Pixel) {
+                   for (int y = r.h / 2; y < r.h; ++y) {
+                     Pixel* row = p + static_cast<std::ptrdiff_t>(y) * r.w;
+                     for (int x = r.w - 1; x >= 12; --x) row[x] = row[x - 12];
+                   }
+                 });
+               }});
+  v.push_back({"dark_occluder_x_gt_400", [](pt::Scenario& s) {
+                 s.frames = 200;
+                 linear(s, 250, 240, 150, 0, 60);
+                 s.frame_fault = [](std::uint64_t, const Roi& r, Pixel* p, Pixel m) {
+                   for (int y = 0; y < r.h; ++y)
+                     for (int x = std::max(0, 400 - r.x); x < r.w; ++x) p[static_cast<std::ptrdiff_t>(y) * r.w + x] = static_cast<Pixel>(0.04 * m);
+                 };
+               }});
+  return v;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string only_case, only_target;
+  double only_dose = -1;
+  bool list_frames = false, trace = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--case") && i + 1 < argc) only_case = argv[++i];
+    else if (!std::strcmp(argv[i], "--target") && i + 1 < argc) only_target = argv[++i];
+    else if (!std::strcmp(argv[i], "--dose") && i + 1 < argc) only_dose = std::atof(argv[++i]);
+    else if (!std::strcmp(argv[i], "--frames-list")) list_frames = true;
+    else if (!std::strcmp(argv[i], "--trace")) trace = true;
+    else {
+      std::fprintf(stderr, "usage: %s [--case SUBSTRING] [--target needle_tip|lamella_post|lamella] [--dose D] [--frames-list] [--trace]\n", argv[0]);
+      return 2;
+    }
+  }
+  std::printf("%-32s %-12s %5s | %6s %6s %6s %5s %8s %8s\n", "case", "target", "dose", "frames", "trk%", "unc%", "false",
+              "max_px", "max_deg");
+  for (const Case& c : cases()) {
+    if (!only_case.empty() && c.name.find(only_case) == std::string::npos) continue;
+    for (const char* target : {"needle_tip", "lamella_post", "lamella"}) {
+      if (!only_target.empty() && only_target != target) continue;
+      for (double dose : {20.0, 6.0, 2.5, 1.0}) {
+        if (only_dose > 0 && std::fabs(only_dose - dose) > 1e-9) continue;
+        pt::Scenario s;
+        s.target = target;
+        s.dose_e = dose;
+        s.frames = 80;
+        s.start_phi_deg = 30;
+        c.setup(s);
+        pt::SimHarness h(s, cfg::TrackerConfig{});
+        if (!h.status().ok) {
+          std::printf("%-32s %-12s %5.1f | setup failed: %s\n", c.name.c_str(), target, dose, h.status().message.c_str());
+          continue;
+        }
+        h.run();
+        int tracking = 0, uncertain = 0, false_n = 0;
+        double max_px = 0, max_deg = 0;
+        std::string frames;
+        for (std::size_t f = 0; f < h.poses().size(); ++f) {
+          const auto& e = h.poses()[f];
+          const auto& t = h.records()[f].truth;
+          uncertain += e.state == TrackState::kUncertain;
+          if (trace)
+            std::fprintf(stderr, "T %zu %s x %.1f y %.1f tx %.1f ty %.1f err %.2f px %.2f deg score %.3f chi2 %.2f scale %.4f truth %.4f reasons %d%s\n", f,
+                         sempose::pose::to_string(e.state), e.x_px, e.y_px, t.x_px, t.y_px, std::hypot(e.x_px - t.x_px, e.y_px - t.y_px),
+                         std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)), e.score, e.chi2, e.scale, t.scale,
+                         static_cast<int>(e.reason_bits), e.searched ? " searched" : "");
+          if (e.state != TrackState::kTracking) continue;
+          ++tracking;
+          const double px = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
+          const double deg = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
+          max_px = std::max(max_px, px);
+          max_deg = std::max(max_deg, deg);
+          const bool off = !t.present || px > 3.0 || deg > 10.0;
+          false_n += off;
+          if (off && list_frames) {
+            char b[160];
+            std::snprintf(b, sizeof b, "    frame %zu: %.1f px %.1f deg score %.3f chi2 %.2f searched %d present %d\n", f, px, deg,
+                          e.score, e.chi2, static_cast<int>(e.searched), static_cast<int>(t.present));
+            frames += b;
+          }
+        }
+        std::printf("%-32s %-12s %5.1f | %6d %6.1f %6.1f %5d %8.2f %8.2f\n", c.name.c_str(), target, dose, s.frames,
+                    100.0 * tracking / s.frames, 100.0 * uncertain / s.frames, false_n, max_px, max_deg);
+        std::fputs(frames.c_str(), stdout);
+        std::fflush(stdout);
+      }
+    }
+  }
+  return 0;
+}
