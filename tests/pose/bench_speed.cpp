@@ -183,7 +183,7 @@ int main(int argc, char** argv) {
 
   std::printf("\nstart search (full field, x8 pyramid, 18 coarse angles, 4 candidates refined; scale 1 only =\n"
               "tracker.search_scale_min = max = 1; 0.75-1.33 = a new target, no SELECT: levels 0.8, 1, 1.25 around the\n"
-              "expected scale; narrow = a SELECT gave nm/px, or the re-search after a loss: one level, refined +-14.8 %%)\n");
+              "expected scale; narrow = a SELECT gave nm/px: one level, refined +-14.8 %%)\n");
   enum class Cover { kScaleOne, kLevels, kNarrow };
   for (auto [w, hgt] : {std::pair{640, 480}, std::pair{1024, 768}})
   for (const Cover cover : {Cover::kScaleOne, Cover::kLevels, Cover::kNarrow}) {

@@ -589,9 +589,13 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     const bool prior_known = motion.last_angle().known;
     double found_scale = scale;
     // The expected scale is a prior: the SELECT's (else 1) for a new target, the last tracked
-    // one after a loss (a loss during a magnification ramp: narrow, centred on it).
+    // one after a loss. One level only for a new target whose size the SELECT told; after a loss
+    // the levels around the last tracked scale: a magnification step without SELECT loses the
+    // target, and one level at the old size found the best match of the old size, a wrong pose
+    // the frames after it kept (pose_envelope_probe scale_step_*: the needle tip 10-11 px off, the
+    // lamella on post 24-28 px and 87° off, TRACKING on 21 and 34 of 80 frames at 6 e-/px).
     const ScalePrior scale_prior{scale_tracked ? scale : expected_scale.load(std::memory_order_relaxed),
-                                 scale_tracked || scale_told.load(std::memory_order_relaxed)};
+                                 !scale_tracked && scale_told.load(std::memory_order_relaxed)};
     // The other targets' objects, in this frame's coordinates: not to be taken by this one.
     HeldPlaces held = frame.held_by_others;
     for (int i = 0; i < held.count && i < kMaxHeldPlaces; ++i) {
