@@ -358,6 +358,22 @@ bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double u
   return s.valid && s.z * s.z >= -2.0 * std::log(p) && used_scale * s.apart_px >= kTornApartPx;
 }
 
+// A target leaving the field across an edge or a corner (pose_envelope_probe --case leave_): the
+// pattern's window cannot be placed beyond the field, so the search's and the walk's maximum sits
+// where the window touches the edge, however far the target went on (the needle tip re-found by
+// the search at the edge 4-12 px off, TRACKING; the lamella on post's search there took its 180°
+// look-alike, which the visible half matched better, and kept it: open_flip_check). A maximum on
+// the boundary of the places measured is no maximum: not TRACKING. The window's half-size at the
+// scale the frame was loaded at; the margin one scale reading's step more (the search reports the
+// scale its probe refined, up to ScaleProbe::kStep from the level it loaded at).
+bool Tracker::Impl::at_field_edge(const PoseEstimate& e, double load_scale) const noexcept {
+  if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
+  const double r = 0.5 * (sizes.pattern_px - 1) * load_scale;  // the window's half-size in the field
+  const double margin = 1.0 + r * ScaleProbe::kStep;
+  return e.meas_x_px - r < margin || e.meas_y_px - r < margin || e.meas_x_px + r > field.field_w - 1 - margin ||
+         e.meas_y_px + r > field.field_h - 1 - margin;
+}
+
 double Tracker::Impl::significance_z() const noexcept {
   const double p = std::clamp(cfg.max_false_probability, 1e-12, 0.5);
   double lo = 0, hi = 10;  // 0.5·erfc(z/√2) = p, decreasing in z
@@ -379,13 +395,17 @@ double Tracker::Impl::student_t(double z, int nu) noexcept {
 // After a search: the chosen hypothesis must lead the one 180° away by more than the score
 // noise allows (significance_z SDs of one difference), else the check stays open. A trusted
 // angle prior (the last tracked angle: a target does not turn 180° while lost) already chose,
-// unless the check was still open when the target was lost.
-void Tracker::Impl::open_flip_check(const Measurement& m, bool prior_known) noexcept {
+// unless the check was still open when the target was lost. A search frame whose pattern window
+// reaches the field's edge (at_field_edge) decides nothing: the hypothesis that would fit only
+// beyond the edge could not be measured, so the visible part's better match wins there (the
+// lamella on post half out of the field: its 180° look-alike 14-18 px off was taken and kept for
+// ~100 frames after the target came back). The check opens and the frames after it decide.
+void Tracker::Impl::open_flip_check(const Measurement& m, bool prior_known, bool censored) noexcept {
   const bool was_open = flip_open;
   flip_open = false;
-  if (!(cfg.max_false_probability > 0) || m.flip_score < -1.0f || (prior_known && !was_open)) return;
-  const double d = static_cast<double>(m.score) - m.flip_score;
-  if (d >= significance_z() * flip_sd(m.score)) return;
+  if (!(cfg.max_false_probability > 0) || (m.flip_score < -1.0f && !censored) || (prior_known && !was_open && !censored)) return;
+  const double d = m.flip_score < -1.0f ? 0.0 : static_cast<double>(m.score) - m.flip_score;
+  if (d >= significance_z() * flip_sd(m.score) && !censored) return;
   flip_open = true;
   flip_sum = d;
   flip_sum2 = d * d;
@@ -624,10 +644,15 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       accept(e, frame, true, cfg.attainable_pattern_noise && attainable > 0 ? attainable : 1.0);
       scale = e.scale;  // tracking starts at the scale the search found
       scale_tracked = true;
-      open_flip_check(m, prior_known);
+      const bool at_edge = at_field_edge(e, e.scale);
+      open_flip_check(m, prior_known, at_edge);
       // The search frame's pose is judged like a tracked one (trusted_pose: below the explained
       // bound it waits for the stream's pose noise; above it by its own σ, search_sigma).
       if (flip_open || unconfirmed || !trusted_pose(e, Innovation{})) e.state = TrackState::kUncertain;
+      if (at_edge) {
+        e.state = TrackState::kUncertain;
+        e.reason_bits |= kReasonOutOfField;
+      }
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable
@@ -732,6 +757,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
       if (flip_open || rival_within_noise || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
+      if (at_field_edge(e, used_scale)) {
+        e.state = TrackState::kUncertain;
+        e.reason_bits |= kReasonOutOfField;
+      }
       if (still && e.state == TrackState::kTracking && torn(m, bank, used_scale)) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;

@@ -253,6 +253,10 @@ struct Tracker::Impl {
   // (split_consistency.hpp): it moved mid-scan. Checked only on a target the stream says stood
   // still (kStill*). Followed, reported UNCERTAIN with kReasonUnexplained.
   bool torn(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept;
+  // The pattern's window at the measured pose reaches the field's edge (tracker.cpp): the match
+  // is the best place the pattern still fits, not necessarily the target's. Reported UNCERTAIN
+  // with kReasonOutOfField.
+  bool at_field_edge(const PoseEstimate& e, double load_scale) const noexcept;
   static constexpr double kTornApartPx = 0.75;
   static constexpr double kStillPx = 1.0, kStillDeg = 1.0, kStillScale = 0.0025, kStillScaleStep = 0.005;
   double scale_step = 0;  // the tracked scale's change on the last accepted ROI frame
@@ -282,7 +286,7 @@ struct Tracker::Impl {
   // difference significant at the rate a false pose is allowed.
   double significance_z() const noexcept;
   static double student_t(double z, int nu) noexcept;
-  void open_flip_check(const Measurement& m, bool prior_known) noexcept;
+  void open_flip_check(const Measurement& m, bool prior_known, bool censored) noexcept;
 
   // Search check (a real micrograph has look-alikes: the warped lamella-on-post crop at
   // 1 e-/px has one ~200 px away, turned −90°, scoring as the target does): a search's result
