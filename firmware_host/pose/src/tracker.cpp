@@ -761,6 +761,16 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonOutOfField;
       }
+      // The target's size beyond the scales the tracker follows (the ROI cannot hold it): the
+      // tracked scale stops at kScaleMin / kScaleMax while the target grows or shrinks on, and
+      // the pose drifts with the mismatch (pose_envelope_probe --case scale_ramp: a ramp to 1.6 /
+      // 0.6, the needle tip 3-6.7 px off from truth 1.51 / 0.65 on, TRACKING). The tracked scale
+      // pinned at the range's end and this frame's reading beyond it: the pattern no longer models
+      // the target's size (the reading itself goes at most ScaleProbe::kStep past the scale loaded).
+      if (reading.valid && ((scale >= kScaleMax && e.scale > kScaleMax) || (scale <= kScaleMin && e.scale < kScaleMin))) {
+        e.state = TrackState::kUncertain;
+        e.reason_bits |= kReasonUnexplained;
+      }
       if (still && e.state == TrackState::kTracking && torn(m, bank, used_scale)) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;
