@@ -228,6 +228,27 @@ FalseCount count_false(const pt::SimHarness& h) {
   }
   return c;
 }
+
+// A scene of the cases outside the benchmark's envelope (pose_envelope_probe's): the target
+// started at 30°, its motion, dose and length.
+pt::Scenario envelope_scene(const char* target, const char* motion, double dose, int frames) {
+  pt::Scenario s;
+  s.target = target;
+  s.motion = motion;
+  s.dose_e = dose;
+  s.frames = frames;
+  s.start_phi_deg = 30;
+  return s;
+}
+
+// Runs a scene and prints its TRACKING, false and search counts under a label.
+FalseCount run_and_count(pt::SimHarness& h, const std::string& label) {
+  h.run();
+  const FalseCount n = count_false(h);
+  std::printf("%s: TRACKING %d/%zu, false %d, searches %d\n", label.c_str(), n.tracked, h.poses().size(), n.false_n,
+              n.searches);
+  return n;
+}
 }  // namespace
 
 // The warped real crop spinning 450°/s (issue 13 item 6): the frame after the full-field
@@ -646,12 +667,7 @@ TEST(NoFalseTracking, MagnificationStepWithoutSelectIsFoundAtTheNewSize) {
     double to;
   };
   for (const Case& c : {Case{"needle_tip", 1.2}, Case{"lamella_post", 1.2}, Case{"needle_tip", 1.0 / 1.2}}) {
-    pt::Scenario s;
-    s.target = c.target;
-    s.motion = "smooth";
-    s.dose_e = 6;
-    s.frames = 80;
-    s.start_phi_deg = 30;
+    pt::Scenario s = envelope_scene(c.target, "smooth", 6, 80);
     const double to = c.to;
     s.edit_run = [to](sempose::config::SimConfig& sc) {
       sc.targets[0].scale.from = 1.0;
@@ -660,10 +676,7 @@ TEST(NoFalseTracking, MagnificationStepWithoutSelectIsFoundAtTheNewSize) {
     };
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
-    h.run();
-    const FalseCount n = count_false(h);
-    std::printf("%s scale step to %.3f dose 6: TRACKING %d/%d, false %d, searches %d\n", c.target, c.to, n.tracked, s.frames,
-                n.false_n, n.searches);
+    const FalseCount n = run_and_count(h, std::string(c.target) + " scale step to " + std::to_string(c.to) + " dose 6");
     EXPECT_EQ(n.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (21 / 34 / 11 before)";
     EXPECT_GE(n.tracked, s.frames - 8) << "re-found at its new size and tracked again";
   }
@@ -683,12 +696,7 @@ TEST(NoFalseTracking, TargetLeavingTheFieldAcrossAnEdgeIsNotTrackedAtTheEdge) {
     double dose;
   };
   for (const Case& c : {Case{"needle_tip", 6}, Case{"lamella_post", 20}}) {
-    pt::Scenario s;
-    s.target = c.target;
-    s.motion = "static";
-    s.dose_e = c.dose;
-    s.frames = 150;
-    s.start_phi_deg = 30;
+    pt::Scenario s = envelope_scene(c.target, "static", c.dose, 150);
     s.start_x_px = 200;
     s.edit_run = [](sempose::config::SimConfig& sc) {
       auto& tr = sc.targets[0].trajectory;
@@ -699,10 +707,7 @@ TEST(NoFalseTracking, TargetLeavingTheFieldAcrossAnEdgeIsNotTrackedAtTheEdge) {
     };
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
-    h.run();
-    const FalseCount n = count_false(h);
-    std::printf("%s leaving across the edge, dose %.0f: TRACKING %d/%d, false %d, searches %d\n", c.target, c.dose, n.tracked,
-                s.frames, n.false_n, n.searches);
+    const FalseCount n = run_and_count(h, std::string(c.target) + " leaving across the edge, dose " + std::to_string(c.dose));
     EXPECT_EQ(n.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (1 / 103 before)";
     EXPECT_GE(n.tracked, s.frames * 4 / 5) << "tracked while its pattern fits in the field";
   }
@@ -716,24 +721,17 @@ TEST(NoFalseTracking, TargetLeavingTheFieldAcrossAnEdgeIsNotTrackedAtTheEdge) {
 // is UNCERTAIN; the ramp inside the range stays TRACKING.
 TEST(NoFalseTracking, ScaleBeyondTheTrackedRangeIsNotTracking) {
   for (const double to : {1.6, 0.6}) {
-    pt::Scenario s;
-    s.target = "needle_tip";
-    s.motion = "smooth";
-    s.dose_e = 6;
-    s.frames = 100;
-    s.start_phi_deg = 30;
+    pt::Scenario s = envelope_scene("needle_tip", "smooth", 6, 100);
     s.scale_to = to;
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
-    h.run();
-    const FalseCount n = count_false(h);
+    const FalseCount n = run_and_count(h, "needle_tip scale ramp to " + std::to_string(to) + " dose 6");
     int tracked_in_range = 0;  // TRACKING while the truth is inside 0.7-1.45 by 2 %
     for (std::size_t f = 0; f < h.poses().size(); ++f) {
       const double truth = h.records()[f].truth.scale;
       tracked_in_range += h.poses()[f].state == TrackState::kTracking && truth > 0.7 * 1.02 && truth < 1.45 / 1.02;
     }
-    std::printf("needle_tip scale ramp to %.1f dose 6: TRACKING %d/%d (%d inside the range), false %d\n", to, n.tracked, s.frames,
-                tracked_in_range, n.false_n);
+    std::printf("  TRACKING inside the range %d\n", tracked_in_range);
     EXPECT_EQ(n.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (10 / 7 before)";
     EXPECT_GE(tracked_in_range, 55) << "the ramp inside the tracked range stays TRACKING";
   }
