@@ -400,16 +400,30 @@ double Tracker::Impl::student_t(double z, int nu) noexcept {
 // beyond the edge could not be measured, so the visible part's better match wins there (the
 // lamella on post half out of the field: its 180° look-alike 14-18 px off was taken and kept for
 // ~100 frames after the target came back). The check opens and the frames after it decide.
+// With a shape mask the search's lead is a masked score's only, which can prefer the wrong
+// hypothesis (settle_flip): the check is always opened and decided on ROI frames.
 void Tracker::Impl::open_flip_check(const Measurement& m, bool prior_known, bool censored) noexcept {
   const bool was_open = flip_open;
   flip_open = false;
   if (!(cfg.max_false_probability > 0) || (m.flip_score < -1.0f && !censored) || (prior_known && !was_open && !censored)) return;
   const double d = m.flip_score < -1.0f ? 0.0 : static_cast<double>(m.score) - m.flip_score;
-  if (d >= significance_z() * flip_sd(m.score) && !censored) return;
+  if (!shape_masked && d >= significance_z() * flip_sd(m.score) && !censored) return;
   flip_open = true;
-  flip_sum = d;
-  flip_sum2 = d * d;
-  flip_n = 1;
+  flip_lead = FlipLead{};
+  flip_circle = FlipLead{};
+  if (!shape_masked) flip_lead.add(d);
+}
+
+// The mean difference of a flip check's scores against Student's t with n − 1 degrees of
+// freedom on the differences' own spread: > 0 significant for the kept hypothesis, < 0 for the
+// opposite one, 0 not yet.
+int Tracker::Impl::FlipLead::verdict(double z_normal) const noexcept {
+  if (n < 4) return 0;  // a spread needs a few differences (t below is good from 3 dof)
+  const double mean = sum / n;
+  const double spread = std::sqrt(std::max(0.0, (sum2 - n * mean * mean) / (n - 1)));
+  const double sd = std::max(spread, 1e-6) / std::sqrt(static_cast<double>(n));
+  const double z = student_t(z_normal, n - 1);
+  return mean >= z * sd ? 1 : mean <= -z * sd ? -1 : 0;
 }
 
 bool Tracker::Impl::search_settled(const Measurement& m, const PoseEstimate& e) noexcept {
@@ -471,21 +485,34 @@ bool Tracker::Impl::settle_flip(const PatternBank& bank, Measurement& m, PoseEst
   e.angle_steps += f.steps + 1;
   if (!f.valid) return false;
   const double d = static_cast<double>(m.score) - f.score;
-  flip_sum += d;
-  flip_sum2 += d * d;
-  ++flip_n;
-  if (flip_n < 4) return false;  // a spread needs a few differences (t below is good from 3 dof)
+  flip_lead.add(d);
   // The two hypotheses are scored on the same pixels, so their noise is largely shared (the
   // more alike they are, the more): the differences' own spread is the SD that counts, not
   // flip_sd's independent-score one (which would need ~80 frames at 2.5 e-/px); Student's t
   // with n − 1 degrees of freedom for the few frames it is measured on.
-  const double mean = flip_sum / flip_n;
-  const double spread = std::sqrt(std::max(0.0, (flip_sum2 - flip_n * mean * mean) / (flip_n - 1)));
-  const double sd = std::max(spread, 1e-6) / std::sqrt(static_cast<double>(flip_n));
-  const double z = student_t(significance_z(), flip_n - 1);
-  if (mean >= z * sd) {
+  int verdict = flip_lead.verdict(significance_z());
+  if (shape_masked) {
+    // A shape mask keeps the target's own pixels, and an outline at alpha 0.5 cuts a flat
+    // target's rim in half: what tells it from itself turned by 180° (its edges against the
+    // background) is largely outside the mask. The hypothesis with more signal under its mask
+    // loses less of its score to the noise, so at low dose the masked score can prefer the
+    // wrong one, steadily: the lamella on its post at 2.5 e-/px scored 0.60-0.62 turned 180°
+    // and 18 px off against the target's 0.52-0.60, and the check kept it (52 of 60 poses false
+    // TRACKING). The binned level's whole-circle scores (where the search located both) see
+    // those edges: 0.66-0.68 against the target's 0.71-0.75 there, 0.08-0.12 in the target's
+    // favour at 6 and 20 e-/px. The check decides only when both agree; else it stays open
+    // (the poses followed, UNCERTAIN).
+    const auto circle_score = [&](const Measurement& h) {
+      half.correlate(bank.spectrum(h.j), maps.work());
+      return find_peak(maps.work(), half.valid_w(), half.valid_h(), {h.ux / 2 - 1, h.uy / 2 - 1, h.ux / 2 + 2, h.uy / 2 + 2}).score;
+    };
+    flip_circle.add(static_cast<double>(circle_score(m)) - circle_score(f));
+    e.angle_steps += 2;
+    if (flip_circle.verdict(significance_z()) != verdict) verdict = 0;
+  }
+  if (verdict > 0) {
     flip_open = false;
-  } else if (mean <= -z * sd) {
+  } else if (verdict < 0) {
     flip_open = false;
     const int steps = e.angle_steps;
     m = f;
@@ -570,6 +597,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   }
   const PatternBank& bank = frame_bank(set);
   attainable_factor = set < pattern_factor.size() ? pattern_factor[set] : 1.0;
+  shape_masked = set < banks.size() && banks[set]->has_shape();
   const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
   bool commanded_search = false;
   if (reacquire.exchange(false, std::memory_order_relaxed)) {

@@ -273,9 +273,18 @@ struct Tracker::Impl {
   // (one binned FFT and a walk, ~50 µs) and sums the score differences; the poses are
   // UNCERTAIN until the sum is significant either way (then the winner is tracked).
   bool flip_open = false;
-  double flip_sum = 0;    // Σ (score of the tracked hypothesis − score of the opposite one)
-  double flip_sum2 = 0;
-  int flip_n = 0;
+  // Σ and Σ² of (score of the tracked hypothesis − score of the opposite one) over n frames.
+  struct FlipLead {
+    double sum = 0, sum2 = 0;
+    int n = 0;
+    void add(double d) noexcept { sum += d, sum2 += d * d, ++n; }
+    int verdict(double z_normal) const noexcept;
+  };
+  FlipLead flip_lead;
+  // With a shape mask: the same of the hypotheses' binned whole-circle scores (tracker.cpp,
+  // settle_flip), which must agree with the masked ones.
+  FlipLead flip_circle;
+  bool shape_masked = false;  // the active set's pattern has a user's shape mask; set at each update()
   double score_samples = 1.0;  // independent noise samples under the mask (mask pixels × Σk²)
   // SD of one frame's difference of two ZNCC scores near s under detector noise alone:
   // √2·(1 − s²)/√N_eff (the ZNCC's sampling SD, two nearly independent measurements).
