@@ -229,8 +229,8 @@ FalseCount count_false(const pt::SimHarness& h) {
   return c;
 }
 
-// A scene of the cases outside the benchmark's envelope (pose_envelope_probe's): the target
-// started at 30°, its motion, dose and length.
+// A simulated target started at 30° (as the accuracy bench's rows and pose_envelope_probe's
+// cases are), its motion, dose and length.
 pt::Scenario envelope_scene(const char* target, const char* motion, double dose, int frames) {
   pt::Scenario s;
   s.target = target;
@@ -259,12 +259,7 @@ FalseCount run_and_count(pt::SimHarness& h, const std::string& label) {
 // searches such a pose again around the prediction and does not report it if it stays.
 TEST(NoFalseTracking, FastSpinAfterTheStartSearch) {
   for (double dose : {20.0, 2.5}) {
-    pt::Scenario s;
-    s.target = "warped";
-    s.motion = "spin";
-    s.dose_e = dose;
-    s.frames = 60;
-    s.start_phi_deg = 30;
+    const pt::Scenario s = envelope_scene("warped", "spin", dose, 60);
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
     h.run();
@@ -746,12 +741,7 @@ TEST(NoFalseTracking, ScaleBeyondTheTrackedRangeIsNotTracking) {
 // flip check now also needs the whole circle's binned scores to agree; at 20 e-/px they do.
 TEST(NoFalseTracking, ShapeMaskOnTheLamellaOnItsPostDoesNotKeepTheFlippedPose) {
   for (double dose : {2.5, 20.0}) {
-    pt::Scenario s;
-    s.target = "lamella_post";
-    s.motion = "smooth";
-    s.dose_e = dose;
-    s.frames = 12;
-    s.start_phi_deg = 30;
+    pt::Scenario s = envelope_scene("lamella_post", "smooth", dose, 12);
     s.shape_mask = true;
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
