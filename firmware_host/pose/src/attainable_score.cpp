@@ -23,13 +23,27 @@ SEMPOSE_CLONES void row_moments(const std::uint16_t* row, int p, std::int64_t& s
 
 AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int p,
                                  const PrefilterNoiseGain& gain) noexcept {
+  const MaskBand whole{0, p - 1, 0, p - 1};
+  return attainable_score(px, w, h, cx, cy, p, &whole, 1, gain);
+}
+
+AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int p,
+                                 const MaskBand* bands, int n_bands, const PrefilterNoiseGain& gain) noexcept {
   AttainableScore a;
   if (px == nullptr || w < p || h < p || p < 4) return a;
   const int x0 = std::clamp(static_cast<int>(std::lround(cx - (p - 1) / 2.0)), 0, w - p);
   const int y0 = std::clamp(static_cast<int>(std::lround(cy - (p - 1) / 2.0)), 0, h - p);
   std::int64_t sum = 0, sum2 = 0;  // exact: p² · 65535² < 2^63 for any pattern side that fits a frame
-  for (int y = 0; y < p; ++y) row_moments(px + static_cast<std::size_t>(y0 + y) * w + x0, p, sum, sum2);
-  const double n = static_cast<double>(p) * p;
+  std::int64_t count = 0;
+  for (int b = 0; b < n_bands; ++b) {
+    const MaskBand& band = bands[b];
+    const int bw = band.x1 - band.x0 + 1;
+    for (int y = band.y0; y <= band.y1; ++y)
+      row_moments(px + static_cast<std::size_t>(y0 + y) * w + x0 + band.x0, bw, sum, sum2);
+    count += static_cast<std::int64_t>(bw) * (band.y1 - band.y0 + 1);
+  }
+  if (count < 2) return a;
+  const double n = static_cast<double>(count);
   const double mean = static_cast<double>(sum) / n;
   a.window_var = std::max(0.0, static_cast<double>(sum2) / n - mean * mean);
   a.noise = line_correlated_noise(px, w, x0, y0, p);

@@ -29,7 +29,11 @@ float normalised_chi2(double score, double attainable) noexcept {
 
 // The ZNCC the target itself would reach in the window at (cx, cy) of a frame, given the
 // frame's noise as the detector delivers it (correlated along the line): attainable_score.hpp.
-double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept {
+double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int j) const noexcept {
+  if (masked_bank && j >= 0 && j < masked_bank->angles())
+    return attainable_factor * pose::attainable_score(px, w, h, cx, cy, sizes.pattern_px, masked_bank->support_bands(j),
+                                                      masked_bank->support_band_count(j), prefilter_noise)
+                                   .score;
   return attainable_factor * pose::attainable_score(px, w, h, cx, cy, sizes.pattern_px, prefilter_noise).score;
 }
 
@@ -598,6 +602,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   const PatternBank& bank = frame_bank(set);
   attainable_factor = set < pattern_factor.size() ? pattern_factor[set] : 1.0;
   shape_masked = set < banks.size() && banks[set]->has_shape();
+  if (set < set_score_samples.size()) score_samples = set_score_samples[set];
+  masked_bank = shape_masked ? &bank : nullptr;
   const bool full_field = field.is_full_field(roi.x, roi.y, roi.w, roi.h);
   bool commanded_search = false;
   if (reacquire.exchange(false, std::memory_order_relaxed)) {
@@ -657,7 +663,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       unlag(e);
     }
     e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
-    const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y) : 0.0;
+    const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y, m.j) : 0.0;
     if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
     if (loss.found(m, attainable)) search_sigma(bank, m, px, roi, frame.bits, e);
     if (loss.found(m, attainable) && !search_settled(m, e)) {
@@ -748,7 +754,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   // The attainable score is ≤ 1, so a score at or above the explained check's upper bound
   // passes whatever it is: measured only when it can matter (~30 µs a frame saved).
   if (e.score < loss.explained_bound()) {
-    m.attainable = static_cast<float>(attainable_score(frame.pixels, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y));
+    m.attainable = static_cast<float>(attainable_score(frame.pixels, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y, m.j));
     e.chi2 = normalised_chi2(e.score, m.attainable);
   }
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;

@@ -140,6 +140,10 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
                                                                {bank->pattern_noise_var(), bank->pattern_noise_rho()},
                                                                t.prefilter_noise)
                                    : 1.0);
+    // A shape mask scores on its own pixels only, so the scores' noise is that of fewer samples
+    // than the circle's (the flip, search and below-level checks' SD, flip_sd).
+    t.set_score_samples.push_back((bank->has_shape() ? bank->mean_support_count() : static_cast<double>(t.fine_mask.count())) *
+                                  t.prefilter_noise_gain);
     t.banks.push_back(std::move(bank));
     t.nm_per_px.push_back(sets[i].nm_per_px);
     t.pattern_lag_px.push_back(DetectorLag::px(cfg.detector_tau_ns, sets[i].dwell_ns));

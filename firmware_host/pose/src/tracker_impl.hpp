@@ -190,13 +190,17 @@ struct Tracker::Impl {
   // tracker.attainable_pattern_noise is off). Setup: pattern_attainable_factor().
   std::vector<double> pattern_factor;
   double attainable_factor = 1.0;  // the active set's, set at each update()
+  // The active set's bank when its pattern set has a shape mask (a user's, not a learned
+  // support): the attainable score is then read over the mask's pixels at the match's angle
+  // (a masked score explains only those). Null otherwise; set at each update().
+  const PatternBank* masked_bank = nullptr;
 
   void use_noise_floors_of(std::uint8_t set) noexcept {
     if (set < noise_floors.size())
       loss.set_noise_floors(std::min(1.0f, noise_floors[set].roi * floor_scale_now),
                             std::min(1.0f, noise_floors[set].field * floor_scale_now));
   }
-  double attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy) const noexcept;
+  double attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int j) const noexcept;
   void calibrate_noise_floors(const config::ScanLimits& limits);
   void forget_everything() noexcept;
 
@@ -285,7 +289,8 @@ struct Tracker::Impl {
   // settle_flip), which must agree with the masked ones.
   FlipLead flip_circle;
   bool shape_masked = false;  // the active set's pattern has a user's shape mask; set at each update()
-  double score_samples = 1.0;  // independent noise samples under the mask (mask pixels × Σk²)
+  double score_samples = 1.0;  // independent noise samples under the mask (mask pixels × Σk²): the active set's
+  std::vector<double> set_score_samples;  // each set's (its shape mask's pixels, else the circle's); setup
   // SD of one frame's difference of two ZNCC scores near s under detector noise alone:
   // √2·(1 − s²)/√N_eff (the ZNCC's sampling SD, two nearly independent measurements).
   double flip_sd(double s) const noexcept {

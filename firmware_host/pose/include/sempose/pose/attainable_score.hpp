@@ -14,6 +14,7 @@
 
 #include <cstdint>
 
+#include "sempose/pose/pattern_support.hpp"
 #include "sempose/pose/prefilter.hpp"
 #include "sempose/pose/window_noise.hpp"
 
@@ -30,6 +31,14 @@ struct AttainableScore {
 // the frame. A frame smaller than the pattern scores 0.
 AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int p,
                                  const PrefilterNoiseGain& gain) noexcept;
+
+// The same over a shape mask's pixels only: `bands` (n_bands of them, in the p×p window's
+// coordinates: PatternBank::support_bands at the match's angle) hold the pixels a masked
+// pattern is scored on; the signal is their variance, the noise still the whole window's. A
+// masked pattern explains only its support, so the whole window's signal (moving parts,
+// background) would promise it a score it cannot reach.
+AttainableScore attainable_score(const std::uint16_t* px, int w, int h, double cx, double cy, int p,
+                                 const MaskBand* bands, int n_bands, const PrefilterNoiseGain& gain) noexcept;
 
 // The recorded pattern's own factor (setup): the score above assumes a noise-free pattern, but
 // the ZNCC of two noisy copies of one signal is the product of each copy's √(S/(S+N')). This
