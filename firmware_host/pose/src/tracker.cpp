@@ -39,6 +39,7 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
 
 void Tracker::Impl::forget_everything() noexcept {
   go_lost();
+  anchor.forget();
   flip_open = false;
   search_n = 0;
   loss.forget_target();
@@ -835,6 +836,22 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   return e;
 }
 
+// A held frame (the target there, its pose not vouched for) opens the continuity check: the
+// followed poses after it are TRACKING again only once they lie where the last TRACKING poses'
+// motion leads (continuity_anchor.hpp). Until then UNCERTAIN, kReasonUnexplained. A full-field
+// search starts it afresh (its pose is judged by the search's own checks).
+void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept {
+  const double t_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
+  if (e.searched) anchor.forget();
+  if (held_frames > 0) anchor.doubt();
+  const bool followed = tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
+  if (anchor.open() && followed && !anchor.confirm(t_s, e.x_px, e.y_px) && e.state == TrackState::kTracking) {
+    e.state = TrackState::kUncertain;
+    e.reason_bits |= kReasonUnexplained;
+  }
+  if (e.state == TrackState::kTracking) anchor.trusted(t_s, e.x_px, e.y_px);
+}
+
 // ---------------------------------------------------------------------------------------
 
 Tracker::Tracker(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -850,6 +867,7 @@ Roi Tracker::next_roi() const noexcept {
 
 PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
   PoseEstimate e = impl_->update(frame);
+  impl_->keep_continuity(frame, e);
   e.followed = impl_->tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
   return e;
 }

@@ -15,6 +15,7 @@
 #include "sempose/pose/angle_sweep.hpp"
 #include "sempose/pose/appearance_model.hpp"
 #include "sempose/pose/appearance_observer.hpp"
+#include "sempose/pose/continuity_anchor.hpp"
 #include "sempose/pose/detector_lag.hpp"
 #include "sempose/pose/engine_sizes.hpp"
 #include "sempose/pose/exact_scorer.hpp"
@@ -251,6 +252,10 @@ struct Tracker::Impl {
   // the frame cannot tell which is the target (a torn frame: the target jumped mid-scan and
   // half the ROI shows it at each place). Followed, reported UNCERTAIN.
   bool rival_within_noise = false;
+  // Where the last TRACKING poses put the target (continuity_anchor.hpp): after a held frame a
+  // pose is TRACKING again only where that motion leads (a twin passing over drags the pose).
+  ContinuityAnchor anchor;
+  void keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept;
   // A torn frame (tracker.cpp, torn()): the rows of the footprint scanned first and those
   // scanned last put the target at places that differ by more than their noise allows (χ², 2
   // dof, at max_false_probability over the cuts) and by at least kTornApartPx
