@@ -50,7 +50,21 @@ class ContinuityAnchor {
     const double ey = y_[head_] + (y_[head_] - y_[tail]) / span * ahead;
     const double tol = kFalsePx + kDriftPxPerFrame * ahead / frame_s;
     agreed_ = std::hypot(x_px - ex, y_px - ey) <= tol ? agreed_ + 1 : 0;
+    if (agreed_ == 1) {
+      first_t_ = t_s;
+      first_x_ = x_px;
+      first_y_ = y_px;
+    }
     if (agreed_ < kConfirmFrames) return false;
+    // And moving along the line, not across it: a twin crossing the line's place lies on it for
+    // ~3 frames (the lamella on post at 20 e-/px, 4 px a frame against the target's 1: closed on
+    // it, TRACKING up to 212 px off after).
+    const double vx = (x_[head_] - x_[tail]) / span, vy = (y_[head_] - y_[tail]) / span;
+    const double dt = t_s - first_t_;
+    if (std::hypot(x_px - first_x_ - vx * dt, y_px - first_y_ - vy * dt) > kFalsePx) {
+      agreed_ = 0;
+      return false;
+    }
     open_ = false;
     return true;
   }
@@ -64,6 +78,7 @@ class ContinuityAnchor {
 
  private:
   double t_[kTrail] = {}, x_[kTrail] = {}, y_[kTrail] = {};
+  double first_t_ = 0, first_x_ = 0, first_y_ = 0;  // the first of the agreeing poses in a row
   int head_ = 0, n_ = 0, agreed_ = 0;
   bool open_ = false;
 };
