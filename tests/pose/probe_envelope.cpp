@@ -7,10 +7,12 @@
 // error of a TRACKING pose. Not a test: it measures (README, Tests: pose_false_tracking_test).
 //   pose_envelope_probe [--case SUBSTRING] [--target NAME] [--dose D] [--frames-list] [--trace]
 // --frames-list: every false TRACKING pose; --trace: every frame's state, pose and truth (stderr).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -98,6 +100,27 @@ void fault(pt::Scenario& s, int from, int to, std::function<void(const sempose::
   s.frame_fault = [=](std::uint64_t seq, const sempose::hal::Roi& roi, sempose::hal::Pixel* px, sempose::hal::Pixel max) {
     if (static_cast<int>(seq) >= from && static_cast<int>(seq) <= to) f(roi, px, max);
   };
+}
+
+// A deterministic hash of two integers (per-line jitter, spikes): reproducible runs.
+std::uint64_t mix(int a, int b) {
+  std::uint64_t z = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32 | static_cast<std::uint32_t>(b)) + 0x9e3779b97f4a7c15ull;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+// Shifts line y of the ROI by shift(y) px (positive: right), repeating the edge pixel.
+template <typename Shift>
+void shift_lines(const sempose::hal::Roi& r, sempose::hal::Pixel* p, Shift shift) {
+  std::vector<sempose::hal::Pixel> row(static_cast<std::size_t>(r.w));
+  for (int y = 0; y < r.h; ++y) {
+    const int d = shift(y);
+    if (d == 0) continue;
+    sempose::hal::Pixel* q = p + static_cast<std::ptrdiff_t>(y) * r.w;
+    std::copy(q, q + r.w, row.begin());
+    for (int x = 0; x < r.w; ++x) q[x] = row[static_cast<std::size_t>(std::clamp(x - d, 0, r.w - 1))];
+  }
 }
 
 std::vector<Case> cases() {
@@ -209,6 +232,67 @@ std::vector<Case> cases() {
                    for (int y = 0; y < r.h; ++y)
                      for (int x = std::max(0, 400 - r.x); x < r.w; ++x) p[static_cast<std::ptrdiff_t>(y) * r.w + x] = static_cast<Pixel>(0.04 * m);
                  };
+               }});
+  // 8. Scan and detector faults a lab meets that item 7 does not name: lines jittering ±2 px
+  // (deflection noise), a slow wave along the frame (mains hum in the deflection, 3 px), the frame
+  // buffer frozen for 10 frames (the same image delivered again while the target moves on),
+  // arcing spikes (1 % of the pixels at full scale), a charging gradient across the ROI, a scan
+  // 10 % wider in x than calibrated, every 4th line dropped to the black level.
+  v.push_back({"line_jitter_2px", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 fault(s, 0, 1 << 30, [](const Roi& r, Pixel* p, Pixel) { shift_lines(r, p, [&](int y) { return static_cast<int>(mix(r.y + y, r.x) % 5) - 2; }); });
+               }});
+  v.push_back({"hum_wave_3px", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.frame_fault = [](std::uint64_t seq, const Roi& r, Pixel* p, Pixel) {
+                   shift_lines(r, p, [&](int y) {
+                     return static_cast<int>(std::lround(3.0 * std::sin(2.0 * M_PI * (static_cast<double>(seq) * r.h + y) / 400.0)));
+                   });
+                 };
+               }});
+  v.push_back({"frozen_frames_40_49", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 auto held = std::make_shared<std::vector<Pixel>>();
+                 s.frame_fault = [held](std::uint64_t seq, const Roi& r, Pixel* p, Pixel) {
+                   const std::size_t n = static_cast<std::size_t>(r.w) * r.h;
+                   if (seq >= 40 && seq <= 49 && held->size() == n) std::copy(held->begin(), held->end(), p);
+                   else held->assign(p, p + n);
+                 };
+               }});
+  v.push_back({"arcing_spikes_1pct", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 s.frame_fault = [](std::uint64_t seq, const Roi& r, Pixel* p, Pixel m) {
+                   for (int i = 0; i < r.w * r.h; ++i)
+                     if (mix(static_cast<int>(seq), i) % 100 == 0) p[i] = m;
+                 };
+               }});
+  v.push_back({"charging_gradient_x", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 fault(s, 0, 1 << 30, [](const Roi& r, Pixel* p, Pixel m) {
+                   for (int y = 0; y < r.h; ++y)
+                     for (int x = 0; x < r.w; ++x) {
+                       Pixel& q = p[static_cast<std::ptrdiff_t>(y) * r.w + x];
+                       q = static_cast<Pixel>(std::min<double>(m, q * (0.4 + 1.2 * x / r.w)));
+                     }
+                 });
+               }});
+  v.push_back({"scan_10pct_wide_in_x", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 fault(s, 0, 1 << 30, [](const Roi& r, Pixel* p, Pixel) {
+                   std::vector<Pixel> row(static_cast<std::size_t>(r.w));
+                   for (int y = 0; y < r.h; ++y) {
+                     Pixel* q = p + static_cast<std::ptrdiff_t>(y) * r.w;
+                     std::copy(q, q + r.w, row.begin());
+                     for (int x = 0; x < r.w; ++x) q[x] = row[static_cast<std::size_t>(std::clamp<long>(std::lround(r.w / 2.0 + (x - r.w / 2.0) / 1.1), 0, r.w - 1))];
+                   }
+                 });
+               }});
+  v.push_back({"every_4th_line_dropped", [](pt::Scenario& s) {
+                 s.frames = 80;
+                 fault(s, 0, 1 << 30, [](const Roi& r, Pixel* p, Pixel m) {
+                   for (int y = 0; y < r.h; ++y)
+                     if ((r.y + y) % 4 == 0) std::fill(p + static_cast<std::ptrdiff_t>(y) * r.w, p + static_cast<std::ptrdiff_t>(y + 1) * r.w, static_cast<Pixel>(0.04 * m));
+                 });
                }});
   return v;
 }
