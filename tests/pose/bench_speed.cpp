@@ -95,14 +95,20 @@ int main(int argc, char** argv) {
     hal::SimSource sim(lim, sc);
     std::vector<hal::Pixel> px(static_cast<std::size_t>(meta.roi.w) * meta.roi.h);
     sim.render(meta.roi, 250, hal::SimSource::kVirtualEpochNs, 1, px.data(), meta.truth);
+    // A second scan of the same place (another noise stream): the frames alternate, as a tracker
+    // handed the very same pixels twice holds the second as a frozen frame (stale_frame_check.hpp).
+    std::vector<hal::Pixel> px2(px.size());
+    sim.render(meta.roi, 250, hal::SimSource::kVirtualEpochNs, 2, px2.data(), meta.truth);
+    unsigned flip = 0;
+    const auto scan = [&] { return (++flip & 1u) ? px.data() : px2.data(); };
     int tracked = 0;
     if (profile_roi) {
-      const Timing p = time_it(profile_reps, [&] { tracked += t.update(pipeline::to_pose_frame(meta, px.data())).state == TrackState::kTracking; });
+      const Timing p = time_it(profile_reps, [&] { tracked += t.update(pipeline::to_pose_frame(meta, scan())).state == TrackState::kTracking; });
       std::printf("%3d²   | %9.1f us %9.1f us | tracked %d/%d, CPU p50 %.1f us\n", roi, p.p50_us, p.p99_us, tracked, profile_reps,
                   p.cpu_p50_us);
       return 0;
     }
-    const Timing ours = time_it(400, [&] { tracked += t.update(pipeline::to_pose_frame(meta, px.data())).state == TrackState::kTracking; });
+    const Timing ours = time_it(400, [&] { tracked += t.update(pipeline::to_pose_frame(meta, scan())).state == TrackState::kTracking; });
 
     // The peer: three rotated 8-bit patterns against the 8-bit ROI.
     cv::Mat roi8(meta.roi.h, meta.roi.w, CV_8U);
@@ -152,7 +158,7 @@ int main(int argc, char** argv) {
         Tracker& trk = *hr.tracker();
         int tracked_r = 0;
         const Timing refined =
-            time_it(400, [&] { tracked_r += trk.update(pipeline::to_pose_frame(meta, px.data())).state == TrackState::kTracking; });
+            time_it(400, [&] { tracked_r += trk.update(pipeline::to_pose_frame(meta, scan())).state == TrackState::kTracking; });
         std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us | %6.1fx   tracker.refine on, source %s: %.2fx the default's p50 (tracked %d/400)\n",
                     roi, refined.p50_us, refined.p99_us, peer.p50_us, peer.p50_us / refined.p50_us, source,
                     refined.p50_us / ours.p50_us, tracked_r);
@@ -169,11 +175,12 @@ int main(int argc, char** argv) {
       Tracker& tl = *ha.tracker();
       hal::FrameMeta ml = meta;
       ml.roi = tl.next_roi();
-      std::vector<hal::Pixel> pl(static_cast<std::size_t>(ml.roi.w) * ml.roi.h);
+      std::vector<hal::Pixel> pl(static_cast<std::size_t>(ml.roi.w) * ml.roi.h), pl2(pl.size());
       ha.render(ml.roi, ha.records().back().t_start_ns + 10'000'000, 1u << 20, pl.data(), ml.truth);
+      ha.render(ml.roi, ha.records().back().t_start_ns + 10'000'000, (1u << 20) + 1, pl2.data(), ml.truth);
       int tracked_l = 0;
       const Timing learned =
-          time_it(400, [&] { tracked_l += tl.update(pipeline::to_pose_frame(ml, pl.data())).state == TrackState::kTracking; });
+          time_it(400, [&] { tracked_l += tl.update(pipeline::to_pose_frame(ml, (++flip & 1u) ? pl.data() : pl2.data())).state == TrackState::kTracking; });
       const Tracker::AppearanceStatus a = tl.appearance_status();
       std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us | %6.1fx   learned appearance (%u updates, support %.2f of the circle; tracked %d/400)\n",
                   roi, learned.p50_us, learned.p99_us, peer.p50_us, peer.p50_us / learned.p50_us, a.accepted,
@@ -213,8 +220,10 @@ int main(int argc, char** argv) {
     lim.field_w = w;
     lim.field_h = hgt;
     hal::SimSource sim(lim, sc);
-    std::vector<hal::Pixel> px(static_cast<std::size_t>(w) * hgt);
+    std::vector<hal::Pixel> px(static_cast<std::size_t>(w) * hgt), px2(px.size());
     sim.render(meta.roi, 250, hal::SimSource::kVirtualEpochNs, 1, px.data(), meta.truth);
+    sim.render(meta.roi, 250, hal::SimSource::kVirtualEpochNs, 2, px2.data(), meta.truth);  // alternated: not a frozen frame
+    unsigned flip = 0;
     int found = 0;
     const Timing ts = time_it(profile_search ? ps_reps : 15, [&] {
       // A full-field frame while tracking is otherwise tracked in its crop. Found: the search's
@@ -222,7 +231,7 @@ int main(int argc, char** argv) {
       // searches the stream's noise is never learnt, so each search frame waits, UNCERTAIN, for
       // an ROI frame to confirm it (README: States), as a controller's command's does too.
       t.request_reacquire(/*commanded=*/false);
-      const PoseEstimate e = t.update(pipeline::to_pose_frame(meta, px.data()));
+      const PoseEstimate e = t.update(pipeline::to_pose_frame(meta, (++flip & 1u) ? px.data() : px2.data()));
       found += e.searched && e.followed && std::hypot(e.x_px - meta.truth[0].x_px, e.y_px - meta.truth[0].y_px) < 1.0;
     });
     std::printf("%4dx%-4d  %-13s p50 %7.2f ms  max %7.2f ms  CPU p50 %6.2f ms  found %d/%d   (bank + buffers %.1f MB)\n", w, hgt,

@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "sempose/pose/loss_policy.hpp"
 #include "sim_harness.hpp"
@@ -787,5 +789,33 @@ TEST(NoFalseTracking, TwinOfThePatternPassingByDoesNotCarryThePoseAway) {
     const FalseCount n = run_and_count(h, std::string(target) + " with a twin passing 30 px away, dose 6");
     EXPECT_EQ(n.false_n, 0) << "TRACKING on the twin (3 / 51 before)";
     EXPECT_GE(n.tracked, s.frames / 2) << "tracked before the twin passes";
+  }
+}
+
+// A frozen frame buffer (a scan generator's DMA block not refilled, a recording storing a frame
+// twice): frames 40-49 deliver frame 39's pixels again while the target moves on. Tracked as new,
+// the old image at the moved ROI reads as the target's move, the ROI follows it and the pose runs
+// off: pose_envelope_probe frozen_frames_40_49 on 7e87312, 2-10 false TRACKING poses a row, up to
+// 190 px off (needle tip 8 at 6 e-/px, 48 px). A frame repeating the last one at every sample is
+// held as a bad frame (LOST, reason 16: stale_frame_check.hpp); the next scan is tracked again.
+TEST(NoFalseTracking, FrozenFrameBufferIsNotTracked) {
+  for (const char* target : {"needle_tip", "lamella_post"}) {
+    pt::Scenario s = envelope_scene(target, "smooth", 6, 80);
+    auto held = std::make_shared<std::vector<sempose::hal::Pixel>>();
+    s.frame_fault = [held](std::uint64_t seq, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel) {
+      const std::size_t n = static_cast<std::size_t>(r.w) * r.h;
+      if (seq >= 40 && seq <= 49 && held->size() == n) std::copy(held->begin(), held->end(), p);
+      else held->assign(p, p + n);
+    };
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    const FalseCount n = run_and_count(h, std::string(target) + " frozen frames 40-49, dose 6");
+    int stale_held = 0, tracked_after = 0;
+    for (std::size_t f = 40; f <= 49; ++f)
+      stale_held += h.poses()[f].state != TrackState::kTracking && (h.poses()[f].reason_bits & sempose::pose::kReasonBadFrame);
+    for (std::size_t f = 55; f < h.poses().size(); ++f) tracked_after += h.poses()[f].state == TrackState::kTracking;
+    EXPECT_EQ(n.false_n, 0) << "TRACKING on a frozen frame (8 / 6 before)";
+    EXPECT_EQ(stale_held, 10) << "each repeated frame held as a bad frame";
+    EXPECT_GE(tracked_after, 23) << "the scans after the frozen ones are tracked again";
   }
 }

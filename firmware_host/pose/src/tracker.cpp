@@ -595,7 +595,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   }
   const Roi& roi = frame.roi;
   const std::uint16_t* px = frame.pixels;
-  if (frame.bad || px == nullptr || roi.w <= 0 || roi.h <= 0) {
+  // A frame repeating the last one although scanned elsewhere or while the stream predicts a
+  // move (a frozen frame buffer) is a bad frame the source did not flag: nothing in it is new.
+  const bool expects_change =
+      tracking && motion.has_velocity() &&
+      (std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px()) >= kStaleMovePx ||
+       std::fabs(rt::wrap_deg(motion.predicted_phi_deg() - motion.phi_deg())) >= kStaleTurnDeg);
+  if (frame.bad || px == nullptr || roi.w <= 0 || roi.h <= 0 ||
+      stale.repeats(px, roi.x, roi.y, roi.w, roi.h, expects_change)) {
     e.state = tracking ? TrackState::kLost : TrackState::kAcquiring;
     e.reason_bits = kReasonBadFrame;
     return e;

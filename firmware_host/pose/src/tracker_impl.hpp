@@ -32,6 +32,7 @@
 #include "sempose/pose/roi_rescaler.hpp"
 #include "sempose/pose/scale_probe.hpp"
 #include "sempose/pose/split_consistency.hpp"
+#include "sempose/pose/stale_frame_check.hpp"
 #include "sempose/pose/start_search.hpp"
 #include "sempose/pose/subpixel_fit.hpp"
 #include "sempose/rt/angle.hpp"
@@ -71,6 +72,13 @@ struct Tracker::Impl {
   LossPolicy loss;
   MotionModel motion;
   PoseFilter filter;
+  // A frame repeating the last one pixel for pixel is old light: held like a source-flagged bad
+  // frame (stale_frame_check.hpp). Sized for the larger of the field and the ROI's FFT. At the
+  // same place the repeat counts once the stream predicts a move of at least kStaleMovePx or
+  // kStaleTurnDeg: below that a frozen frame leaves the pose as far behind as a still target's
+  // noise-free frame would, and the noise-free still frames of a synthetic sequence are tracked.
+  StaleFrameCheck stale;
+  static constexpr double kStaleMovePx = 0.5, kStaleTurnDeg = 0.5;
   std::vector<std::unique_ptr<const PatternBank>> banks;
   std::vector<double> nm_per_px;
   // Per pattern set, the detector's lag along the line at the dwell it was recorded at, and
@@ -168,7 +176,8 @@ struct Tracker::Impl {
                     c.sigma_noise_factor, c.sigma_angle_factor, angles.count, c.sigma_pattern_noise),
         loss(cfg),
         motion(c.predict_velocity, c.predict_rate_poses),
-        filter(c.filter) {
+        filter(c.filter),
+        stale(static_cast<std::size_t>(std::max(field_width, s.roi_fft_px)) * static_cast<std::size_t>(std::max(field_height, s.roi_fft_px))) {
     field.field_w = field_width;
     field.field_h = field_height;
   }
