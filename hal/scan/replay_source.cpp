@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -77,6 +78,20 @@ ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig&
                                std::to_string(frames_[0].bits) + "-bit ones");
     }
   }
+  // A frame stored twice (a frozen frame buffer during the recording): an SEM frame carries shot
+  // noise in every pixel, so two real scans never match. Replayed as new, the old scene would show
+  // the target where it was while it moved on; the repeat is replayed as a bad frame instead.
+  repeats_.assign(frames_.size(), 0);
+  std::size_t n_repeats = 0;
+  for (std::size_t i = 1; i < frames_.size(); ++i) {
+    if (frames_[i].pixels != frames_[i - 1].pixels) continue;
+    repeats_[i] = 1;
+    if (n_repeats++ == 0) first_repeat_ = names[i];
+  }
+  if (n_repeats > 0) {
+    std::fprintf(stderr, "replay: warning: %zu frame(s) repeat the frame before pixel for pixel (first %s): replayed as bad frames\n",
+                 n_repeats, first_repeat_.c_str());
+  }
   limits_.field_w = frames_[0].width;
   limits_.field_h = frames_[0].height;
   limits_.max_roi_w = std::min(limits_.max_roi_w, limits_.field_w);
@@ -120,6 +135,7 @@ StartResult ReplaySource::start(const ScanRequest& req, FrameSlot& slot) noexcep
   if (timer_.is_virtual() && !t_ns_.empty()) t0 = std::max(t0, t_ns_[index_] + loop_offset_ns_);
   timer_.begin(slot, req, limits_, dwell, seq_++, t0);
   FrameMeta& m = slot.meta;
+  if (repeats_[index_]) m.status = FrameStatus::kBad;
   m.truth_count = truth_count_;
   for (int t = 0; t < kMaxTargets; ++t) m.truth[t] = truth_.empty() ? TargetTruth{} : truth_[index_][static_cast<std::size_t>(t)];
   ++index_;

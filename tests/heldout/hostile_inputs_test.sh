@@ -99,6 +99,16 @@ gap_trk=$(awk -F, 'NR > 1 && $1 >= 10 && $1 < 20 && $7 == "TRACKING"' gap_poses.
 if [ "$rc" -eq 0 ] && [ "$gap_trk" -gt 0 ] && echo "$line" | grep -q "tracking_without_truth=$gap_trk\$"; then ok "truth with frames 10-19 missing: $line"
 else bad "truth with a gap: exit $rc, $gap_trk TRACKING poses in the gap, $line"; fi
 
+# A recording holding frames 12-15 as copies of frame 11 (a frozen frame buffer while the target
+# moved on): replayed as bad frames (LOST), said on stderr; before, 4 TRACKING poses up to 21 px off.
+cp -r rec frozen && for f in 12 13 14 15; do cp frozen/frame_000011.pgm frozen/frame_0000$f.pgm; done
+rc=0; "$bin" replay --frames frozen --pattern p.pgm --config track.yaml --truth frozen/ground_truth.csv --out frozen.csv >frozen.log 2>&1 || rc=$?
+line=$(grep '^truth:' frozen.log || true)
+frozen_lost=$(awk -F, 'NR > 1 && $1 >= 12 && $1 <= 15 && $7 == "LOST"' frozen.csv | wc -l)
+if [ "$rc" -eq 0 ] && [ "$frozen_lost" -eq 4 ] && grep -q "4 frame(s) repeat the frame before" frozen.log && echo "$line" | grep -q 'false_tracking=0 '; then
+  ok "frozen frames 12-15: LOST, with a warning; $line"
+else bad "frozen frames: exit $rc, $frozen_lost of 4 LOST, $line: $(grep warning frozen.log)"; fi
+
 # A pattern made from a moving recording: averaged over the first frame only, said on stderr.
 rc=0; "$bin" pattern --frames rec --center 320,240 --size 128 --out moving.pgm >moving.log 2>&1 || rc=$?
 if [ "$rc" -eq 0 ] && grep -q "the target moves or turns" moving.log && grep -q "mean of 1 frames" moving.log; then ok "pattern from a moving target: one frame, with a warning"

@@ -36,6 +36,8 @@ class ReplaySource final : public TimedScanSource {
   ScanLimits limits_;
   bool loop_;
   std::vector<Image> frames_;
+  std::vector<std::uint8_t> repeats_;  // per frame: 1 when it repeats the one before (a bad frame)
+  std::string first_repeat_;
   std::vector<std::int64_t> t_ns_;  // per frame, or empty
   std::vector<std::array<TargetTruth, kMaxTargets>> truth_;  // per frame, or empty
   std::uint8_t truth_count_ = 0;
