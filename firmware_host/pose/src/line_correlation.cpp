@@ -1,0 +1,88 @@
+#include "sempose/pose/line_correlation.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace sempose::pose {
+
+LineCorrelationSums line_correlation_sums(const std::uint16_t* px, int w, int h, std::ptrdiff_t stride,
+                                          int row_step) noexcept {
+  LineCorrelationSums s;
+  const int i0 = LineCorrelationSums::kSkipPx;
+  if (px == nullptr || w < i0 + 2 || h < 2 || row_step < 1) return s;
+  // Per line pair in float (the differences are exact, a line's sums of ≤ 1024 products good to
+  // ~1e-5, far below the estimate's noise; vectorised), added to the doubles once a pair.
+  for (int j = 0; j + 1 < h; j += row_step) {
+    const std::uint16_t* a = px + static_cast<std::ptrdiff_t>(j) * stride;
+    const std::uint16_t* b = a + stride;
+    float along = 0, across = 0, power = 0;
+#pragma omp simd reduction(+ : along, across, power)
+    for (int i = i0; i < w - 1; ++i) {
+      const float z0 = static_cast<float>(b[i]) - static_cast<float>(a[i]);
+      const float z1 = static_cast<float>(b[i + 1]) - static_cast<float>(a[i + 1]);
+      const float dxa = static_cast<float>(a[i + 1]) - static_cast<float>(a[i]);
+      const float dxb = static_cast<float>(b[i + 1]) - static_cast<float>(b[i]);
+      along += z0 * z1;
+      across += dxa * dxb;
+      power += z0 * z0;
+    }
+    s.along += along;
+    s.across += across;
+    s.power += power;
+    s.pairs += w - 1 - i0;
+  }
+  return s;
+}
+
+int line_correlation_row_step(int w, int h) noexcept {
+  const std::int64_t pixels = static_cast<std::int64_t>(std::max(w, 0)) * std::max(h, 0);
+  // A pair of lines every 2nd line uses every line once (a 192² ROI: 96 pairs, ~17.5k products).
+  return static_cast<int>(std::max<std::int64_t>(2, pixels / DetectorTauEstimator::kPairBudget));
+}
+
+double DetectorTauEstimator::mapped(double rho, double from_dwell, double to_dwell) const noexcept {
+  // ρ = e^(−d/τ): at another dwell ρ^(d'/d). A dwell not known is taken as the other one.
+  if (!(rho > 0) || !(from_dwell > 0) || !(to_dwell > 0)) return rho;
+  return std::pow(rho, to_dwell / from_dwell);
+}
+
+void DetectorTauEstimator::read(const LineCorrelationSums& s, double dwell_ns) noexcept {
+  pending_weight_ = 0;
+  if (!s.valid()) return;
+  const double rho = s.rho();
+  if (!std::isfinite(rho)) return;
+  if (!(ref_dwell_ns_ > 0) && weight_ == 0 && dwell_ns > 0) ref_dwell_ns_ = dwell_ns;
+  // Clamped: a torn frame's sums can give |ρ| > 1; one frame must not carry the estimate far.
+  pending_rho_ = mapped(std::clamp(rho, -1.0, 0.999), dwell_ns, ref_dwell_ns_);
+  pending_weight_ = static_cast<double>(s.pairs);
+}
+
+void DetectorTauEstimator::keep() noexcept {
+  if (!(pending_weight_ > 0)) return;
+  rho_ = blended();
+  weight_ = std::min(weight_ + pending_weight_, kMemoryFrames * static_cast<double>(kPairBudget));
+  pending_weight_ = 0;
+}
+
+double DetectorTauEstimator::blended() const noexcept {
+  const double w = weight_ + pending_weight_;
+  return w > 0 ? (rho_ * weight_ + pending_rho_ * pending_weight_) / w : 0.0;
+}
+
+double DetectorTauEstimator::rho_at(double dwell_ns) const noexcept {
+  return mapped(blended(), ref_dwell_ns_, dwell_ns);
+}
+
+double DetectorTauEstimator::lag_px(double dwell_ns) const noexcept {
+  const double r = std::min(rho_at(dwell_ns), kMaxRho);
+  return r < kFastRho ? 0.0 : r / (1.0 - r);
+}
+
+double DetectorTauEstimator::tau_px() const noexcept {
+  const double r = std::min(blended(), kMaxRho);
+  return r < kFastRho ? 0.0 : -1.0 / std::log(r);
+}
+
+double DetectorTauEstimator::tau_ns() const noexcept { return ref_dwell_ns_ > 0 ? tau_px() * ref_dwell_ns_ : 0.0; }
+
+}  // namespace sempose::pose
