@@ -458,6 +458,11 @@ int sempose::cli::run(int argc, char** argv) {
                   t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), a.accepted, a.rejected, a.deferred,
                   a.support_fraction, a.template_updates, a.template_weight);
     }
+    // τ measured from the frames (no tracker.detector_tau_ns): what to configure once known.
+    const pose::Tracker::DetectorTauStatus d = run.trackers.trackers[static_cast<std::size_t>(t)]->detector_tau_status();
+    if (d.measuring)
+      std::printf("detector %d %s: measured line_rho=%.3f tau_px=%.2f tau_ns=%.0f over %.0f ROI frames (0: a fast detector)\n",
+                  t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), d.rho, d.tau_px, d.tau_ns, d.frames);
   }
   if (hist_dir.empty()) {
     std::printf("histograms: not written (no --hist-dir / output.hist_dir)\n");

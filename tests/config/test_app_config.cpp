@@ -156,6 +156,22 @@ TEST(AppConfig, StartSearchScaleSpan) {
   EXPECT_NE(e.find("tracker.search_scale_max: 0.9 is outside the allowed range [1, 1.45]"), std::string::npos) << e;
 }
 
+// τ not told: measured from the frames unless tracker.measure_detector_tau is false.
+TEST(AppConfig, MeasureDetectorTauIsABoolOnByDefault) {
+  AppConfig d;
+  EXPECT_TRUE(d.tracker.measure_detector_tau);
+  const auto off = write_yaml("measure_tau.yaml", "tracker:\n  measure_detector_tau: false\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_TRUE(load_app_config(off, c, e)) << e;
+  EXPECT_FALSE(c.tracker.measure_detector_tau);
+  const auto bad = write_yaml("measure_tau_bad.yaml", "tracker:\n  measure_detector_tau: auto\n");
+  AppConfig b;
+  e.clear();
+  EXPECT_FALSE(load_app_config(bad, b, e));
+  EXPECT_NE(e.find(bad + ":2:25: tracker.measure_detector_tau: 'auto'"), std::string::npos) << e;
+}
+
 TEST(AppConfig, WrongTypeAndChoice) {
   const auto path = write_yaml("type.yaml", "governor:\n  margin: lots\npipeline:\n  polling: busy\n");
   AppConfig c;

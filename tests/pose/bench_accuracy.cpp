@@ -413,6 +413,7 @@ int main(int argc, char** argv) {
     else if (a == "--sigma-pattern-noise" && i + 1 < argc) tc.sigma_pattern_noise = std::string(argv[++i]) != "off";
     else if (a == "--rate-poses" && i + 1 < argc) tc.predict_rate_poses = std::atoi(argv[++i]);
     else if (a == "--attainable-pattern-noise" && i + 1 < argc) tc.attainable_pattern_noise = std::string(argv[++i]) != "off";
+    else if (a == "--measure-tau" && i + 1 < argc) tc.measure_detector_tau = std::string(argv[++i]) != "off";
     else if (a == "--sigma-floor" && i + 2 < argc) {
       tc.sigma_floor_px = std::atof(argv[++i]);
       tc.sigma_floor_deg = std::atof(argv[++i]);
@@ -424,7 +425,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off] [--measure-tau on|off]\n", argv[0]);
       return 2;
     }
   }
@@ -471,6 +472,8 @@ int main(int argc, char** argv) {
       "         0 -> +0.08, defocus 0 -> 1.5 px, detector tau 120 ns; jaws = each jaw opens/closes 8 px (0.4 s period);\n"
       "         scale0.8, scale1.25, jump@1.25 = at that scale from the first frame, no SELECT (the start search finds it)\n"
       "         bandwidth = detector tau 250 ns (1 px: each pixel keeps 37 %% of the last along the line)\n"
+      "         untold1px/4px = warped through a detector tau of 1 / 4 px the tracker is not told (lag-free pattern;\n"
+      "         the bound is the lag-free scene's)\n"
       "bound_px, bound_deg: Cramér–Rao bound of one frame (2-D RMS, angle SD) at the true state of every 10th frame, over\n"
       "  every pixel the target affects, gain/offset (and scale, jaws where they vary) as nuisances; Poisson x Gamma + read\n"
       "us/pose, ms/frm: median thread CPU time per frame (sempose tracker update; ViSP track()).\n"
@@ -536,6 +539,13 @@ int main(int argc, char** argv) {
   // The detector's bandwidth at its longest (τ = 1 px: lag-1 correlation 0.37 along the line), on
   // a real micrograph's target and the procedural one, at the lowest dose where the rule holds.
   for (const char* target : {"lamella_post", "lamella"}) plan.push_back({target, "smooth", "bandwidth", 2.5, 1.0, false, false, false, 250});
+  // A detector nobody told the tracker about: the warped real crop (its exact crop the pattern,
+  // lag-free) seen through a low-pass of τ 1 and 4 px along each line (tracker.measure_detector_tau).
+  for (double tau_ns : {250.0, 1000.0})
+    for (double dose : {6.0, 2.5}) {
+      if (only_dose > 0 && dose != only_dose) continue;
+      plan.push_back({"warped", "smooth", tau_ns < 500 ? "untold1px" : "untold4px", dose, 1.0, false, false, false, tau_ns});
+    }
   if (clutter) {
     plan.clear();
     const double cb[][2] = {{0.12, 1.0}, {0.3, 1.0}, {0.3, 0.5}, {0.3, 0.3}, {0.5, 0.5}, {0.5, 0.3}};

@@ -5,8 +5,9 @@
 // prints one row per case × target × dose: frames, TRACKING share, false TRACKING poses (> 3 px or
 // > 10° off target 0's truth, or TRACKING while its centre is outside the field) and the largest
 // error of a TRACKING pose. Not a test: it measures (README, Tests: pose_false_tracking_test).
-//   pose_envelope_probe [--case SUBSTRING] [--target NAME] [--dose D] [--frames-list] [--trace]
-// --frames-list: every false TRACKING pose; --trace: every frame's state, pose and truth (stderr).
+//   pose_envelope_probe [--case SUBSTRING] [--target NAME] [--dose D] [--frames-list] [--trace] [--measure-tau on|off]
+// --frames-list: every false TRACKING pose; --trace: every frame's state, pose and truth (stderr);
+// --measure-tau: tracker.measure_detector_tau (off: the lag of a detector nobody told is left in).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -181,6 +182,15 @@ std::vector<Case> cases() {
                  s.frames = 60;
                  s.edit_run = [](cfg::SimConfig& c) { c.detector_tau_ns = 1000; };
                }});
+  // A detector nobody measured: the pattern a clean (lag-free) recording, the frames through a
+  // low-pass of τ 1, 2, 4 px, tracker.detector_tau_ns not set (replay, real hardware).
+  for (int tau_px : {1, 2, 4})
+    v.push_back({"detector_tau_untold_" + std::to_string(tau_px) + "px", [tau_px](pt::Scenario& s) {
+                   s.frames = 60;
+                   s.detector_tau_ns = tau_px * static_cast<double>(s.dwell_ns);
+                   s.pattern_lag_free = true;
+                   s.tell_detector_tau = false;
+                 }});
   v.push_back({"gain_step_x0.5", [](pt::Scenario& s) {
                  s.frames = 80;
                  s.edit_run = [](cfg::SimConfig& c) { c.charging_gain = step_at(1, 0.5, 0.3); };
@@ -303,19 +313,22 @@ int main(int argc, char** argv) {
   std::string only_case, only_target;
   double only_dose = -1;
   bool list_frames = false, trace = false;
+  cfg::TrackerConfig tc;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--case") && i + 1 < argc) only_case = argv[++i];
     else if (!std::strcmp(argv[i], "--target") && i + 1 < argc) only_target = argv[++i];
     else if (!std::strcmp(argv[i], "--dose") && i + 1 < argc) only_dose = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--frames-list")) list_frames = true;
     else if (!std::strcmp(argv[i], "--trace")) trace = true;
+    else if (!std::strcmp(argv[i], "--measure-tau") && i + 1 < argc && (!std::strcmp(argv[i + 1], "on") || !std::strcmp(argv[i + 1], "off")))
+      tc.measure_detector_tau = !std::strcmp(argv[++i], "on");
     else {
-      std::fprintf(stderr, "usage: %s [--case SUBSTRING] [--target needle_tip|lamella_post|lamella] [--dose D] [--frames-list] [--trace]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--case SUBSTRING] [--target needle_tip|lamella_post|lamella] [--dose D] [--frames-list] [--trace] [--measure-tau on|off]\n", argv[0]);
       return 2;
     }
   }
-  std::printf("%-32s %-12s %5s | %6s %6s %6s %5s %8s %8s\n", "case", "target", "dose", "frames", "trk%", "unc%", "false",
-              "max_px", "max_deg");
+  std::printf("%-32s %-12s %5s | %6s %6s %6s %5s %8s %8s | %6s %5s %6s\n", "case", "target", "dose", "frames", "trk%", "unc%", "false",
+              "max_px", "max_deg", "dx_px", "tau", "rho");
   for (const Case& c : cases()) {
     if (!only_case.empty() && c.name.find(only_case) == std::string::npos) continue;
     for (const char* target : {"needle_tip", "lamella_post", "lamella"}) {
@@ -328,14 +341,14 @@ int main(int argc, char** argv) {
         s.frames = 80;
         s.start_phi_deg = 30;
         c.setup(s);
-        pt::SimHarness h(s, cfg::TrackerConfig{});
+        pt::SimHarness h(s, tc);
         if (!h.status().ok) {
           std::printf("%-32s %-12s %5.1f | setup failed: %s\n", c.name.c_str(), target, dose, h.status().message.c_str());
           continue;
         }
         h.run();
         int tracking = 0, uncertain = 0, false_n = 0;
-        double max_px = 0, max_deg = 0;
+        double max_px = 0, max_deg = 0, sum_dx = 0;
         std::string frames;
         for (std::size_t f = 0; f < h.poses().size(); ++f) {
           const auto& e = h.poses()[f];
@@ -348,6 +361,7 @@ int main(int argc, char** argv) {
                          static_cast<int>(e.reason_bits), e.searched ? " searched" : "");
           if (e.state != TrackState::kTracking) continue;
           ++tracking;
+          sum_dx += e.x_px - t.x_px;
           const double px = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
           const double deg = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
           max_px = std::max(max_px, px);
@@ -361,8 +375,11 @@ int main(int argc, char** argv) {
             frames += b;
           }
         }
-        std::printf("%-32s %-12s %5.1f | %6d %6.1f %6.1f %5d %8.2f %8.2f\n", c.name.c_str(), target, dose, s.frames,
-                    100.0 * tracking / s.frames, 100.0 * uncertain / s.frames, false_n, max_px, max_deg);
+        // The TRACKING poses' mean x error (along the lines) and τ as the tracker measured it.
+        const auto tau = h.tracker()->detector_tau_status();
+        std::printf("%-32s %-12s %5.1f | %6d %6.1f %6.1f %5d %8.2f %8.2f | %+6.2f %5.2f %6.3f\n", c.name.c_str(), target, dose, s.frames,
+                    100.0 * tracking / s.frames, 100.0 * uncertain / s.frames, false_n, max_px, max_deg,
+                    tracking ? sum_dx / tracking : 0.0, tau.tau_px, tau.rho);
         std::fputs(frames.c_str(), stdout);
         std::fflush(stdout);
       }

@@ -63,6 +63,10 @@ struct Scenario {
   double detector_tau_ns = 0;     // > 0: the detector's line low-pass alone (250 ns = 1 px at 250 ns dwell)
   std::uint32_t pattern_dwell_ns = 0;  // > 0: the pattern recorded at this dwell (else at the frames' dwell_ns)
   bool tell_detector_tau = true;       // the tracker is told the simulated detector's τ (tracker.detector_tau_ns)
+  // The pattern recorded through no low-pass (a clean crop: its set's dwell_ns 0) while the frames
+  // go through detector_tau_ns. The warped target's pattern always is; its frames are low-passed
+  // along each line here (the tracker is never told τ there).
+  bool pattern_lag_free = false;
   // Approximate frame period (192² ROI at 250 ns + flyback + modelled compute), for ramps over the run.
   double run_s() const { return frames * 0.0101 * (dwell_ns / 250.0); }
   // Faults (the pattern is always recorded from the target as configured above):
@@ -265,9 +269,10 @@ class SimHarness {
       pat_cfg.targets[0].x_px = s.field_w / 2.0;
       pat_cfg.targets[0].y_px = s.field_h / 2.0;
       pat_cfg.targets[0].scale = config::TimeProfile::constant(1.0);  // recorded at the pattern's own size
+      if (s.pattern_lag_free) pat_cfg.detector_tau_ns = 0;
       if (s.jaws_open_px != 0) pat_cfg.targets[0].jaws = config::TimeProfile::constant(0.0);  // recorded closed
       pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, s.pattern_frames, pattern_dwell(), 777);
-      sets[0].dwell_ns = pattern_dwell();
+      sets[0].dwell_ns = s.pattern_lag_free ? 0 : pattern_dwell();
       if (s.shape_mask)
         sets[0].mask = pipeline::to_pattern_image(
             hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px, s.shape_mask_rigid_only));
@@ -336,6 +341,7 @@ class SimHarness {
     warped_scene().render(kWarpCx, kWarpCy, p.x_px, p.y_px, p.phi_deg, s_.field_w, s_.field_h, warp_out_,
                           s_.noise ? s_.dose_e : 0.0, s_.seed * 7919 + seq, roi);
     std::copy(warp_out_.begin(), warp_out_.end(), out);
+    if (s_.detector_tau_ns > 0) low_pass_lines(roi, out);
     for (int i = 0; i < hal::kMaxTargets; ++i) truth[i] = hal::TargetTruth{};
     truth[0] = {p.x_px, p.y_px, p.phi_deg, true};
   }
@@ -364,6 +370,20 @@ class SimHarness {
   }
   const rt::Status& status() const { return status_; }
   Tracker* tracker() { return tracker_.get(); }
+
+  // The detector's line low-pass on a rendered ROI, as the simulator's detect_line applies it:
+  // y_i = y_(i−1) + a·(x_i − y_(i−1)), a = 1 − exp(−dwell/τ), settled on each line's first pixel.
+  void low_pass_lines(const hal::Roi& roi, hal::Pixel* px) const noexcept {
+    const double a = 1.0 - std::exp(-static_cast<double>(s_.dwell_ns) / s_.detector_tau_ns);
+    for (int y = 0; y < roi.h; ++y) {
+      hal::Pixel* row = px + static_cast<std::ptrdiff_t>(y) * roi.w;
+      double v = row[0];
+      for (int x = 0; x < roi.w; ++x) {
+        v += a * (row[x] - v);
+        row[x] = static_cast<hal::Pixel>(std::lround(v));
+      }
+    }
+  }
 
   // The loop: only RT calls on the tracker (allocation tests arm the counter around it).
   void run() noexcept {

@@ -556,8 +556,40 @@ void Tracker::Impl::go_lost() noexcept {
 // An accepted pose: the motion model and the recent score learn it, then the reported pose
 // goes through the temporal filter (a pass-through unless tracker.filter is on), timed at
 // mid-scan: with a varying dwell the ROI's centre is scanned mid-frame.
+double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noexcept {
+  if (!measure_tau) {
+    // Told τ: the lag at this dwell against the pattern's (0 when either dwell is unknown).
+    return frame.dwell_ns > 0 && set < pattern_lag_px.size()
+               ? DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns) - pattern_lag_px[set]
+               : 0.0;
+  }
+  // Measured: this frame's reading joins the estimate for its own pose (a first search frame
+  // is corrected too); it is kept only if the pose is accepted. Every frame until the estimate
+  // has settled, then every kTauReadEvery-th (~25 µs a read on a 192² ROI). A pattern set of
+  // unknown dwell is lag-free; a frame of unknown dwell is taken at the estimate's own.
+  const bool read = !tau_estimate.settled() || ++tau_frames_unread >= kTauReadEvery;
+  if (read && !frame.bad && frame.pixels != nullptr && !loss.calibrating()) {
+    tau_frames_unread = 0;
+    tau_estimate.read(line_correlation_sums(frame.pixels, frame.roi.w, frame.roi.h, frame.roi.w,
+                                            line_correlation_row_step(frame.roi.w, frame.roi.h)),
+                      frame_dwell_ns);
+  } else {
+    tau_estimate.read(LineCorrelationSums{}, frame_dwell_ns);  // nothing pending: the kept estimate
+  }
+  const double set_dwell = set < pattern_dwell_ns.size() ? pattern_dwell_ns[set] : 0.0;
+  const double pattern_lag = set_dwell > 0 && tau_estimate.reference_dwell_ns() > 0 ? tau_estimate.lag_px(set_dwell) : 0.0;
+  return tau_estimate.lag_px(frame_dwell_ns) - pattern_lag;
+}
+
 void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, double level_cap) noexcept {
   e.state = TrackState::kTracking;
+  if (measure_tau) {
+    tau_estimate.keep();
+    measured_rho.store(tau_estimate.rho_at(tau_estimate.reference_dwell_ns()), std::memory_order_relaxed);
+    measured_tau_px.store(tau_estimate.tau_px(), std::memory_order_relaxed);
+    measured_tau_ns.store(tau_estimate.tau_ns(), std::memory_order_relaxed);
+    measured_tau_frames.store(tau_estimate.frames_kept(), std::memory_order_relaxed);
+  }
   held_frames = 0;
   loss.set_held(false);
   motion.accept(e.x_px, e.y_px, e.phi_deg, fresh, frame_dwell_ns, e.score);
@@ -585,10 +617,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   e.y_px = motion.y_px();
   e.phi_deg = motion.phi_deg();
   frame_dwell_ns = static_cast<double>(frame.dwell_ns);
-  // The detector's lag at this dwell against the pattern's (0 when either dwell is unknown).
-  lag_shift_px = frame.dwell_ns > 0 && set < pattern_lag_px.size()
-                     ? DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns) - pattern_lag_px[set]
-                     : 0.0;
+  lag_shift_px = lag_shift_of(frame, set);
   if (frame.field_w > 0 && frame.field_h > 0) {
     field.field_w = frame.field_w;
     field.field_h = frame.field_h;
@@ -917,6 +946,12 @@ void Tracker::request_reacquire(bool commanded) noexcept {
   // Sticky: a command and sempose's own request before the same frame still mark it.
   if (commanded) impl_->reacquire_commanded.store(true, std::memory_order_relaxed);
   impl_->reacquire.store(true, std::memory_order_relaxed);
+}
+
+Tracker::DetectorTauStatus Tracker::detector_tau_status() const noexcept {
+  const Impl& t = *impl_;
+  return {t.measure_tau, t.measured_rho.load(std::memory_order_relaxed), t.measured_tau_px.load(std::memory_order_relaxed),
+          t.measured_tau_ns.load(std::memory_order_relaxed), t.measured_tau_frames.load(std::memory_order_relaxed)};
 }
 
 std::size_t Tracker::memory_bytes() const noexcept {

@@ -68,6 +68,7 @@ void Tracker::Impl::calibrate_noise_floors(const config::ScanLimits& limits) {
   }
   active.store(keep, std::memory_order_relaxed);
   forget_everything();
+  tau_estimate.reset();  // the calibration's frames are white noise, not the detector's
   loss.set_calibrating(false);
   learning = observer != nullptr;
   use_noise_floors_of(keep);
@@ -107,6 +108,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   const EngineSizes sizes = EngineSizes::of(cfg, pattern_px, limits.field_w, limits.field_h);
   auto impl = std::make_unique<Impl>(cfg, sizes, limits.field_w, limits.field_h);
   Impl& t = *impl;
+  t.measure_tau = !(cfg.detector_tau_ns > 0) && cfg.measure_detector_tau;
   // Kept for the appearance learner (the bank spec takes the originals).
   std::vector<PatternImage> prior_patterns, prior_shapes;
   if (cfg.appearance.enabled)
@@ -147,6 +149,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.banks.push_back(std::move(bank));
     t.nm_per_px.push_back(sets[i].nm_per_px);
     t.pattern_lag_px.push_back(DetectorLag::px(cfg.detector_tau_ns, sets[i].dwell_ns));
+    t.pattern_dwell_ns.push_back(sets[i].dwell_ns);
   }
   t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;
   // The split check's noise: the score noise model's pixels per independent sample.

@@ -18,6 +18,7 @@
 #include "sempose/pose/continuity_anchor.hpp"
 #include "sempose/pose/detector_lag.hpp"
 #include "sempose/pose/engine_sizes.hpp"
+#include "sempose/pose/line_correlation.hpp"
 #include "sempose/pose/exact_scorer.hpp"
 #include "sempose/pose/fft_correlator.hpp"
 #include "sempose/pose/loss_policy.hpp"
@@ -85,6 +86,17 @@ struct Tracker::Impl {
   // this frame's lag minus the active set's (px, taken out of every pose's x: tracker.cpp).
   std::vector<double> pattern_lag_px;
   double lag_shift_px = 0;
+  // τ not told (tracker.detector_tau_ns 0) and tracker.measure_detector_tau: measured from each
+  // frame's noise, kept from the frames whose pose was accepted (accept()), and the lags taken
+  // from it instead; the pattern sets' dwells for their own lag. Published for the status.
+  bool measure_tau = false;
+  DetectorTauEstimator tau_estimate;
+  static constexpr int kTauReadEvery = 4;
+  int tau_frames_unread = 0;
+  std::vector<double> pattern_dwell_ns;
+  std::atomic<double> measured_rho{0}, measured_tau_px{0}, measured_tau_ns{0}, measured_tau_frames{0};
+  // This frame's lag against the active set's pattern (px along x), told or measured.
+  double lag_shift_of(const PoseFrame& frame, std::uint8_t set) noexcept;
 
   bool tracking = false;
   // Held: the last frames were LOST only because the rigid pattern did not explain the window

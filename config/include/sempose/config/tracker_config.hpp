@@ -59,6 +59,9 @@ struct TrackerConfig {
   // governor's dwell changes do not move the pose. 0: no correction (a sim source: the
   // simulated detector's sim.detector_tau_ns, as a calibration would measure it).
   double detector_tau_ns = 0;
+  // With detector_tau_ns 0: measure τ from the frames themselves (the noise's correlation along
+  // the lines, line_correlation.hpp) and take the lag out as if told; false: no correction.
+  bool measure_detector_tau = true;
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
   double search_angle_step_deg = 20.0;

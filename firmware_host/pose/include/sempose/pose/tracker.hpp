@@ -126,6 +126,16 @@ class Tracker {
     double template_weight = 0;          // the observations' mean weight in the last refined template
   };
   AppearanceStatus appearance_status() const noexcept;
+  // The detector's τ measured from the frames (tracker.measure_detector_tau with no
+  // tracker.detector_tau_ns; line_correlation.hpp): the noise's correlation ρ along the lines,
+  // τ in px at the first frame's dwell and in ns (0: a fast detector, ρ below
+  // DetectorTauEstimator::kFastRho, or not measuring), over how many ROI frames' worth of accepted
+  // frames (settled from kSettledFrames). Readable from any thread.
+  struct DetectorTauStatus {
+    bool measuring = false;
+    double rho = 0, tau_px = 0, tau_ns = 0, frames = 0;
+  };
+  DetectorTauStatus detector_tau_status() const noexcept;
   // Bank + spectra + FFT buffers, bytes (printed at start).
   std::size_t memory_bytes() const noexcept;
   // Setup (not RT): how much another target's patterns look like this one's — the best ZNCC
