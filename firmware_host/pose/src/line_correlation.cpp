@@ -53,24 +53,34 @@ void DetectorTauEstimator::read(const LineCorrelationSums& s, double dwell_ns) n
   if (!std::isfinite(rho)) return;
   if (!(ref_dwell_ns_ > 0) && weight_ == 0 && dwell_ns > 0) ref_dwell_ns_ = dwell_ns;
   // Clamped: a torn frame's sums can give |ρ| > 1; one frame must not carry the estimate far.
-  pending_rho_ = mapped(std::clamp(rho, -1.0, 0.999), dwell_ns, ref_dwell_ns_);
+  pending_read_ = std::clamp(rho, -1.0, 0.999);
+  pending_rho_ = mapped(pending_read_, dwell_ns, ref_dwell_ns_);
+  pending_dwell_ = dwell_ns;
   pending_weight_ = static_cast<double>(s.pairs);
 }
 
 void DetectorTauEstimator::keep() noexcept {
   if (!(pending_weight_ > 0)) return;
-  rho_ = blended();
+  if (weight_ > 0) {
+    // Which estimate foresaw this reading: the one kept at the reference dwell, or the one as read.
+    const double decay = 1.0 - 1.0 / kMemoryFrames;
+    const double m = pending_read_ - mapped(rho_, ref_dwell_ns_, pending_dwell_), r = pending_read_ - rho_read_;
+    miss_mapped_ = decay * miss_mapped_ + m * m;
+    miss_read_ = decay * miss_read_ + r * r;
+  }
+  rho_ = blended(rho_, pending_rho_);
+  rho_read_ = blended(rho_read_, pending_read_);
   weight_ = std::min(weight_ + pending_weight_, kMemoryFrames * static_cast<double>(kPairBudget));
   pending_weight_ = 0;
 }
 
-double DetectorTauEstimator::blended() const noexcept {
+double DetectorTauEstimator::blended(double kept, double pending) const noexcept {
   const double w = weight_ + pending_weight_;
-  return w > 0 ? (rho_ * weight_ + pending_rho_ * pending_weight_) / w : 0.0;
+  return w > 0 ? (kept * weight_ + pending * pending_weight_) / w : 0.0;
 }
 
 double DetectorTauEstimator::rho_at(double dwell_ns) const noexcept {
-  return mapped(blended(), ref_dwell_ns_, dwell_ns);
+  return follows_dwell() ? mapped(blended(rho_, pending_rho_), ref_dwell_ns_, dwell_ns) : blended(rho_read_, pending_read_);
 }
 
 double DetectorTauEstimator::lag_px(double dwell_ns) const noexcept {
@@ -79,7 +89,7 @@ double DetectorTauEstimator::lag_px(double dwell_ns) const noexcept {
 }
 
 double DetectorTauEstimator::tau_px() const noexcept {
-  const double r = std::min(blended(), kMaxRho);
+  const double r = std::min(rho_at(ref_dwell_ns_), kMaxRho);
   return r < kFastRho ? 0.0 : -1.0 / std::log(r);
 }
 

@@ -37,9 +37,12 @@ LineCorrelationSums line_correlation_sums(const std::uint16_t* px, int w, int h,
 int line_correlation_row_step(int w, int h) noexcept;
 
 // The running estimate of ρ over the frames whose fit was good, weighted by their pairs (a
-// frame's share falls as pairs accumulate, down to 1/kMemoryFrames of an ROI frame's pairs), kept
-// at a reference dwell (the first frame's; ρ at dwell d is ρ_ref^(d/d_ref), frames of unknown
-// dwell are taken as at the reference). RT-safe.
+// frame's share falls as pairs accumulate, down to 1/kMemoryFrames of an ROI frame's pairs). Two
+// estimates: one in the frames' pixels as read, one kept at a reference dwell (the first frame's;
+// ρ at dwell d is ρ_ref^(d/d_ref)). The second is used only once it predicts the readings better
+// than the first: a replay reports the governor's dwell, not the one its frames were recorded at,
+// and there ρ does not follow the dwell reported. Frames of unknown dwell are taken as at the
+// reference. RT-safe.
 class DetectorTauEstimator {
  public:
   static constexpr std::int64_t kPairBudget = 18432;  // a 192² ROI's every line once
@@ -66,13 +69,17 @@ class DetectorTauEstimator {
   double reference_dwell_ns() const noexcept { return ref_dwell_ns_; }
   bool settled() const noexcept { return weight_ >= kSettledFrames * kPairBudget; }
   double frames_kept() const noexcept { return weight_ / kPairBudget; }
+  // ρ follows the frames' dwell as reported (the readings say so); false: ρ as read.
+  bool follows_dwell() const noexcept { return miss_mapped_ < miss_read_; }
 
  private:
   double mapped(double rho, double from_dwell, double to_dwell) const noexcept;
-  double blended() const noexcept;
-  double rho_ = 0, weight_ = 0;  // kept estimate at the reference dwell, its weight in pairs
-  double pending_rho_ = 0, pending_weight_ = 0;
+  double blended(double kept, double pending) const noexcept;
+  double rho_ = 0, rho_read_ = 0, weight_ = 0;  // kept estimates (at the reference dwell; as read), their weight in pairs
+  double pending_rho_ = 0, pending_read_ = 0, pending_dwell_ = 0, pending_weight_ = 0;
   double ref_dwell_ns_ = 0;
+  // How far each estimate missed the kept readings (squared, ~kMemoryFrames readings' memory).
+  double miss_mapped_ = 0, miss_read_ = 0;
 };
 
 }  // namespace sempose::pose
