@@ -373,6 +373,7 @@ int main(int argc, char** argv) {
   double require_low_dose = -1;    // --require-low-dose-false F: exit 3 when > F of the poses below 2.5 e-/px are false
   int visp_levels = 3;
   std::string only_target, only_motion;
+  bool measure_tau_off = false;  // --measure-tau off: the untold rows uncorrected too
   // --mask outline|body: give each row's tracker its target's shape mask — the whole outline, or
   // only the part rigid with the pose point (the gripper's body without what its jaws reach;
   // the outline for one-part targets). The bound rows are not changed by it.
@@ -413,7 +414,10 @@ int main(int argc, char** argv) {
     else if (a == "--sigma-pattern-noise" && i + 1 < argc) tc.sigma_pattern_noise = std::string(argv[++i]) != "off";
     else if (a == "--rate-poses" && i + 1 < argc) tc.predict_rate_poses = std::atoi(argv[++i]);
     else if (a == "--attainable-pattern-noise" && i + 1 < argc) tc.attainable_pattern_noise = std::string(argv[++i]) != "off";
-    else if (a == "--measure-tau" && i + 1 < argc) tc.measure_detector_tau = std::string(argv[++i]) != "off";
+    else if (a == "--measure-tau" && i + 1 < argc) {
+      tc.measure_detector_tau = std::string(argv[++i]) != "off";
+      measure_tau_off = !tc.measure_detector_tau;
+    }
     else if (a == "--sigma-floor" && i + 2 < argc) {
       tc.sigma_floor_px = std::atof(argv[++i]);
       tc.sigma_floor_deg = std::atof(argv[++i]);
@@ -473,7 +477,7 @@ int main(int argc, char** argv) {
       "         scale0.8, scale1.25, jump@1.25 = at that scale from the first frame, no SELECT (the start search finds it)\n"
       "         bandwidth = detector tau 250 ns (1 px: each pixel keeps 37 %% of the last along the line)\n"
       "         untold1px/4px = warped through a detector tau of 1 / 4 px the tracker is not told (lag-free pattern;\n"
-      "         the bound is the lag-free scene's)\n"
+      "         the bound is the lag-free scene's), measured from the frames (tracker.measure_detector_tau on)\n"
       "bound_px, bound_deg: Cramér–Rao bound of one frame (2-D RMS, angle SD) at the true state of every 10th frame, over\n"
       "  every pixel the target affects, gain/offset (and scale, jaws where they vary) as nuisances; Poisson x Gamma + read\n"
       "us/pose, ms/frm: median thread CPU time per frame (sempose tracker update; ViSP track()).\n"
@@ -586,7 +590,11 @@ int main(int argc, char** argv) {
       s.step_y_px = 6;
       s.step_period_s = 0.078;
     }
-    SimHarness h(s, tc);
+    // The untold rows measure τ (tracker.measure_detector_tau, off by default) unless
+    // --measure-tau off asks for the uncorrected path.
+    config::TrackerConfig row_tc = tc;
+    if (row.label.rfind("untold", 0) == 0 && !measure_tau_off) row_tc.measure_detector_tau = true;
+    SimHarness h(s, row_tc);
     if (!h.status().ok) {
       std::printf("tracker setup failed: %s\n", h.status().message.c_str());
       return 1;
