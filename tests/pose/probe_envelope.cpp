@@ -353,12 +353,15 @@ int main(int argc, char** argv) {
         for (std::size_t f = 0; f < h.poses().size(); ++f) {
           const auto& e = h.poses()[f];
           const auto& t = h.records()[f].truth;
+          const auto& t2 = h.records()[f].second;
           uncertain += e.state == TrackState::kUncertain;
           if (trace)
-            std::fprintf(stderr, "T %zu %s x %.1f y %.1f tx %.1f ty %.1f err %.2f px %.2f deg score %.3f chi2 %.2f scale %.4f truth %.4f reasons %d%s\n", f,
+            std::fprintf(stderr, "T %zu %s x %.1f y %.1f tx %.1f ty %.1f err %.2f px %.2f deg score %.3f chi2 %.2f scale %.4f truth %.4f reasons %d%s", f,
                          sempose::pose::to_string(e.state), e.x_px, e.y_px, t.x_px, t.y_px, std::hypot(e.x_px - t.x_px, e.y_px - t.y_px),
                          std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)), e.score, e.chi2, e.scale, t.scale,
                          static_cast<int>(e.reason_bits), e.searched ? " searched" : "");
+          if (trace && t2.present) std::fprintf(stderr, " second %.1f %.1f %.1f", t2.x_px, t2.y_px, t2.phi_deg);
+          if (trace) std::fputc('\n', stderr);
           if (e.state != TrackState::kTracking) continue;
           ++tracking;
           sum_dx += e.x_px - t.x_px;

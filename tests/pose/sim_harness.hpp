@@ -213,6 +213,7 @@ struct FrameRecord {
   std::int64_t t_start_ns = 0;
   double t_mid_s = 0;  // mid-scan, seconds since the source started
   hal::TargetTruth truth;
+  hal::TargetTruth second;  // the scene's second target (a twin: edit_run), when present
 };
 
 // A peer tracker's pose for one frame (run_peer).
@@ -401,6 +402,7 @@ class SimHarness {
       rec.t_start_ns = t;
       render(meta.roi, t, meta.seq, pixels_.data(), meta.truth, &rec.t_mid_s);
       rec.truth = meta.truth[0];
+      rec.second = meta.truth[1];
       t += limits_.scan_time_ns(meta.roi.w, meta.roi.h, s_.dwell_ns) + 500'000;  // + modelled compute
       meta.t_scan_end_ns = t;
       const std::int64_t t0 = rt::now_ns(), c0 = thread_cpu_ns();
