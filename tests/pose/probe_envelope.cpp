@@ -74,8 +74,8 @@ void spin(pt::Scenario& s, double deg_per_frame) {
 }
 
 // A second target of the same pattern entering from the right at dy px from target 0's line and
-// passing over it (target 0 moves right slowly).
-void second_target(pt::Scenario& s, double dy) {
+// passing over it (target 0 moves right slowly); the twin starts at x0 with velocity vx, vy (px/s).
+void second_target(pt::Scenario& s, double dy, double vx = -300, double vy = 0, double x0 = 760) {
   s.start_x_px = 220;
   s.frames = 180;
   s.motion = "static";
@@ -87,11 +87,12 @@ void second_target(pt::Scenario& s, double dy) {
     a.margin_px = 110;
     cfg::SimTargetConfig b = c.targets[0];
     b.enabled = true;
-    b.x_px = 760;
+    b.x_px = x0;
     b.y_px = c.targets[0].y_px + dy;
     b.trajectory = cfg::TrajectoryConfig{};
     b.trajectory.kind = "linear";
-    b.trajectory.vx_px_s = -300;
+    b.trajectory.vx_px_s = vx;
+    b.trajectory.vy_px_s = vy;
     b.trajectory.margin_px = -200;
     c.targets[1] = b;
   };
@@ -210,6 +211,10 @@ std::vector<Case> cases() {
   v.push_back({"twin_passes_over", [](pt::Scenario& s) { second_target(s, 0); }});
   v.push_back({"twin_passes_30px", [](pt::Scenario& s) { second_target(s, 30); }});
   v.push_back({"twin_passes_70px", [](pt::Scenario& s) { second_target(s, 70); }});
+  // Variants: 50 px away, over it twice as fast, and crossing over it at 45° (~0.9 s in).
+  v.push_back({"twin_passes_50px", [](pt::Scenario& s) { second_target(s, 50); }});
+  v.push_back({"twin_passes_over_fast", [](pt::Scenario& s) { second_target(s, 0, -600); }});
+  v.push_back({"twin_crosses_over_at_45deg", [](pt::Scenario& s) { second_target(s, 270, -300, -300, 580); }});
   // 7. Beam faults mid-run: saturated frames, a band of saturated lines, the lower half blanked
   // (black level), the lower half shifted 12 px (a scan glitch), a field region gone dark (an occluder).
   v.push_back({"saturated_frames_40_41", [](pt::Scenario& s) {
