@@ -125,6 +125,31 @@ void shift_lines(const sempose::hal::Roi& r, sempose::hal::Pixel* p, Shift shift
   }
 }
 
+// A scan glitch on frames 40-49: the rows from row_share of the frame on moved by (dx, dy) px
+// (a pixel whose source lies outside those rows keeps its own value).
+void glitch(pt::Scenario& s, double row_share, int dx, int dy) {
+  fault(s, 40, 49, [=](const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel) {
+    const int from = static_cast<int>(row_share * r.h);
+    std::vector<sempose::hal::Pixel> src(p, p + static_cast<std::ptrdiff_t>(r.w) * r.h);
+    for (int y = from; y < r.h; ++y)
+      for (int x = 0; x < r.w; ++x) {
+        const int sx = x - dx, sy = y - dy;
+        if (sx >= 0 && sx < r.w && sy >= from && sy < r.h) p[static_cast<std::ptrdiff_t>(y) * r.w + x] = src[static_cast<std::ptrdiff_t>(sy) * r.w + sx];
+      }
+  });
+}
+
+// The field right of x = 400 a flat level (level × full scale) while the target moves into it.
+void occluder(pt::Scenario& s, double level) {
+  s.frames = 200;
+  linear(s, 250, 240, 150, 0, 60);
+  s.frame_fault = [=](std::uint64_t, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel m) {
+    for (int y = 0; y < r.h; ++y)
+      for (int x = std::max(0, 400 - r.x); x < r.w; ++x)
+        p[static_cast<std::ptrdiff_t>(y) * r.w + x] = static_cast<sempose::hal::Pixel>(level * m);
+  };
+}
+
 std::vector<Case> cases() {
   using sempose::hal::Pixel;
   using sempose::hal::Roi;
@@ -231,23 +256,14 @@ std::vector<Case> cases() {
                    std::fill(p + r.w * (r.h / 2), p + r.w * r.h, static_cast<Pixel>(0.04 * m));
                  });
                }});
-  v.push_back({"half_shifted_12px_frames_40_49", [](pt::Scenario& s) {
-                 s.frames = 80;
-                 fault(s, 40, 49, [](const Roi& r, Pixel* p, Pixel) {
-                   for (int y = r.h / 2; y < r.h; ++y) {
-                     Pixel* row = p + static_cast<std::ptrdiff_t>(y) * r.w;
-                     for (int x = r.w - 1; x >= 12; --x) row[x] = row[x - 12];
-                   }
-                 });
-               }});
-  v.push_back({"dark_occluder_x_gt_400", [](pt::Scenario& s) {
-                 s.frames = 200;
-                 linear(s, 250, 240, 150, 0, 60);
-                 s.frame_fault = [](std::uint64_t, const Roi& r, Pixel* p, Pixel m) {
-                   for (int y = 0; y < r.h; ++y)
-                     for (int x = std::max(0, 400 - r.x); x < r.w; ++x) p[static_cast<std::ptrdiff_t>(y) * r.w + x] = static_cast<Pixel>(0.04 * m);
-                 };
-               }});
+  v.push_back({"half_shifted_12px_frames_40_49", [](pt::Scenario& s) { s.frames = 80; glitch(s, 0.5, 12, 0); }});
+  // Variants of the scan glitch: other sizes and directions, another share of the frame.
+  v.push_back({"half_shifted_5px_frames_40_49", [](pt::Scenario& s) { s.frames = 80; glitch(s, 0.5, 5, 0); }});
+  v.push_back({"half_shifted_20px_frames_40_49", [](pt::Scenario& s) { s.frames = 80; glitch(s, 0.5, 20, 0); }});
+  v.push_back({"half_shifted_y_8px_frames_40_49", [](pt::Scenario& s) { s.frames = 80; glitch(s, 0.5, 0, 8); }});
+  v.push_back({"third_shifted_left_10px_frames_40_49", [](pt::Scenario& s) { s.frames = 80; glitch(s, 2.0 / 3.0, -10, 0); }});
+  v.push_back({"dark_occluder_x_gt_400", [](pt::Scenario& s) { occluder(s, 0.04); }});
+  v.push_back({"bright_occluder_x_gt_400", [](pt::Scenario& s) { occluder(s, 0.9); }});
   // 8. Scan and detector faults a lab meets that item 7 does not name: lines jittering ±2 px
   // (deflection noise), a slow wave along the frame (mains hum in the deflection, 3 px), the frame
   // buffer frozen for 10 frames (the same image delivered again while the target moves on),
