@@ -855,3 +855,37 @@ TEST(NoFalseTracking, TurnFasterThanTheWalkIsNotTrackedOnTheTurnedLookAlike) {
     EXPECT_GE(n.tracked, s.frames / 5) << "the target itself is tracked";
   }
 }
+
+// A scan glitch (pose_envelope_probe half_shifted_12px_frames_40_49): on frames 40-49 the lower
+// half of every scanned frame is shifted 12 px to the right, on a target moving ~0.7 px a frame.
+// The pose sat between the halves or with the lower one, TRACKING 8-9 px off at a score the
+// level rules accept (the needle tip at 20 e-/px: 8 ROI frames). The split check ran only on a
+// target standing still; it now runs on a moving one with the shear its motion explains as an
+// allowance, so the torn ROI frames are UNCERTAIN. The search frame the glitch's first frame
+// leads to is not counted: on the field the tear cuts the pattern near its top, where the parts'
+// fits have too little structure to disagree significantly (README Known limitations in depth).
+TEST(NoFalseTracking, ScanGlitchShiftingHalfTheFrameIsNotTracking) {
+  pt::Scenario s = envelope_scene("needle_tip", "smooth", 20, 60);
+  s.frame_fault = [](std::uint64_t seq, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel) {
+    if (seq < 40 || seq > 49) return;
+    for (int y = r.h / 2; y < r.h; ++y) {
+      sempose::hal::Pixel* row = p + static_cast<std::ptrdiff_t>(y) * r.w;
+      for (int x = r.w - 1; x >= 12; --x) row[x] = row[x - 12];
+    }
+  };
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  int tracked = 0, false_n = 0;
+  for (std::size_t f = 0; f < h.poses().size(); ++f) {
+    const auto& e = h.poses()[f];
+    const auto& t = h.records()[f].truth;
+    if (e.state != TrackState::kTracking || e.searched) continue;
+    ++tracked;
+    false_n += !(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)) <= 10.0);
+  }
+  std::printf("needle_tip, half the frame shifted 12 px on frames 40-49, dose 20: ROI frames TRACKING %d, false %d\n", tracked,
+              false_n);
+  EXPECT_EQ(false_n, 0) << "a torn ROI frame TRACKING (8 before)";
+  EXPECT_GE(tracked, s.frames * 3 / 4) << "tracked outside the glitch";
+}

@@ -10,8 +10,9 @@ namespace {
 // Σ over one part of the regressors r = (t, ∂t/∂x, ∂t/∂y), the window f and their products.
 struct Sums {
   double n = 0, r[3] = {}, f = 0, rr[6] = {}, rf[3] = {}, ff = 0;  // rr: 00 01 02 11 12 22
+  double ny = 0;  // Σ row index over the part's pixels: its centroid row (when it was scanned)
   void add(const Sums& o) noexcept {
-    n += o.n, f += o.f, ff += o.ff;
+    n += o.n, f += o.f, ff += o.ff, ny += o.ny;
     for (int i = 0; i < 3; ++i) r[i] += o.r[i], rf[i] += o.rf[i];
     for (int i = 0; i < 6; ++i) rr[i] += o.rr[i];
   }
@@ -104,6 +105,7 @@ SplitConsistency SplitConsistencyCheck::measure(const PatternBank& bank, int j, 
       }
       Sums& s = part[(y - y_min) * kParts / rows];
       s.n += x1 - x0 + 1;
+      s.ny += static_cast<double>(y) * (x1 - x0 + 1);
       s.r[0] += r0, s.r[1] += r1, s.r[2] += r2, s.f += sf;
       s.rr[0] += q00, s.rr[1] += q01, s.rr[2] += q02, s.rr[3] += q11, s.rr[4] += q12, s.rr[5] += q22;
       s.rf[0] += g0, s.rf[1] += g1, s.rf[2] += g2, s.ff += sff;
@@ -125,6 +127,7 @@ SplitConsistency SplitConsistencyCheck::measure(const PatternBank& bank, int j, 
       r.valid = true;
       r.z = z;
       r.apart_px = std::hypot(ddx, ddy);
+      r.rows_apart = last.ny / last.n - first.ny / first.n;
       r.cut = c;
     }
   }

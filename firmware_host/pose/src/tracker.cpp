@@ -185,12 +185,13 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
 // the field, loaded at the scale found (resampled by 1/scale as an ROI frame is) and σ taken at
 // the search's pose and angle, as for an ROI frame. It misses what a field scan adds: the
 // target moving during the ~80 ms scan. Setup sized every buffer this uses; ~60 µs, on a
-// search frame only.
-void Tracker::Impl::search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px,
-                                 const Roi& field_roi, int bits, PoseEstimate& e) noexcept {
+// search frame only. Returns the search's measurement placed in that loaded ROI (for the split
+// check, torn()).
+Tracker::Impl::Loaded Tracker::Impl::search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px,
+                                                  const Roi& field_roi, int bits, PoseEstimate& e) noexcept {
   const int w = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.w}), h = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.h});
   const int pattern_px = sizes.pattern_px;
-  if (!m.valid || w < pattern_px || h < pattern_px) return;
+  if (!m.valid || w < pattern_px || h < pattern_px) return {};
   const double fx = e.x_px + lag_shift_px - field_roi.x, fy = e.y_px - field_roi.y;  // the pose in this frame's pixels
   const int x0 = std::clamp(static_cast<int>(std::lround(fx - (w - 1) / 2.0)), 0, field_roi.w - w);
   const int y0 = std::clamp(static_cast<int>(std::lround(fy - (h - 1) / 2.0)), 0, field_roi.h - h);
@@ -205,7 +206,7 @@ void Tracker::Impl::search_sigma(const PatternBank& bank, const Measurement& m, 
     load_stride = w;
     load_bits = RoiRescaler::out_bits(bits);
   }
-  if (!loader.load(load_px, w, h, load_stride, load_bits)) return;
+  if (!loader.load(load_px, w, h, load_stride, load_bits)) return {};
   // The pattern's top-left in the loaded ROI (RoiRescaler::to_raw inverted about its centre).
   const double c = (pattern_px - 1) / 2.0;
   const double lx = (w - 1) / 2.0 + (fx - x0 - (w - 1) / 2.0) / used_scale - c;
@@ -216,6 +217,7 @@ void Tracker::Impl::search_sigma(const PatternBank& bank, const Measurement& m, 
   at.dx = lx - at.ux;
   at.dy = ly - at.uy;
   set_sigma(uncertainty.estimate(bank, at, e.scale / used_scale), used_scale, e);
+  return {true, at, used_scale};
 }
 
 // The pose is trusted when its error SD — the larger of its own σ (the fit's covariance) and
@@ -343,28 +345,36 @@ bool Tracker::Impl::fell_while_still(const PoseEstimate& e) noexcept {
   return still_doubt;
 }
 
-// A torn frame (issue 13 item 6): the target jumped while its ROI was scanned, so the lines
-// scanned before the jump show it at one place and those after at another, and the pose sits
-// with one part or between them. Its score can stay at the level of the frames before, so
-// neither the score rules nor fell_while_still see it (the clutter control rows of
-// `pose_accuracy_bench --clutter`, frame 39: TRACKING 7-8.6 px off at 0.76-0.86). The split
-// check (split_consistency.hpp) fits the rows scanned first and those scanned last apart at the
-// pose; parts whose displacements differ significantly (χ², 2 dof, at max_false_probability
-// shared over the cuts) and by at least kTornApartPx say the target was not rigid during the
-// scan. Both: at 20 e-/px a whole frame of the needle over clutter it moved away from has
-// parts 0.3-0.6 px apart at 4-5 SD (the clutter pulls each part by its own share), the torn
-// frames 1.3 px (the linear step reads an 8 px tear short) at 5.7-6.5 SD. Only on a pose
-// otherwise TRACKING of a target the stream says stood still (the caller's gate: a target's
-// smooth motion, turn or scale drift during the scan shears the parts apart by themselves —
-// without the gate the check turned 175 `--quick` frames UNCERTAIN, most on the fast, scale
-// ramp and spin rows). One pass over the footprint, RT.
-bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept {
+// A torn frame (issue 13 item 6): the target jumped while its ROI was scanned, or a scan glitch
+// moved part of the frame, so the lines scanned before show it at one place and those after at
+// another, and the pose sits with one part or between them. Its score can stay at the level of
+// the frames before, so neither the score rules nor fell_while_still see it (the clutter control
+// rows of `pose_accuracy_bench --clutter`, frame 39: TRACKING 7-8.6 px off at 0.76-0.86; a scan
+// glitch shifting the ROI's lower half by 12 px on a moving target, pose_envelope_probe
+// half_shifted: 7-9 poses a row 4-12 px off). The split check (split_consistency.hpp) fits the
+// rows scanned first and those scanned last apart at the pose; parts whose displacements differ
+// significantly (χ², 2 dof, at max_false_probability shared over the cuts) and by at least
+// kTornApartPx say the target was not rigid during the scan. Both: at 20 e-/px a whole frame of
+// the needle over clutter it moved away from has parts 0.3-0.6 px apart at 4-5 SD (the clutter
+// pulls each part by its own share), the torn frames 1.3 px (the linear step reads an 8 px tear
+// short) at 5.7-6.5 SD. A moving target shears the parts apart by itself (the rows scanned
+// later show it farther on): the check used to run only on a target the stream said stood still
+// (without that gate it turned 175 `--quick` frames UNCERTAIN, most on the fast, scale ramp and
+// spin rows), which let every torn frame of a moving target through. Now it runs on every pose
+// otherwise TRACKING, and the shear the target's motion explains (motion_per_row, px per row
+// between the parts' centroid rows: the caller's) is an allowance on top of kTornApartPx. An
+// allowance, not a correction: the linear step reads a smooth shear short too (the needle tip at
+// ~4 px a frame: 0.5-0.7 px apart where its velocity predicts 1.0). A turn during a raster scan
+// bends the parts rather than pulling them apart (rows above and below the centre shift alike).
+// On a search frame (no motion known) the allowance is 0. One pass over the footprint, RT.
+bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double used_scale, double motion_per_row) const noexcept {
   if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
   const SplitConsistency s = split.measure(bank, m.j, m.ux, m.uy);
   // The parts' distance is a 2-D Mahalanobis one, the largest of kCuts: significant when its
   // square exceeds the χ² (2 dof) quantile of max_false_probability shared over the cuts.
   const double p = std::clamp(cfg.max_false_probability / SplitConsistencyCheck::kCuts, 1e-12, 0.5);
-  return s.valid && s.z * s.z >= -2.0 * std::log(p) && used_scale * s.apart_px >= kTornApartPx;
+  return s.valid && s.z * s.z >= -2.0 * std::log(p) &&
+         used_scale * (s.apart_px - motion_per_row * std::fabs(s.rows_apart)) >= kTornApartPx;
 }
 
 // A target leaving the field across an edge or a corner (pose_envelope_probe --case leave_): the
@@ -638,6 +648,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   e.y_px = motion.y_px();
   e.phi_deg = motion.phi_deg();
   frame_dwell_ns = static_cast<double>(frame.dwell_ns);
+  {
+    const double mid_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
+    frame_period_s = last_mid_s > 0 && mid_s > last_mid_s ? mid_s - last_mid_s : 0.0;
+    last_mid_s = mid_s;
+  }
   lag_shift_px = lag_shift_of(frame, set);
   if (frame.field_w > 0 && frame.field_h > 0) {
     field.field_w = frame.field_w;
@@ -698,6 +713,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   if (!on_target || scored.w > sizes.roi_fft_px || scored.h > sizes.roi_fft_px) {
     int rx = 0, ry = 0;
     e.searched = true;
+    tracking_speed_px = -1;
     const bool prior_known = motion.last_angle().known;
     double found_scale = scale;
     // The expected scale is a prior: the SELECT's (else 1) for a new target, the last tracked
@@ -723,7 +739,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y, m.j) : 0.0;
     if (m.valid) e.chi2 = normalised_chi2(e.score, attainable);
-    if (loss.found(m, attainable)) search_sigma(bank, m, px, roi, frame.bits, e);
+    const Loaded loaded = loss.found(m, attainable) ? search_sigma(bank, m, px, roi, frame.bits, e) : Loaded{};
     if (loss.found(m, attainable) && !search_settled(m, e)) {
       // Found, but not told from a look-alike elsewhere yet: reported UNCERTAIN, searched again.
       e.state = TrackState::kUncertain;
@@ -735,6 +751,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // 0.95 there and 0.55-0.6 on every later frame, read as a fall to a look-alike).
       accept(e, frame, true, cfg.attainable_pattern_noise && attainable > 0 ? attainable : 1.0);
       scale = e.scale;  // tracking starts at the scale the search found
+      untorn_scale = scale;
       scale_tracked = true;
       const bool at_edge = at_field_edge(e, e.scale);
       open_flip_check(m, prior_known, at_edge);
@@ -744,6 +761,13 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       if (at_edge) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonOutOfField;
+      }
+      // The field scan saw the target's rows at places the rigid pattern does not join (a torn
+      // or glitched scan; a target moving during the long field scan, whose motion is not known
+      // here): its pose is not vouched for until an ROI frame confirms it.
+      if (e.state == TrackState::kTracking && loaded.valid && torn(loaded.at, bank, loaded.used_scale, 0)) {
+        e.state = TrackState::kUncertain;
+        e.reason_bits |= kReasonUnexplained;
       }
     } else {
       e.state = TrackState::kAcquiring;
@@ -842,26 +866,41 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         innov = {true, motion.innovation_px(e.x_px, e.y_px), motion.innovation_deg(e.phi_deg)};
       const bool fell = fell_below_search_level(m.score);  // against the level before this frame
       const bool fell_still = fell_while_still(e);          // against the last accepted pose
-      // The split check only where the stream says the target stood still: its last move at
-      // most kStillPx, its last turn at most kStillDeg or, once the stream's pose noise is
-      // known, the noise of a difference of two poses (significance_z() × √2 × pose_noise_deg:
-      // at 6 e-/px a still target's poses turn 1-2.3° from one frame to the next), and the
-      // tracked scale's rate (scale_rate, ~2 frames' memory) at most kStillScale of it with its
-      // last step at most kStillScaleStep. A part's displacement then drifts at most ~0.3 px
-      // during the scan (the parts' centres are ~0.3 of a frame apart, the pattern's rim ~60 px
-      // from its centre; a turn during a raster scan bends the parts rather than pulling them
-      // apart: rows above and below the centre shift alike), well inside kTornApartPx.
-      const double still_deg =
-          motion.pose_noise_known() ? std::max(kStillDeg, significance_z() * std::sqrt(2.0) * motion.pose_noise_deg()) : kStillDeg;
-      const bool still = motion.has_velocity() &&
-                         std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px()) <= kStillPx &&
-                         std::fabs(rt::wrap_deg(motion.predicted_phi_deg() - motion.phi_deg())) <= still_deg &&
-                         std::fabs(scale_rate) <= kStillScale * scale && std::fabs(scale_step) <= kStillScaleStep * scale;
+      // How far the target's own motion puts the split check's parts apart per row between them
+      // (torn()): its velocity per frame times the share of the frame period one row's scan
+      // takes (without timestamps, one of the ROI's rows), plus the tracked scale against the
+      // scale the ROI was loaded at (rows below the centre show a larger target lower). The
+      // velocity is the motion model's; without one (the first ROI frame after a search) this
+      // pose's move from the last one over the time since it, and the smaller of the two until
+      // the motion since the search is known (the first velocity spans the long field scan).
+      // Loaded-ROI px per loaded row: a rescaled ROI's rows and pixels are both 1/used_scale of
+      // the scanned ones.
+      const double row_share = frame_period_s > 0 && frame.t_scan_end_ns > frame.t_scan_start_ns
+                                   ? 1e-9 * static_cast<double>(frame.t_scan_end_ns - frame.t_scan_start_ns) / roi.h / frame_period_s
+                                   : 1.0 / roi.h;
+      // A torn frame's followed pose teaches the motion model a false velocity (the pose jumps
+      // with the part it sits on), which would excuse the torn frames after it: the speed is at
+      // most the one the last TRACKING frame left (until a search).
+      const double this_move_px = std::hypot(e.x_px - motion.x_px(), e.y_px - motion.y_px());
+      const double velocity_px = std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px());
+      double moved_px = !motion.has_velocity()   ? this_move_px
+                        : motion.motion_known() ? velocity_px
+                                                : std::min(velocity_px, this_move_px);
+      if (tracking_speed_px >= 0) moved_px = std::min(moved_px, tracking_speed_px);
+      // A still target's move from two noisy poses reads up to ~1 px a frame at 6 e-/px
+      // (kStillPx, the check's old gate): that much is noise, not motion during the scan.
+      const double motion_per_row = std::max(0.0, moved_px - kStillPx) * row_share + std::fabs(scale / used_scale - 1.0);
+      // And only while the tracked scale is steady (its running rate, ~2 frames' memory, at most
+      // kStillScale of it and its last step at most kStillScaleStep), as before: a target whose
+      // size changes during the scan (a scale ramp, a gripper's jaws moving, which the scale
+      // readings follow) pulls the parts apart in its own way, which the motion's allowance does
+      // not hold (without this gate 24 jaws and 10 scale-ramp frames of `--quick` turned
+      // UNCERTAIN). Learnt from the frames the check did not find torn: a torn frame's scale
+      // reading is torn too (0.97 where the target is at 1.00) and closed the gate on the torn
+      // frames after it.
+      const bool steady_scale = std::fabs(scale_rate) <= kStillScale * scale && std::fabs(scale_step) <= kStillScaleStep * scale;
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
-      const double scale_before = scale;
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
-      scale_step = scale - scale_before;
-      scale_rate += kScaleRateGain * (scale_step - scale_rate);
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
       if (flip_open || rival_within_noise || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
@@ -879,9 +918,17 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;
       }
-      if (still && e.state == TrackState::kTracking && torn(m, bank, used_scale)) {
+      const bool split_apart = steady_scale && e.state == TrackState::kTracking && torn(m, bank, used_scale, motion_per_row);
+      if (split_apart) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;
+      }
+      if (e.state == TrackState::kTracking)
+        tracking_speed_px = std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px());
+      if (!split_apart) {
+        scale_step = scale - untorn_scale;
+        scale_rate += kScaleRateGain * (scale_step - scale_rate);
+        untorn_scale = scale;
       }
       // A good frame teaches the appearance model (RT: sums into a preallocated batch). It reads
       // the pixels the walk was scored on (the ROI resampled to the pattern's size if rescaled).

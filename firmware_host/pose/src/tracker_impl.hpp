@@ -241,9 +241,15 @@ struct Tracker::Impl {
     e.meas_x_px = e.x_px;
   }
   // A start search's pose gets σ as an ROI frame's does: the ROI around it cut from the field,
-  // loaded at the found scale, the fit's covariance at the search's pose (tracker.cpp).
-  void search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px, const Roi& field_roi, int bits,
-                    PoseEstimate& e) noexcept;
+  // loaded at the found scale, the fit's covariance at the search's pose (tracker.cpp). Returns
+  // the measurement placed in that loaded ROI and the scale it was loaded at (valid: loaded).
+  struct Loaded {
+    bool valid = false;
+    Measurement at;
+    double used_scale = 1.0;
+  };
+  Loaded search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px, const Roi& field_roi, int bits,
+                      PoseEstimate& e) noexcept;
   void go_lost() noexcept;
   void hold() noexcept;
   // How far an accepted pose landed from a prediction made from two ROI poses (known: there was one).
@@ -287,22 +293,27 @@ struct Tracker::Impl {
   // A torn frame (tracker.cpp, torn()): the rows of the footprint scanned first and those
   // scanned last put the target at places that differ by more than their noise allows (χ², 2
   // dof, at max_false_probability over the cuts) and by at least kTornApartPx
-  // (split_consistency.hpp): it moved mid-scan. Checked only on a target the stream says stood
-  // still (kStill*). Followed, reported UNCERTAIN with kReasonUnexplained.
-  bool torn(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept;
+  // (split_consistency.hpp) beyond what the target's own motion shears them apart
+  // (motion_per_row × the rows between them): it moved mid-scan, or the scan tore. Followed,
+  // reported UNCERTAIN with kReasonUnexplained.
+  bool torn(const Measurement& m, const PatternBank& bank, double used_scale, double motion_per_row) const noexcept;
   // The pattern's window at the measured pose reaches the field's edge (tracker.cpp): the match
   // is the best place the pattern still fits, not necessarily the target's. Reported UNCERTAIN
   // with kReasonOutOfField.
   bool at_field_edge(const PoseEstimate& e, double load_scale) const noexcept;
-  static constexpr double kTornApartPx = 0.75;
-  static constexpr double kStillPx = 1.0, kStillDeg = 1.0, kStillScale = 0.0025, kStillScaleStep = 0.005;
-  double scale_step = 0;  // the tracked scale's change on the last accepted ROI frame
-  // Its running mean over the accepted frames (gain kScaleRateGain: ~2 frames' memory): the
+  static constexpr double kTornApartPx = 0.75, kStillPx = 1.0, kStillScale = 0.0025, kStillScaleStep = 0.005;
+  double untorn_scale = 1.0;  // the tracked scale after the last accepted frame not found torn (or search)
+  double scale_step = 0;      // the tracked scale's change from one such frame to the next
+  // Its running mean over those frames (gain kScaleRateGain: ~2 frames' memory): the
   // scale's rate with one step's noise halved (a still target's single step reaches 0.27 % at
   // 6 e-/px; a ±25 % ramp over 60 frames keeps ~0.4 % a frame).
   double scale_rate = 0;
   static constexpr double kScaleRateGain = 0.5;
+  // The motion model's speed (px per frame) after the last TRACKING frame; -1 after a search.
+  double tracking_speed_px = -1;
   double frame_dwell_ns = 0;  // the pixel dwell of the frame being measured (0: not known)
+  // The time from the last frame's mid-scan to this one's (0: not known), and that mid-scan.
+  double frame_period_s = 0, last_mid_s = 0;
 
   // Flip check (a near-symmetric target, e.g. a lamella, scores almost alike turned by 180°):
   // after a search without a trusted angle prior whose choice does not lead the opposite

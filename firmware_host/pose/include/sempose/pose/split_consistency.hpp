@@ -27,6 +27,9 @@ struct SplitConsistency {
   // Of the cuts, the one whose parts lie farthest apart in noise SDs: that distance (√ of the
   // Mahalanobis d²) and the parts' displacement difference in loaded-ROI pixels.
   double z = 0, apart_px = 0;
+  // The two parts' centroid rows' distance (loaded-ROI rows): how much later the second part
+  // was scanned, so how far a moving target's own motion puts the parts apart.
+  double rows_apart = 0;
   int cut = 0;  // 1 … kCuts: the cut after cut quarters of the support's rows
 };
 
