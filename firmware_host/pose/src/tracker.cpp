@@ -95,10 +95,7 @@ void Tracker::Impl::check_motion(const PatternBank& bank, Measurement& m, PoseEs
   const double level = loss.recent_level();
   const bool below_level =
       motion.motion_known() && level > 0 && m.score < level - significance_z() * flip_sd(level);
-  if ((!surprising || loss.confirmed(m.score)) && !below_level) {
-    surprised = surprising && motion.motion_known();  // kept on its score alone
-    return;
-  }
+  if ((!surprising || loss.confirmed(m.score)) && !below_level) return;
   if (!swept && cfg.recover_sweep_deg > 0) {
     const int j_pred = angles.index_of(motion.predicted_phi_deg());
     // Only positions the motion makes plausible: the sweep over the whole ROI found a
@@ -137,9 +134,8 @@ void Tracker::Impl::check_motion(const PatternBank& bank, Measurement& m, PoseEs
   // And only a grave surprise (6 SD of the innovations, at least 3 px / 6°): at 4 SD the
   // needle in pipeline_test, whose frame interval the governor varies, was declared
   // implausible once at its true pose and searched again.
-  const bool still_surprising = motion.motion_known() && motion.surprising(e.x_px, e.y_px, e.phi_deg);
-  m.implausible = still_surprising && motion.surprising(e.x_px, e.y_px, e.phi_deg, kImplausibleWider) && !loss.confirmed(m.score);
-  surprised = still_surprising && !m.implausible;
+  m.implausible = motion.motion_known() && motion.surprising(e.x_px, e.y_px, e.phi_deg, kImplausibleWider) &&
+                  !loss.confirmed(m.score);
 }
 
 // Two hypotheses of one frame (measurements in the same loaded ROI, loaded at used_scale) more
@@ -505,28 +501,11 @@ bool Tracker::Impl::settle_flip(const PatternBank& bank, Measurement& m, PoseEst
   if (!f.valid) return false;
   const double d = static_cast<double>(m.score) - f.score;
   flip_lead.add(d);
-  // Opened by a surprising pose (update): one difference that is significant by the noise of two
-  // independent scores decides at once, as a search's lead does (open_flip_check); an elongated
-  // target that bounced leads its turned look-alike by far more.
-  const bool decided_at_once = flip_on_surprise && flip_lead.n == 1 && !shape_masked &&
-                               std::fabs(d) >= significance_z() * flip_sd(std::max(m.score, f.score));
   // The two hypotheses are scored on the same pixels, so their noise is largely shared (the
   // more alike they are, the more): the differences' own spread is the SD that counts, not
   // flip_sd's independent-score one (which would need ~80 frames at 2.5 e-/px); Student's t
   // with n − 1 degrees of freedom for the few frames it is measured on.
-  int verdict = decided_at_once ? (d > 0 ? 1 : -1) : flip_lead.verdict(significance_z());
-  if (verdict == 0 && flip_on_surprise && flip_lead.n == 1) {
-    // The surprise is the flip's only when the opposite hypothesis lies where the motion
-    // predicted, closer than the pose kept by more than the false-pose distance: the turned
-    // target sits where it was (turn_180: the pose kept 17 px off the prediction, the opposite
-    // on it). A bounce moved the target itself, and its turned copy lies about it (on it for a
-    // near-symmetric target): the check closes, and the bounce costs no frames (otherwise
-    // UNCERTAIN for the 4 frames Student's t needs: pose_accuracy_bench --quick, fast rows).
-    PoseEstimate pf;
-    place(f, pf);
-    const double px = motion.predicted_x_px(), py = motion.predicted_y_px();
-    if (std::hypot(pf.x_px - px, pf.y_px - py) >= std::hypot(e.x_px - px, e.y_px - py) - LossPolicy::kFalsePx) verdict = 1;
-  }
+  int verdict = flip_lead.verdict(significance_z());
   if (shape_masked) {
     // A shape mask keeps the target's own pixels, and an outline at alpha 0.5 cuts a flat
     // target's rim in half: what tells it from itself turned by 180° (its edges against the
@@ -821,8 +800,6 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   };
   bool swept = false;
   rival_within_noise = false;
-  surprised = false;
-  flip_on_surprise = false;
   Measurement m = track(bank, swept, set, {load_px, load_stride});
   place(m, e);
   // The loaded ROI's origin in the field (a rescaled ROI is resampled about its centre).
@@ -830,20 +807,6 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   // (Its origin where the target's true place is: the frame shows it lag_shift_px further on.)
   check_motion(bank, m, e, swept, scored.x - lag_shift_px + (rescaled ? 0.5 * (loaded_w - 1) * (1.0 - used_scale) : 0.0),
                scored.y + (rescaled ? 0.5 * (loaded_h - 1) * (1.0 - used_scale) : 0.0), used_scale, place);
-  // A pose the motion did not predict may be the target's 180° look-alike: an elongated target
-  // turned in a frame (or spun past the sweep) is matched at the predicted angle by its own turned
-  // body, ~15 px off (pose_envelope_probe turn_180, spin_45deg_per_frame: the lamella on post
-  // TRACKING 15-17 px and 178-180° off, at a score the running level confirmed). The flip check
-  // measures the opposite hypothesis; a significant lead on this frame settles it at once.
-  // So may the first pose after held frames: the hold kept the ROI, not the hypothesis (spinning
-  // 45° a frame, the lamella on post's look-alike orbits the target 15 px off and was taken up
-  // after 1-3 held frames, TRACKING at 168-180°).
-  if ((surprised || held_frames > 0) && !flip_open && cfg.max_false_probability > 0) {
-    flip_open = true;
-    flip_on_surprise = true;
-    flip_lead = FlipLead{};
-    flip_circle = FlipLead{};
-  }
   // The flip check before the scale probe and σ, which read the hypothesis kept.
   const bool flipped = flip_open && settle_flip(bank, m, e, place);
   const ScaleReading reading = scale_probe.read(bank, m);

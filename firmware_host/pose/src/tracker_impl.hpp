@@ -279,13 +279,6 @@ struct Tracker::Impl {
   // the frame cannot tell which is the target (a torn frame: the target jumped mid-scan and
   // half the ROI shows it at each place). Followed, reported UNCERTAIN.
   bool rival_within_noise = false;
-  // The motion check's pose is still surprising after its sweep (beyond kSurpriseSigmas × the
-  // RMS innovation, the motion since the last search known) and was kept only because its score
-  // is confirmed (tracker.cpp, check_motion): a jump the motion model did not predict.
-  bool surprised = false;
-  // This frame's surprise (or the first frame after held ones) opened the flip check (tracker.cpp,
-  // update): its first frame may settle it.
-  bool flip_on_surprise = false;
   // Where the last TRACKING poses put the target (continuity_anchor.hpp): after a held frame a
   // pose is TRACKING again only where that motion leads (a twin passing over drags the pose).
   ContinuityAnchor anchor;
