@@ -27,7 +27,7 @@ POSE_ATTR = [
      "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded (a REACQUIRE, or sempose's own re-search when look_alike is 1), 64 angle unsettled, "
      "128 unexplained (the pattern does not explain the window up to noise)"),
     ("seq", 40, 8, False, 1, 0, 0, 255, "", "Pose sequence counter (low 8 bits), same in POSE_XY"),
-    ("age", 48, 15, False, 1, 0, 0, 32767, "us", "Scan end to send (saturating)"),
+    ("age", 48, 15, False, 1, 0, 0, 32767, "us", "Beam on the target (the time the pose is valid for) to send (saturating)"),
     ("look_alike", 63, 1, False, 1, 0, 0, 1, "",
      "1: a target with the same pattern is on this pose's place (state UNCERTAIN while both are there), or this pose comes from the search sempose started because of it (reason 32 on such a frame is sempose's own, not a controller REACQUIRE)"),
 ]
@@ -39,7 +39,7 @@ POSE_FD = [
     ("state", 112, 8, False, 1, 0, 0, 3, "", "0 TRACKING, 1 ACQUIRING, 2 LOST, 3 UNCERTAIN (followed, pose not trusted)"),
     ("reason", 120, 8, False, 1, 0, 0, 255, "", "Lost reason bits (see POSE_ATTR)"),
     ("seq", 128, 32, False, 1, 0, 0, 4294967295, "", "Pose sequence counter"),
-    ("age", 160, 32, False, 1, 0, 0, 4294967295, "us", "Scan end to send"),
+    ("age", 160, 32, False, 1, 0, 0, 4294967295, "us", "Beam on the target (the time the pose is valid for) to send"),
     ("psr", 192, 16, False, 0.01, 0, 0, 655.35, "", "Peak-to-sidelobe ratio"),
     ("pattern_set", 208, 8, False, 1, 0, 0, 255, "", "Active pattern set / magnification step"),
     ("target", 216, 8, False, 1, 0, 0, 3, "", "Target index"),

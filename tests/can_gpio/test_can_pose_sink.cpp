@@ -97,6 +97,32 @@ TEST(CanPoseSink, FdChannelSendsOne64BytePoseFrame) {
   EXPECT_EQ(d.scale_pm_per_px, 40000u);
 }
 
+// CAN's age runs from when the beam passed the target (PoseRecord::t_beam_ns), the time the pose
+// is valid for: a full-field search frame's pose is tens of ms older than its scan's end. The
+// classic frame's 15-bit age saturates; the FD frame's carries it whole. (Base: age from the
+// scan's end, 2500 µs here.)
+TEST(CanPoseSink, AgeRunsFromWhenTheBeamPassedTheTarget) {
+  auto p = pose(0, 5);
+  p.t_scan_end_ns = 80'000'000;
+  p.t_beam_ns = 41'000'000;  // the target's rows scanned 39 ms before the field scan ended
+  hal::MemoryCanChannel classic;
+  co::CanPoseSink cs(classic, {});
+  ASSERT_EQ(cs.publish(p, 82'500'000), pl::PublishResult::kSent);
+  ipc::PoseAttr da;
+  ASSERT_TRUE(ipc::decode_pose_attr(classic.sent(1).data, classic.sent(1).len, da));
+  EXPECT_EQ(da.age_us, 32767) << "41.5 ms: saturated";
+  hal::MemoryCanChannel fd(64, /*fd=*/true);
+  co::CanPoseSink fs(fd, {});
+  ASSERT_EQ(fs.publish(p, 82'500'000), pl::PublishResult::kSent);
+  ipc::PoseFd d;
+  ASSERT_TRUE(ipc::decode_pose_fd(fd.sent(0).data, fd.sent(0).len, d));
+  EXPECT_EQ(d.age_us, 41500u);
+  p.t_beam_ns = 79'000'000;  // an ROI frame's target about mid-scan
+  ASSERT_EQ(cs.publish(p, 82'500'000), pl::PublishResult::kSent);
+  ASSERT_TRUE(ipc::decode_pose_attr(classic.sent(4).data, classic.sent(4).len, da));
+  EXPECT_EQ(da.age_us, 3500);
+}
+
 TEST(CanPoseSink, NonFinitePoseIsSentAsLostBadFrame) {
   hal::MemoryCanChannel ch;
   co::CanPoseSink sink(ch, {});

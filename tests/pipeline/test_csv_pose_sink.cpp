@@ -147,6 +147,28 @@ TEST(CsvPoseSinkFaults, DiskFullFromTheStartStillGivesTheHeaderOnceThereIsRoom) 
   fs::remove_all(dir);
 }
 
+// t_ns is the time the pose is valid for: when the beam passed the target (a full-field search
+// frame's target tens of ms before its scan's end), the scan's end only when not known.
+// (Base: always the scan's end.)
+TEST(CsvPoseSink, TimeColumnIsWhenTheBeamPassedTheTarget) {
+  const std::string dir = temp_dir();
+  ASSERT_FALSE(dir.empty());
+  CsvPoseSink sink(dir + "/poses.csv", 16, false);
+  ASSERT_TRUE(sink.open().ok);
+  PoseRecord seen = pose(1), unknown = pose(2);
+  seen.t_scan_end_ns = 80'000'000;
+  seen.t_beam_ns = 41'000'000;
+  ASSERT_EQ(sink.publish(seen, 0), PublishResult::kSent);
+  ASSERT_EQ(sink.publish(unknown, 0), PublishResult::kSent);
+  sink.write_pending();
+  EXPECT_TRUE(sink.close());
+  const auto lines = lines_of(dir + "/poses.csv");
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(lines[1].rfind("1,41000000,", 0), 0u) << lines[1];
+  EXPECT_EQ(lines[2].rfind("2,2000,", 0), 0u) << lines[2];
+  fs::remove_all(dir);
+}
+
 TEST(CsvPoseSinkFaults, APoseTheWriterCouldNotKeepIsAWriteErrorNotASilentGap) {
   const std::string dir = temp_dir();
   ASSERT_FALSE(dir.empty());

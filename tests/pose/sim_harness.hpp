@@ -58,7 +58,8 @@ struct Scenario {
   double scale_from = 1.0;        // the target's scale ramps from this ...
   double scale_to = 1.0;          // ... to this over the run (equal: a constant scale)
   bool charging_defocus = false;  // gain 1 → 0.65 (±10 % wobble), offset 0 → +0.08, defocus 0 → 1.5 px, detector τ 120 ns
-  bool jaws = false;              // target "gripper": each jaw opens and closes 8 px (period 0.4 s)
+  bool jaws = false;              // target "gripper": each jaw opens and closes (below; 8 px, period 0.4 s)
+  double jaws_amplitude_px = 8.0, jaws_period_s = 0.4;
   double jaws_open_px = 0;        // target "gripper": each jaw held this far open (the pattern is recorded closed)
   double detector_tau_ns = 0;     // > 0: the detector's line low-pass alone (250 ns = 1 px at 250 ns dwell)
   std::uint32_t pattern_dwell_ns = 0;  // > 0: the pattern recorded at this dwell (else at the frames' dwell_ns)
@@ -187,8 +188,8 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     t.scale.ramp_s = s.run_s();
   }
   if (s.jaws && s.target == "gripper") {
-    t.jaws.amplitude = 8.0;  // 0 → 8 → 0 → −8 px: open and close
-    t.jaws.period_s = 0.4;
+    t.jaws.amplitude = s.jaws_amplitude_px;  // 0 → a → 0 → −a px: open and close
+    t.jaws.period_s = s.jaws_period_s;
   }
   if (s.jaws_open_px != 0 && s.target == "gripper") t.jaws = config::TimeProfile::constant(s.jaws_open_px);
   if (s.charging_defocus) {
@@ -214,6 +215,10 @@ struct FrameRecord {
   double t_mid_s = 0;  // mid-scan, seconds since the source started
   hal::TargetTruth truth;
   hal::TargetTruth second;  // the scene's second target (a twin: edit_run), when present
+  // Target 0 when the beam passed its pose point (simulator scenes; the warped scene: mid-scan).
+  // A full-field frame of a moving target shows it there, up to half the field's scan time away
+  // from mid-scan.
+  hal::TargetTruth as_scanned;
 };
 
 // A peer tracker's pose for one frame (run_peer).
@@ -317,7 +322,7 @@ class SimHarness {
 
   // Renders roi as scanned from t (virtual clock) with noise stream seq; truth: target 0 at mid-scan.
   void render(const hal::Roi& roi, std::int64_t t, std::uint64_t seq, hal::Pixel* out, hal::TargetTruth* truth,
-              double* t_mid_s = nullptr) {
+              double* t_mid_s = nullptr, hal::TargetTruth* as_scanned = nullptr) {
     const double mid = static_cast<double>(t - hal::SimSource::kVirtualEpochNs) * 1e-9 +
                        0.5 * static_cast<double>(limits_.scan_time_ns(roi.w, roi.h, s_.dwell_ns)) * 1e-9;
     if (t_mid_s) *t_mid_s = mid;
@@ -325,6 +330,7 @@ class SimHarness {
       // Faults: the target gone from frame vanish_after on; blank or saturated frames.
       hal::SimSource& src = (sim_gone_ && static_cast<long long>(seq) >= s_.vanish_after) ? *sim_gone_ : *sim_;
       src.render(roi, s_.dwell_ns, t, seq, out, truth);
+      if (as_scanned) *as_scanned = src.truth_as_scanned(0, roi, s_.dwell_ns, t);
       if (s_.frames_kind != Scenario::Frames::kScene) {
         const hal::Pixel v = s_.frames_kind == Scenario::Frames::kBlank ? 0 : 255;
         std::fill(out, out + static_cast<std::ptrdiff_t>(roi.w) * roi.h, v);
@@ -345,6 +351,7 @@ class SimHarness {
     if (s_.detector_tau_ns > 0) low_pass_lines(roi, out);
     for (int i = 0; i < hal::kMaxTargets; ++i) truth[i] = hal::TargetTruth{};
     truth[0] = {p.x_px, p.y_px, p.phi_deg, true};
+    if (as_scanned) *as_scanned = truth[0];
   }
 
   // Another tracker on the same sequence: frame f is scanned from the same virtual time as
@@ -400,7 +407,7 @@ class SimHarness {
       meta.bits = limits_.bits;
       FrameRecord& rec = records_[static_cast<std::size_t>(f)];
       rec.t_start_ns = t;
-      render(meta.roi, t, meta.seq, pixels_.data(), meta.truth, &rec.t_mid_s);
+      render(meta.roi, t, meta.seq, pixels_.data(), meta.truth, &rec.t_mid_s, &rec.as_scanned);
       rec.truth = meta.truth[0];
       rec.second = meta.truth[1];
       t += limits_.scan_time_ns(meta.roi.w, meta.roi.h, s_.dwell_ns) + 500'000;  // + modelled compute

@@ -608,3 +608,35 @@ TEST(Tracker, DetectorLagOfAnUntoldDetectorIsMeasuredFromTheFrames) {
     EXPECT_NEAR(err[1].dy, err[0].dy, 0.05) << target << ": y is not along the line";
   }
 }
+
+// A pose is valid for the time the beam passed the target, not the scan's end: a full-field
+// search frame of a moving target shows it where its rows were scanned, tens of ms from mid-scan
+// and up to the field's whole scan time before its end. PoseEstimate::t_beam_ns is that time (the
+// CSV's t_ns, the origin of CAN's age); on the base every pose was stamped at the scan's end.
+TEST(Tracker, APoseIsTimedWhenTheBeamPassedTheTarget) {
+  Scenario s;
+  s.motion = "fast";
+  s.dose_e = 20;
+  s.frames = 4;
+  SimHarness h(s, small_config());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  h.run();
+  const PoseEstimate& e = h.poses()[0];
+  ASSERT_TRUE(e.searched);
+  ASSERT_TRUE(e.state == TrackState::kTracking || e.state == TrackState::kUncertain) << to_string(e.state);
+  const FrameRecord& r = h.records()[0];
+  const hal::TargetTruth& seen = r.as_scanned;
+  const std::int64_t span = h.limits().scan_time_ns(s.field_w, s.field_h, s.dwell_ns);
+  // The beam reaches the target's row (y + 0.5) / field_h into the scan (flyback included).
+  const double expected_ns = static_cast<double>(r.t_start_ns) + (seen.y_px + 0.5) / s.field_h * static_cast<double>(span);
+  EXPECT_NEAR(static_cast<double>(e.t_beam_ns), expected_ns, 1.0e6) << "within 1 ms of when the beam passed it";
+  // And the pose is where the target was then, not where it was at mid-scan.
+  const double off_seen = std::hypot(e.x_px - seen.x_px, e.y_px - seen.y_px);
+  const double off_mid = std::hypot(e.x_px - r.truth.x_px, e.y_px - r.truth.y_px);
+  EXPECT_LT(off_seen, 1.5);
+  EXPECT_GT(off_mid, 2.0 * off_seen) << "the scene moved enough during the field scan to tell the two apart";
+  // An ROI frame, centred on the target: about mid-scan.
+  const PoseEstimate& roi_pose = h.poses()[3];
+  const std::int64_t mid = h.records()[3].t_start_ns + h.limits().scan_time_ns(h.next_rois()[2].w, h.next_rois()[2].h, s.dwell_ns) / 2;
+  EXPECT_NEAR(static_cast<double>(roi_pose.t_beam_ns), static_cast<double>(mid), 1.0e6);
+}

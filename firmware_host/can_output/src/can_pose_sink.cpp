@@ -42,7 +42,9 @@ ipc::PoseValues CanPoseSink::to_values(const pipeline::PoseRecord& p, std::int64
   }
   if (!std::isfinite(v.psr)) v.psr = 0;
   v.seq = p.pose_seq;
-  v.age_ns = t_now_ns - p.t_scan_end_ns;
+  // Age from when the beam passed the target, the time the pose is valid for (a full-field
+  // search frame's pose can be tens of ms older than its scan's end).
+  v.age_ns = t_now_ns - (p.t_beam_ns != 0 ? p.t_beam_ns : p.t_scan_end_ns);
   v.pattern_set = p.pattern_set;
   v.target = p.target;
   v.dwell_ns = p.dwell_ns;

@@ -77,9 +77,10 @@ void CsvPoseSink::write_pending() {
   std::uint64_t lines = 0;
   for (auto batch = ring_.readable(); !batch.empty(); batch = ring_.readable()) {
     for (const PoseRecord& p : batch) {
-      // t_ns: when the frame's scan ended (the time the pose is valid for).
+      // t_ns: when the beam passed the target (the time the pose is valid for; the scan's end
+      // when not known).
       std::fprintf(file_, "%llu,%lld,%.4f,%.4f,%.4f,%.5f,%s", static_cast<unsigned long long>(p.frame_seq),
-                   static_cast<long long>(p.t_scan_end_ns), p.x_px, p.y_px, p.phi_deg, static_cast<double>(p.score),
+                   static_cast<long long>(p.t_beam_ns != 0 ? p.t_beam_ns : p.t_scan_end_ns), p.x_px, p.y_px, p.phi_deg, static_cast<double>(p.score),
                    pose::to_string(p.state));
       if (with_target_) std::fprintf(file_, ",%u", static_cast<unsigned>(p.target));
       std::fprintf(file_, ",%.4f", p.target_scale);  // the target's size over its pattern's

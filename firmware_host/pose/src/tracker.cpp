@@ -948,10 +948,24 @@ Roi Tracker::next_roi() const noexcept {
                                        field_h);
 }
 
+// The time the beam passed the pose's row (PoseEstimate::t_beam_ns): a raster scan's rows take
+// equal shares of its time (flyback included), the pixel's place along its row is below one
+// row's time and left out.
+static std::int64_t beam_time_ns(const PoseFrame& frame, const PoseEstimate& e) noexcept {
+  const std::int64_t span = frame.t_scan_end_ns - frame.t_scan_start_ns;
+  if (frame.t_scan_start_ns == 0 || span <= 0) return 0;
+  const bool measured = e.state == TrackState::kTracking || e.state == TrackState::kUncertain;
+  const double share = measured && frame.roi.h > 0 && std::isfinite(e.meas_y_px)
+                           ? std::clamp((e.meas_y_px - frame.roi.y + 0.5) / frame.roi.h, 0.0, 1.0)
+                           : 0.5;
+  return frame.t_scan_start_ns + static_cast<std::int64_t>(std::llround(share * static_cast<double>(span)));
+}
+
 PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
   PoseEstimate e = impl_->update(frame);
   impl_->keep_continuity(frame, e);
   e.followed = impl_->tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
+  e.t_beam_ns = beam_time_ns(frame, e);
   return e;
 }
 

@@ -35,6 +35,7 @@ inline PoseRecord make_pose_record(const hal::FrameMeta& m, const pose::PoseEsti
   p.dwell_ns = m.dwell_ns;
   p.nm_per_px = nm_per_px;
   p.t_scan_end_ns = m.t_scan_end_ns;
+  p.t_beam_ns = est.t_beam_ns != 0 ? est.t_beam_ns : m.t_scan_end_ns;
   p.t_pose_done_ns = m.t_pose_done_ns;
   if (target < m.truth_count && m.truth[target].present) {
     p.truth_present = true;

@@ -30,6 +30,9 @@ struct PoseRecord {
   // 1σ of the measured pose (PoseEstimate::sigma_*; 0 = not measured): px, deg, scale.
   double sigma_x_px = 0, sigma_y_px = 0, sigma_phi_deg = 0, sigma_scale = 0;
   std::int64_t t_scan_end_ns = 0;
+  // When the beam passed the target (PoseEstimate::t_beam_ns): the time the pose is valid for
+  // (the CSV's t_ns, CAN's age from it); the scan's end when the tracker did not say.
+  std::int64_t t_beam_ns = 0;
   std::int64_t t_pose_done_ns = 0;
   // Simulated sources only: where the target really was (validation, never on the wire).
   bool truth_present = false;

@@ -44,6 +44,13 @@ struct PoseEstimate {
   std::uint8_t pattern_set = 0;
   int angle_steps = 0;  // correlations spent on orientation this frame
   bool searched = false;  // this frame ran the full-field start search
+  // When the beam passed the measured pose point (the frame's clock, ns): the scan start plus
+  // the share of the scan before the pose's row. The time the pose is valid for: a full-field
+  // frame shows a moving target where it was when its rows were scanned, up to half the field's
+  // scan time (~39 ms at 640×480, 250 ns) from mid-scan; an ROI frame, centred on the target,
+  // about mid-scan. Mid-scan for a frame without a measured pose; 0 when the frame has no scan
+  // times.
+  std::int64_t t_beam_ns = 0;
   // The tracker follows this pose (its next ROI is placed from it): TRACKING, or UNCERTAIN at
   // an accepted pose (a first start's search frame, a doubted ROI frame). False for a search
   // not yet told from a look-alike (UNCERTAIN, searched again), LOST and ACQUIRING.
