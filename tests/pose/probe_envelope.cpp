@@ -325,6 +325,11 @@ std::vector<Case> cases() {
   v.push_back({"jaws_16px", [](pt::Scenario& s) { s.jaws = true, s.jaws_amplitude_px = 16; }, gripper});
   v.push_back({"jaws_8px_fast_0.1s", [](pt::Scenario& s) { s.jaws = true, s.jaws_period_s = 0.1; }, gripper});
   v.push_back({"jaws_held_open_12px", [](pt::Scenario& s) { s.jaws_open_px = 12; }, gripper});
+  // The same with the user's prior a real setup would give: a shape mask of the body alone.
+  v.push_back({"jaws_held_open_12px_body_mask", [](pt::Scenario& s) {
+                 s.jaws_open_px = 12;
+                 s.shape_mask = s.shape_mask_rigid_only = true;
+               }, gripper});
   v.push_back({"jaws_8px_fast_motion", [](pt::Scenario& s) {
                  s.jaws = true;
                  s.motion = "fast";
