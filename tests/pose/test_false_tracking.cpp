@@ -853,3 +853,33 @@ TEST(NoFalseTracking, ScanGlitchShiftingHalfTheFrameIsNotTracking) {
   EXPECT_EQ(false_n, 0) << "a torn ROI frame TRACKING (8 before)";
   EXPECT_GE(tracked, s.frames * 3 / 4) << "tracked outside the glitch";
 }
+
+// A dark occluder (pose_envelope_probe dark_occluder_x_gt_400): the field right of x = 400 is a
+// flat 4 % level while the lamella on its post moves into it at 150 px/s, at 20 e-/px. Half under
+// it the target is lost; a re-acquisition search then took the pose turned ~100° and 10 px off at
+// 0.725 (the target's own level 0.94; 0.7 × that admits it), χ² 39.7 where the target's tracked
+// frames read ~3, and the frames after it held that pose, TRACKING (9 false poses in the first
+// 130 frames, 40 in 200; the best level the explained check excuses with was learnt afresh on
+// them after the loss). A pose whose χ² lies significantly above the target's own level learnt
+// on frames it tracked well is UNCERTAIN (tracker.cpp, judge_fit).
+TEST(NoFalseTracking, PoseTheFitDoesNotExplainAtTheTargetsLevelIsNotTracking) {
+  pt::Scenario s = envelope_scene("lamella_post", "static", 20, 130);
+  s.start_x_px = 250;
+  s.start_y_px = 240;
+  s.edit_run = [](sempose::config::SimConfig& sc) {
+    auto& tr = sc.targets[0].trajectory;
+    tr = sempose::config::TrajectoryConfig{};
+    tr.kind = "linear";
+    tr.vx_px_s = 150;
+    tr.margin_px = 60;
+  };
+  s.frame_fault = [](std::uint64_t, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel m) {
+    for (int y = 0; y < r.h; ++y)
+      for (int x = std::max(0, 400 - r.x); x < r.w; ++x) p[static_cast<std::ptrdiff_t>(y) * r.w + x] = static_cast<sempose::hal::Pixel>(0.04 * m);
+  };
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  const FalseCount n = run_and_count(h, "lamella_post moving under a dark occluder, dose 20");
+  EXPECT_EQ(n.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (9 before)";
+  EXPECT_GE(n.tracked, 45) << "tracked before the occluder covers it";
+}

@@ -17,6 +17,7 @@
 #include "sempose/pose/appearance_observer.hpp"
 #include "sempose/pose/continuity_anchor.hpp"
 #include "sempose/pose/detector_lag.hpp"
+#include "sempose/pose/fit_level.hpp"
 #include "sempose/pose/engine_sizes.hpp"
 #include "sempose/pose/line_correlation.hpp"
 #include "sempose/pose/exact_scorer.hpp"
@@ -282,6 +283,15 @@ struct Tracker::Impl {
   // Where the last TRACKING poses put the target (continuity_anchor.hpp): after a held frame a
   // pose is TRACKING again only where that motion leads (a twin passing over drags the pose).
   ContinuityAnchor anchor;
+  // The target's χ² level on frames it tracked well (fit_level.hpp): kept across a loss, since
+  // a re-acquisition is where a pose the model fits worse than it fits this target was taken
+  // (a 90°-turned hypothesis of the lamella on post half under a dark occluder, χ² 16-40 where
+  // the target's frames read ~2); forgotten with the target (REACQUIRE, SELECT, a new size).
+  FitLevel fit_level;
+  // The fit is worse than the target's level, significantly and by more than a pose off by the
+  // false-pose radius would be (off_share, off_pose_score.hpp): UNCERTAIN, kReasonUnexplained.
+  void judge_fit(PoseEstimate& e, double off) const noexcept;
+  std::vector<double> off_share;  // each set's off_pose_score; setup
   void keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept;
   // A torn frame (tracker.cpp, torn()): the rows of the footprint scanned first and those
   // scanned last put the target at places that differ by more than their noise allows (χ², 2
