@@ -292,6 +292,11 @@ struct Tracker::Impl {
   // false-pose radius would be (off_share, off_pose_score.hpp): UNCERTAIN, kReasonUnexplained.
   void judge_fit(PoseEstimate& e, double off) const noexcept;
   std::vector<double> off_share;  // each set's off_pose_score; setup
+  // The level learns from every kFitSampleEvery-th ROI frame (fit_frames counts them): the
+  // attainable score on the others only when a judgement needs it; ≤ 1/4 of its cost on a
+  // target scoring above the bounds, and the ring's 32 frames span ~130.
+  static constexpr unsigned kFitSampleEvery = 4;
+  unsigned fit_frames = 0;
   void keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept;
   // A torn frame (tracker.cpp, torn()): the rows of the footprint scanned first and those
   // scanned last put the target at places that differ by more than their noise allows (χ², 2
