@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "sempose/pose/continuity_anchor.hpp"
+#include "sempose/pose/fit_level.hpp"
 #include "sempose/pose/loss_policy.hpp"
 #include "sempose/pose/motion_model.hpp"
 #include "sempose/rt/angle.hpp"
@@ -484,4 +485,31 @@ TEST(ContinuityAnchor, ClosesOnTheLineNotOnAMotionThatTurnedBack) {
   EXPECT_TRUE(turned.open());
   turned.forget();
   EXPECT_FALSE(turned.open());
+}
+
+// The target's χ² level (fit_level.hpp): nothing judged before kMinFrames learnt frames; a value
+// far above the median by the frames' own robust spread is significant, one within it is not;
+// a few wild frames among the learnt ones move neither the median nor the spread (median/MAD);
+// the detector-noise floor keeps a perfectly steady stream from calling every wiggle significant.
+TEST(FitLevel, SignificantOnlyAboveTheTargetsOwnRobustLevel) {
+  using sempose::pose::FitLevel;
+  const double z = 2.33;
+  FitLevel level;
+  for (int i = 0; i < FitLevel::kMinFrames - 1; ++i) level.learn(3.0 * std::exp(0.05 * ((i % 3) - 1)));
+  EXPECT_FALSE(level.significantly_above(40.0, z, 0.0)) << "too few frames to judge";
+  for (int i = 0; i < FitLevel::kCapacity; ++i) level.learn(3.0 * std::exp(0.05 * ((i % 3) - 1)));
+  EXPECT_NEAR(level.chi2(), 3.0, 1e-3);
+  EXPECT_TRUE(level.significantly_above(39.7, z, 0.0)) << "the occluder's re-acquisition: chi2 39.7 against ~3";
+  EXPECT_TRUE(level.significantly_above(3.0 * std::exp(0.3), z, 0.0));
+  EXPECT_FALSE(level.significantly_above(3.0 * std::exp(0.1), z, 0.0)) << "within 2.33 x 1.48 x 0.05";
+  EXPECT_FALSE(level.significantly_above(3.0 * std::exp(0.3), z, 0.2)) << "the noise floor widens the spread";
+  for (int i = 0; i < 4; ++i) level.learn(200.0);  // a few wild frames among 32
+  EXPECT_NEAR(level.chi2(), 3.0, 0.2);
+  EXPECT_TRUE(level.significantly_above(39.7, z, 0.0));
+  level.forget();
+  EXPECT_FALSE(level.significantly_above(39.7, z, 0.0)) << "forgotten with the target";
+  level.learn(0.0);
+  level.learn(std::nan(""));
+  for (int i = 0; i < FitLevel::kMinFrames - 1; ++i) level.learn(3.0);
+  EXPECT_FALSE(level.known()) << "a zero or NaN chi2 is not learnt";
 }
