@@ -28,7 +28,8 @@ enum LostReason : std::uint8_t {
   kReasonCommanded = 1u << 5,     // re-acquire requested by the controller
   kReasonAngleUnsettled = 1u << 6, // orientation walk hit its per-frame step bound
   kReasonUnexplained = 1u << 7     // the pattern leaves more of the window unexplained than noise
-                                   // does (wrong scale, look-alike, torn frame): not the target
+                                   // does (wrong scale, look-alike, torn frame), or than it leaves
+                                   // of this target at its own fit level: not the target
 };
 
 constexpr const char* to_string(TrackState s) noexcept {
