@@ -68,6 +68,9 @@ struct Scenario {
   // go through detector_tau_ns. The warped target's pattern always is; its frames are low-passed
   // along each line here (the tracker is never told τ there).
   bool pattern_lag_free = false;
+  // false: the pattern recorded through the detector as above, but its set given without its
+  // dwell_ns (a pattern file nobody annotated): the tracker has to tell its lag from its noise.
+  bool pattern_dwell_told = true;
   // Approximate frame period (192² ROI at 250 ns + flyback + modelled compute), for ramps over the run.
   double run_s() const { return frames * 0.0101 * (dwell_ns / 250.0); }
   // Faults (the pattern is always recorded from the target as configured above):
@@ -278,7 +281,7 @@ class SimHarness {
       if (s.pattern_lag_free) pat_cfg.detector_tau_ns = 0;
       if (s.jaws_open_px != 0) pat_cfg.targets[0].jaws = config::TimeProfile::constant(0.0);  // recorded closed
       pattern_ = hal::render_sim_pattern(pat_cfg, limits_, 0, tc.pattern_size_px, s.pattern_frames, pattern_dwell(), 777);
-      sets[0].dwell_ns = s.pattern_lag_free ? 0 : pattern_dwell();
+      sets[0].dwell_ns = s.pattern_lag_free || !s.pattern_dwell_told ? 0 : pattern_dwell();
       if (s.shape_mask)
         sets[0].mask = pipeline::to_pattern_image(
             hal::render_sim_pattern_mask(pat_cfg, limits_, 0, tc.pattern_size_px, s.shape_mask_rigid_only));

@@ -27,10 +27,11 @@ std::vector<std::uint16_t> frame(Brightness b, double dose, double rho, std::mt1
   for (int y = 0; y < kSide; ++y) {
     double lp = 0;
     for (int x = 0; x < kSide; ++x) {
-      std::poisson_distribution<int> electrons(std::max(1e-9, b(x, y) * dose));
-      const double e = electrons(rng);
+      const double mean = b(x, y) * (dose > 0 ? dose : 1.0);
+      std::poisson_distribution<int> electrons(std::max(1e-9, mean));
+      const double e = dose > 0 ? electrons(rng) : mean;  // dose ≤ 0: the noise-free structure
       lp = x == 0 ? e : lp + (1.0 - rho) * (e - lp);
-      px[static_cast<std::size_t>(y) * kSide + x] = static_cast<std::uint16_t>(std::lround(std::min(65535.0, lp * 1000.0 / dose)));
+      px[static_cast<std::size_t>(y) * kSide + x] = static_cast<std::uint16_t>(std::lround(std::min(65535.0, lp * 1000.0 / (dose > 0 ? dose : 1.0))));
     }
   }
   return px;
@@ -79,13 +80,22 @@ TEST(LineCorrelation, RecoversRhoOnFlatAndRealStructureAtEveryDose) {
   }
 }
 
+// Sums of a given ρ whose noise dominates (the gate open: noise_share() 1).
+LineCorrelationSums noisy_sums(double rho) {
+  LineCorrelationSums s;
+  s.along = rho;
+  s.power = 1.0;
+  s.pairs = DetectorTauEstimator::kPairBudget;
+  s.second_abs = static_cast<double>(s.pairs) * std::sqrt(6.0 * s.power / (M_PI * static_cast<double>(s.pairs)));
+  s.power *= 1e6, s.along *= 1e6, s.second_abs *= 1e3;  // noise of ~7 grey levels: above the floor
+  return s;
+}
+
 // A frame's reading counts for its own lag at once and joins the estimate only when kept; below
 // kFastRho the detector is fast (no lag).
 TEST(LineCorrelation, EstimatorKeepsOnlyKeptFrames) {
-  LineCorrelationSums s;
-  s.along = 0.6;
-  s.power = 1.0;
-  s.pairs = DetectorTauEstimator::kPairBudget;
+  LineCorrelationSums s = noisy_sums(0.6);
+  EXPECT_NEAR(s.noise_share(), 1.0, 1e-12);
   DetectorTauEstimator est;
   EXPECT_EQ(est.lag_px(100), 0.0);
   est.read(s, 100);
@@ -100,7 +110,7 @@ TEST(LineCorrelation, EstimatorKeepsOnlyKeptFrames) {
   est.read(s, 100);  // replaces the unkept reading
   EXPECT_NEAR(est.rho_at(100), 0.6, 1e-12);
   EXPECT_FALSE(est.settled());
-  s.along = 0.04;
+  s = noisy_sums(0.04);
   DetectorTauEstimator fast;
   fast.read(s, 100);
   EXPECT_EQ(fast.lag_px(100), 0.0);
@@ -117,13 +127,7 @@ TEST(LineCorrelation, EstimatorKeepsOnlyKeptFrames) {
 // the governor's dwell while its frames were all recorded at one: the readings stay put whatever
 // dwell is reported, and the estimate keeps ρ as read (mapping it would put the lag 2.5x off).
 TEST(LineCorrelation, DwellMappingOnlyWhereTheReadingsFollowTheDwell) {
-  auto reading = [](double rho) {
-    LineCorrelationSums s;
-    s.along = rho;
-    s.power = 1.0;
-    s.pairs = DetectorTauEstimator::kPairBudget;
-    return s;
-  };
+  auto reading = [](double rho) { return noisy_sums(rho); };
   DetectorTauEstimator hardware, replay;
   for (int f = 0; f < 20; ++f) {
     const double dwell = f % 2 ? 200 : 100;
@@ -139,6 +143,53 @@ TEST(LineCorrelation, DwellMappingOnlyWhereTheReadingsFollowTheDwell) {
   EXPECT_FALSE(replay.follows_dwell());
   EXPECT_NEAR(replay.rho_at(100), 0.6, 1e-9);
   EXPECT_NEAR(replay.rho_at(200), 0.6, 1e-9);
+}
+
+// The gate (noise_share): a scene of sharp structure — a disk, a bar along the lines, one
+// across them, a gradient; edges 1 px wide as a PSF leaves them — under white Poisson noise of
+// known ρ reads ρ with the gate open at 1–20 e⁻/px, every band as the tracker reads them; the
+// same scene without noise (what a noise-free synthetic frame is) closes it: read raw, its
+// horizontal bar alone reads ρ ≈ 1 (z is constant along that edge): a detector of τ 0 reads 0.17.
+// Its flat bands hold only the 16-bit levels' rounding, below the noise floor kMinNoiseVar.
+TEST(LineCorrelation, GateOpensOnNoiseAndClosesOnNoiseFreeStructure) {
+  auto edge = [](double d) { return 0.5 * (1.0 + std::tanh(d)); };
+  auto scene = [&](int x, int y) {
+    const double r = std::hypot(x - 80.0, y - 90.0);
+    return 0.2 + 0.0015 * x + 0.4 * edge(40.0 - r) + 0.25 * edge(y - 140.0) * edge(170.0 - y) + 0.2 * edge(x - 150.0) * edge(165.0 - x);
+  };
+  const int step = line_correlation_row_step(kSide, kSide), band = line_correlation_band_pairs(kSide);
+  for (double tau_px : {0.0, 1.0, 2.0, 4.0}) {
+    const double rho = tau_px > 0 ? std::exp(-1.0 / tau_px) : 0.0;
+    for (double dose : {20.0, 6.0, 2.5, 1.0, 0.0}) {
+      std::mt19937_64 rng(static_cast<std::uint64_t>(100 * tau_px + dose));
+      const std::vector<std::uint16_t> px = frame(scene, dose, rho, rng);
+      const std::string what = "τ " + std::to_string(tau_px) + " px, dose " + std::to_string(dose);
+      const LineCorrelationSums whole = line_correlation_sums(px.data(), kSide, kSide, kSide, step);
+      DetectorTauEstimator est;
+      int open_bands = 0, bands = 0;
+      for (int line = 0; line + 2 < kSide; line += band * step, ++bands) {
+        const LineCorrelationSums s = line_correlation_sums(px.data(), kSide, kSide, kSide, step, line, band);
+        open_bands += s.noise_dominates();
+        est.read(s, 250);
+        est.keep();
+      }
+      if (dose > 0) {
+        EXPECT_GE(whole.noise_share(), 0.75) << what;
+        EXPECT_EQ(open_bands, bands) << what;
+        EXPECT_NEAR(est.rho_at(250), rho, 0.02) << what;
+        EXPECT_NEAR(image_line_rho(whole), rho >= DetectorTauEstimator::kLagFreeRho ? rho : 0.0, 0.02) << what;
+      } else {
+        EXPECT_LT(whole.noise_share(), 0.3) << what;
+        if (tau_px == 0) {
+          EXPECT_GT(whole.rho(), 0.1) << what << ": the scene's leak this gate is for";
+        }
+        EXPECT_EQ(open_bands, 0) << what;
+        EXPECT_FALSE(est.has_reading()) << what;
+        EXPECT_EQ(est.lag_px(250), 0.0) << what;
+        EXPECT_EQ(image_line_rho(whole), 0.0) << what;
+      }
+    }
+  }
 }
 
 }  // namespace

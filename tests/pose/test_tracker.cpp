@@ -581,6 +581,32 @@ TEST(Tracker, DetectorLagAtAnotherDwellIsTakenOutOfX) {
   }
 }
 
+// A pattern recorded through the same detector at the tracking dwell (10 still frames, the
+// simulator's low-pass of τ 2 px) and given without its dwell_ns: its own noise shows the
+// frames' lag, so the lags cancel and nothing is taken out. Counted lag-free (main with the
+// measurement on), the frames' whole lag was taken out of poses whose pattern carries it too:
+// −1.44 px on the held-out needle.
+TEST(Tracker, PatternRecordedThroughTheDetectorIsNotCorrectedTwice) {
+  for (const char* target : {"needle_tip", "lamella_post"}) {
+    StillMeanError err[2];
+    for (int dwell_told = 0; dwell_told < 2; ++dwell_told) {
+      Scenario s;
+      s.target = target;
+      s.dwell_ns = 250;
+      s.detector_tau_ns = 500;
+      s.tell_detector_tau = false;
+      s.pattern_dwell_told = dwell_told == 1;
+      config::TrackerConfig tc;
+      tc.measure_detector_tau = true;  // the default here; main had it opt-in
+      err[dwell_told] = still_mean_error(s, tc);
+    }
+    std::printf("%s, pattern at the tracking dwell, τ 2 px untold: mean x error %+.3f px without its dwell_ns, %+.3f px with it\n",
+                target, err[0].dx, err[1].dx);
+    EXPECT_LT(std::fabs(err[0].dx), 0.3) << target << ": the lag taken out twice";
+    EXPECT_NEAR(err[0].dx, err[1].dx, 0.25) << target;
+  }
+}
+
 // Nobody tells τ (a replay, real hardware) and the pattern is a clean crop (lag-free, its set's
 // dwell_ns 0) while the frames go through a detector low-pass of τ = 1 px: every pose sat the
 // lag (~0.5-0.7 px) along the line, 3-6x the single-frame bound. tracker.measure_detector_tau

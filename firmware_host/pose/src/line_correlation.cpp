@@ -6,17 +6,20 @@
 namespace sempose::pose {
 
 LineCorrelationSums line_correlation_sums(const std::uint16_t* px, int w, int h, std::ptrdiff_t stride,
-                                          int row_step) noexcept {
+                                          int row_step, int first_line, int max_pairs) noexcept {
   LineCorrelationSums s;
   const int i0 = LineCorrelationSums::kSkipPx;
-  if (px == nullptr || w < i0 + 2 || h < 2 || row_step < 1) return s;
+  if (px == nullptr || w < i0 + 2 || h < 3 || row_step < 1 || first_line < 0) return s;
   // Per line pair in float (the differences are exact, a line's sums of ≤ 1024 products good to
-  // ~1e-5, far below the estimate's noise; vectorised), added to the doubles once a pair.
-  for (int j = 0; j + 1 < h; j += row_step) {
+  // ~1e-5, far below the estimate's noise; vectorised), added to the doubles once a pair. The
+  // gate's third line is j + 2, so the last pair is the one before the last line.
+  int n = 0;
+  for (int j = first_line; j + 2 < h && n < max_pairs; j += row_step, ++n) {
     const std::uint16_t* a = px + static_cast<std::ptrdiff_t>(j) * stride;
     const std::uint16_t* b = a + stride;
-    float along = 0, across = 0, power = 0;
-#pragma omp simd reduction(+ : along, across, power)
+    const std::uint16_t* c = b + stride;
+    float along = 0, across = 0, power = 0, second = 0;
+#pragma omp simd reduction(+ : along, across, power, second)
     for (int i = i0; i < w - 1; ++i) {
       const float z0 = static_cast<float>(b[i]) - static_cast<float>(a[i]);
       const float z1 = static_cast<float>(b[i + 1]) - static_cast<float>(a[i + 1]);
@@ -25,19 +28,55 @@ LineCorrelationSums line_correlation_sums(const std::uint16_t* px, int w, int h,
       along += z0 * z1;
       across += dxa * dxb;
       power += z0 * z0;
+      second += std::fabs(static_cast<float>(c[i]) - static_cast<float>(b[i]) - z0);
     }
     s.along += along;
     s.across += across;
     s.power += power;
+    s.second_abs += second;
     s.pairs += w - 1 - i0;
   }
   return s;
+}
+
+double LineCorrelationSums::noise_var() const noexcept {
+  if (!valid()) return 0.0;
+  const double mean_abs = second_abs / static_cast<double>(pairs);
+  return M_PI / 2.0 * mean_abs * mean_abs / 6.0;  // E|w| = σ_w √(2/π), σ_w² = 6v
+}
+
+double LineCorrelationSums::noise_share() const noexcept {
+  return valid() ? 2.0 * noise_var() * static_cast<double>(pairs) / power : 0.0;
+}
+
+bool LineCorrelationSums::noise_dominates() const noexcept {
+  return noise_share() >= DetectorTauEstimator::kMinNoiseShare && noise_var() >= DetectorTauEstimator::kMinNoiseVar;
+}
+
+LineCorrelationSums& LineCorrelationSums::operator+=(const LineCorrelationSums& o) noexcept {
+  along += o.along;
+  across += o.across;
+  power += o.power;
+  second_abs += o.second_abs;
+  pairs += o.pairs;
+  return *this;
 }
 
 int line_correlation_row_step(int w, int h) noexcept {
   const std::int64_t pixels = static_cast<std::int64_t>(std::max(w, 0)) * std::max(h, 0);
   // A pair of lines every 2nd line uses every line once (a 192² ROI: 96 pairs, ~17.5k products).
   return static_cast<int>(std::max<std::int64_t>(2, pixels / DetectorTauEstimator::kPairBudget));
+}
+
+int line_correlation_band_pairs(int w) noexcept {
+  const int products = std::max(1, w - 1 - LineCorrelationSums::kSkipPx);
+  return static_cast<int>(std::max<std::int64_t>(1, DetectorTauEstimator::kPairBudget / 8 / products));
+}
+
+double image_line_rho(const LineCorrelationSums& s) noexcept {
+  if (!s.noise_dominates()) return 0.0;
+  const double rho = std::min(s.rho(), DetectorTauEstimator::kMaxRho);
+  return rho >= DetectorTauEstimator::kLagFreeRho ? rho : 0.0;
 }
 
 double DetectorTauEstimator::mapped(double rho, double from_dwell, double to_dwell) const noexcept {
@@ -48,7 +87,7 @@ double DetectorTauEstimator::mapped(double rho, double from_dwell, double to_dwe
 
 void DetectorTauEstimator::read(const LineCorrelationSums& s, double dwell_ns) noexcept {
   pending_weight_ = 0;
-  if (!s.valid()) return;
+  if (!s.noise_dominates()) return;
   const double rho = s.rho();
   if (!std::isfinite(rho)) return;
   if (!(ref_dwell_ns_ > 0) && weight_ == 0 && dwell_ns > 0) ref_dwell_ns_ = dwell_ns;

@@ -575,20 +575,27 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
                : 0.0;
   }
   // Measured: this frame's reading joins the estimate for its own pose (a first search frame
-  // is corrected too); it is kept only if the pose is accepted. Every frame until the estimate
-  // has settled, then every kTauReadEvery-th (~25 µs a read on a 192² ROI). A pattern set of
-  // unknown dwell is lag-free; a frame of unknown dwell is taken at the estimate's own.
-  const bool read = !tau_estimate.settled() || ++tau_frames_unread >= kTauReadEvery;
-  if (read && !frame.bad && frame.pixels != nullptr && !loss.calibrating()) {
-    tau_frames_unread = 0;
-    tau_estimate.read(line_correlation_sums(frame.pixels, frame.roi.w, frame.roi.h, frame.roi.w,
-                                            line_correlation_row_step(frame.roi.w, frame.roi.h)),
-                      frame_dwell_ns);
+  // is corrected too); it is kept only if the pose is accepted. An ROI frame reads one band of
+  // lines (~2.3k products, a few µs: the whole ROI every 8th frame), a full-field frame (the
+  // start search, ms anyway) all its lines. A reading whose noise does not dominate its scene
+  // is no reading (DetectorTauEstimator::read). A pattern set of unknown dwell counts the lag its
+  // own noise showed at setup; a frame of unknown dwell is taken at the estimate's own.
+  if (!frame.bad && frame.pixels != nullptr && !loss.calibrating()) {
+    const int w = frame.roi.w, h = frame.roi.h;
+    const bool full_field = w >= frame.field_w && h >= frame.field_h;
+    const int step = line_correlation_row_step(w, h);
+    const int band = full_field ? h : line_correlation_band_pairs(w);
+    if (full_field || tau_band_line + 2 >= h) tau_band_line = 0;
+    tau_estimate.read(line_correlation_sums(frame.pixels, w, h, w, step, tau_band_line, band), frame_dwell_ns);
+    tau_band_line += band * step;
   } else {
     tau_estimate.read(LineCorrelationSums{}, frame_dwell_ns);  // nothing pending: the kept estimate
   }
+  if (!tau_estimate.has_reading()) return 0.0;  // the frames' lag not told yet: nothing to take out
   const double set_dwell = set < pattern_dwell_ns.size() ? pattern_dwell_ns[set] : 0.0;
-  const double pattern_lag = set_dwell > 0 && tau_estimate.reference_dwell_ns() > 0 ? tau_estimate.lag_px(set_dwell) : 0.0;
+  if (!(set_dwell > 0))
+    return tau_estimate.lag_px(frame_dwell_ns) - (set < pattern_measured_lag_px.size() ? pattern_measured_lag_px[set] : 0.0);
+  const double pattern_lag = tau_estimate.reference_dwell_ns() > 0 ? tau_estimate.lag_px(set_dwell) : 0.0;
   return tau_estimate.lag_px(frame_dwell_ns) - pattern_lag;
 }
 

@@ -152,6 +152,13 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.nm_per_px.push_back(sets[i].nm_per_px);
     t.pattern_lag_px.push_back(DetectorLag::px(cfg.detector_tau_ns, sets[i].dwell_ns));
     t.pattern_dwell_ns.push_back(sets[i].dwell_ns);
+    // A set of unknown dwell: the lag its own noise shows (a pattern recorded through the
+    // detector at the tracking dwell has the frames' lag: none to take out), 0 for a clean crop.
+    const PatternImage& im = spec.pattern;
+    const double rho = t.measure_tau && sets[i].dwell_ns == 0
+                           ? image_line_rho(line_correlation_sums(im.pixels.data(), im.width, im.height, im.width, 1))
+                           : 0.0;
+    t.pattern_measured_lag_px.push_back(rho / (1.0 - rho));
   }
   t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;
   // The split check's noise: the score noise model's pixels per independent sample.

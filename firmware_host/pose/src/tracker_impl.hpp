@@ -89,12 +89,15 @@ struct Tracker::Impl {
   double lag_shift_px = 0;
   // τ not told (tracker.detector_tau_ns 0) and tracker.measure_detector_tau: measured from each
   // frame's noise, kept from the frames whose pose was accepted (accept()), and the lags taken
-  // from it instead; the pattern sets' dwells for their own lag. Published for the status.
+  // from it instead; the pattern sets' dwells for their own lag, or, a set without one, the
+  // lag its own noise shows (measured at setup; 0 where it cannot be told). Published for the
+  // status. A band of lines a frame (tau_band_line: where the next band starts), so no frame
+  // pays for the whole read.
   bool measure_tau = false;
   DetectorTauEstimator tau_estimate;
-  static constexpr int kTauReadEvery = 4;
-  int tau_frames_unread = 0;
+  int tau_band_line = 0;
   std::vector<double> pattern_dwell_ns;
+  std::vector<double> pattern_measured_lag_px;
   std::atomic<double> measured_rho{0}, measured_tau_px{0}, measured_tau_ns{0}, measured_tau_frames{0};
   // This frame's lag against the active set's pattern (px along x), told or measured.
   double lag_shift_of(const PoseFrame& frame, std::uint8_t set) noexcept;

@@ -19,22 +19,49 @@ namespace sempose::pose {
 // One frame's sums over line pairs (j, j+1), j = 0, row_step, 2·row_step, …; the first
 // kSkipPx pixels of each line are left out (the scan generator's line start: flyback, the
 // low-pass settling).
+//
+// Whether the noise dominates (the gate): the statistic is only as good as the noise's share of
+// Σ z². What the scene leaves in z is not noise (noise-free frames read their edges as lag: a
+// sharp needle 1.31 px), and it cannot be told from noise by z alone. The second difference
+// across lines, w = y(j+2) − 2y(j+1) + y(j), measures the noise's variance v without the
+// detector's correlation (it mixes pixels of one column, E w² = 6v) and cancels the scene's
+// gradients across lines; its mean |w| (Immerkær's estimator, robust to the sparse edges that
+// dominate a scene's Σ z²) predicts the noise's part of Σ z², 2v per pair:
+//   noise_share = 2·(π/2)·(mean |w|)²/6 / (Σ z²/pairs),
+// ~1 where the noise dominates, → 0 on noise-free or very high-dose structure.
 struct LineCorrelationSums {
   double along = 0;   // Σ z(i)·z(i+1)
   double across = 0;  // Σ Δx(j)·Δx(j+1)
   double power = 0;   // Σ z(i)²
+  double second_abs = 0;  // Σ |w(i)|
   std::int64_t pairs = 0;
   static constexpr int kSkipPx = 8;
   bool valid() const noexcept { return pairs > 0 && power > 0; }
   double rho() const noexcept { return valid() ? (along - across) / power : 0.0; }
+  // The noise variance of one pixel mean |w| predicts, (π/2)(mean |w|)²/6, and its share of Σ z².
+  double noise_var() const noexcept;
+  double noise_share() const noexcept;
+  // The gate: noise_share ≥ DetectorTauEstimator::kMinNoiseShare and noise_var ≥ kMinNoiseVar.
+  bool noise_dominates() const noexcept;
+  LineCorrelationSums& operator+=(const LineCorrelationSums& o) noexcept;
 };
 
-// Every row_step-th pair of lines of a w × h image (stride in pixels); row_step ≥ 1.
+// Every row_step-th pair of lines of a w × h image (stride in pixels); row_step ≥ 1. A band:
+// at most max_pairs pairs from line first_line on (the tracker reads a band a frame).
 LineCorrelationSums line_correlation_sums(const std::uint16_t* px, int w, int h, std::ptrdiff_t stride,
-                                          int row_step) noexcept;
+                                          int row_step, int first_line = 0, int max_pairs = 1 << 30) noexcept;
 // The row step that keeps a w × h frame's sums at about kPairBudget pairs (2: every line of a
 // 192² ROI once; a 640 × 480 field every 16th).
 int line_correlation_row_step(int w, int h) noexcept;
+
+// The pairs of a band of a w-wide frame: ~kPairBudget / 8 products (a 192² ROI: 12 pairs, its
+// every line in 8 frames; ~4 µs a band on this machine).
+int line_correlation_band_pairs(int w) noexcept;
+
+// ρ of an image read whole (a pattern at setup): its reading where its noise dominates its
+// structure and shows a lag (≥ DetectorTauEstimator::kLagFreeRho), else 0 — lag-free, or no lag
+// that can be told (a noise-free crop reads its edges: the gate is closed).
+double image_line_rho(const LineCorrelationSums& s) noexcept;
 
 // The running estimate of ρ over the frames whose fit was good, weighted by their pairs (a
 // frame's share falls as pairs accumulate, down to 1/kMemoryFrames of an ROI frame's pairs). Two
@@ -52,9 +79,22 @@ class DetectorTauEstimator {
   // estimate's own bias on a real micrograph's structure is ~0.013 at 20 e⁻/px.
   static constexpr double kFastRho = 0.05;
   static constexpr double kMaxRho = 0.9;  // τ 9.5 px, lag 9 px: beyond it the estimate is capped
+  // The gate: a reading counts only where the noise's predicted share of Σ z² is at least this
+  // (LineCorrelationSums::noise_share). White Poisson noise reads 0.79–0.86 at 1 e⁻/px (its
+  // skew: mean |w| reads low), 0.89–1.07 from 2.5 e⁻/px on, a band or a whole ROI, with or
+  // without structure; a noise-free scene of sharp edges 0.03, and read raw ρ 0.17 at τ 0
+  // (test_line_correlation.cpp). A real micrograph's own noise dominates it too (0.86–0.97).
+  static constexpr double kMinNoiseShare = 0.7;
+  // … and the noise at least one grey level (its variance 12x the levels' rounding, 1/12): a flat
+  // noise-free band's rounding is deterministic, not noise (a ramp's reads ρ −1).
+  static constexpr double kMinNoiseVar = 1.0;
+  // A pattern (image_line_rho) reading below this is lag-free: a real micrograph's own noise
+  // reads 0.09–0.10 (lamella_on_post_eb.pgm, whose lag frames rendered from it carry too).
+  static constexpr double kLagFreeRho = 0.15;
 
   // This frame's reading: lag_px() includes it from now on; keep() makes it part of the estimate
-  // (a frame whose fit was good), otherwise the next reading replaces it.
+  // (a frame whose fit was good), otherwise the next reading replaces it. A reading below
+  // kMinNoiseShare is none (its scene, not its noise, would be read as lag).
   void read(const LineCorrelationSums& s, double dwell_ns) noexcept;
   void keep() noexcept;
   void reset() noexcept { *this = DetectorTauEstimator{}; }
@@ -67,6 +107,8 @@ class DetectorTauEstimator {
   double tau_px() const noexcept;
   double tau_ns() const noexcept;
   double reference_dwell_ns() const noexcept { return ref_dwell_ns_; }
+  // A reading passed the gate (kept, or this frame's): lag_px() is the frames' measured lag.
+  bool has_reading() const noexcept { return weight_ > 0 || pending_weight_ > 0; }
   bool settled() const noexcept { return weight_ >= kSettledFrames * kPairBudget; }
   double frames_kept() const noexcept { return weight_ / kPairBudget; }
   // ρ follows the frames' dwell as reported (the readings say so); false: ρ as read.
