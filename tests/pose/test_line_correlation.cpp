@@ -169,7 +169,7 @@ TEST(LineCorrelation, GateOpensOnNoiseAndClosesOnNoiseFreeStructure) {
       int open_bands = 0, bands = 0;
       for (int line = 0; line + 2 < kSide; line += band * step, ++bands) {
         const LineCorrelationSums s = line_correlation_sums(px.data(), kSide, kSide, kSide, step, line, band);
-        open_bands += s.noise_dominates();
+        open_bands += s.noise_dominates(DetectorTauEstimator::kMinNoiseShare);
         est.read(s, 250);
         est.keep();
       }

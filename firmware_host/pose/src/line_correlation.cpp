@@ -49,17 +49,8 @@ double LineCorrelationSums::noise_share() const noexcept {
   return valid() ? 2.0 * noise_var() * static_cast<double>(pairs) / power : 0.0;
 }
 
-bool LineCorrelationSums::noise_dominates() const noexcept {
-  return noise_share() >= DetectorTauEstimator::kMinNoiseShare && noise_var() >= DetectorTauEstimator::kMinNoiseVar;
-}
-
-LineCorrelationSums& LineCorrelationSums::operator+=(const LineCorrelationSums& o) noexcept {
-  along += o.along;
-  across += o.across;
-  power += o.power;
-  second_abs += o.second_abs;
-  pairs += o.pairs;
-  return *this;
+bool LineCorrelationSums::noise_dominates(double min_share) const noexcept {
+  return noise_share() >= min_share && noise_var() >= DetectorTauEstimator::kMinNoiseVar;
 }
 
 int line_correlation_row_step(int w, int h) noexcept {
@@ -74,7 +65,7 @@ int line_correlation_band_pairs(int w) noexcept {
 }
 
 double image_line_rho(const LineCorrelationSums& s) noexcept {
-  if (!s.noise_dominates()) return 0.0;
+  if (!s.noise_dominates(DetectorTauEstimator::kMinPatternNoiseShare)) return 0.0;
   const double rho = std::min(s.rho(), DetectorTauEstimator::kMaxRho);
   return rho >= DetectorTauEstimator::kLagFreeRho ? rho : 0.0;
 }
@@ -87,7 +78,7 @@ double DetectorTauEstimator::mapped(double rho, double from_dwell, double to_dwe
 
 void DetectorTauEstimator::read(const LineCorrelationSums& s, double dwell_ns) noexcept {
   pending_weight_ = 0;
-  if (!s.noise_dominates()) return;
+  if (!s.noise_dominates(kMinNoiseShare)) return;
   const double rho = s.rho();
   if (!std::isfinite(rho)) return;
   if (!(ref_dwell_ns_ > 0) && weight_ == 0 && dwell_ns > 0) ref_dwell_ns_ = dwell_ns;

@@ -593,8 +593,12 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
   }
   if (!tau_estimate.has_reading()) return 0.0;  // the frames' lag not told yet: nothing to take out
   const double set_dwell = set < pattern_dwell_ns.size() ? pattern_dwell_ns[set] : 0.0;
-  if (!(set_dwell > 0))
-    return tau_estimate.lag_px(frame_dwell_ns) - (set < pattern_measured_lag_px.size() ? pattern_measured_lag_px[set] : 0.0);
+  if (!(set_dwell > 0)) {
+    const double pattern_rho = set < pattern_measured_rho.size() ? pattern_measured_rho[set] : 0.0;
+    if (pattern_rho > 0 && std::fabs(tau_estimate.rho_at(frame_dwell_ns) - pattern_rho) < DetectorTauEstimator::kSameDetectorRho)
+      return 0.0;
+    return tau_estimate.lag_px(frame_dwell_ns) - pattern_rho / (1.0 - pattern_rho);
+  }
   const double pattern_lag = tau_estimate.reference_dwell_ns() > 0 ? tau_estimate.lag_px(set_dwell) : 0.0;
   return tau_estimate.lag_px(frame_dwell_ns) - pattern_lag;
 }

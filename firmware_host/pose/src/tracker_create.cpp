@@ -158,7 +158,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     const double rho = t.measure_tau && sets[i].dwell_ns == 0
                            ? image_line_rho(line_correlation_sums(im.pixels.data(), im.width, im.height, im.width, 1))
                            : 0.0;
-    t.pattern_measured_lag_px.push_back(rho / (1.0 - rho));
+    t.pattern_measured_rho.push_back(rho);
   }
   t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;
   // The split check's noise: the score noise model's pixels per independent sample.

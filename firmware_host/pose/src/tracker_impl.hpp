@@ -97,7 +97,7 @@ struct Tracker::Impl {
   DetectorTauEstimator tau_estimate;
   int tau_band_line = 0;
   std::vector<double> pattern_dwell_ns;
-  std::vector<double> pattern_measured_lag_px;
+  std::vector<double> pattern_measured_rho;
   std::atomic<double> measured_rho{0}, measured_tau_px{0}, measured_tau_ns{0}, measured_tau_frames{0};
   // This frame's lag against the active set's pattern (px along x), told or measured.
   double lag_shift_of(const PoseFrame& frame, std::uint8_t set) noexcept;

