@@ -156,15 +156,15 @@ TEST(AppConfig, StartSearchScaleSpan) {
   EXPECT_NE(e.find("tracker.search_scale_max: 0.9 is outside the allowed range [1, 1.45]"), std::string::npos) << e;
 }
 
-// τ not told: measured from the frames only when tracker.measure_detector_tau is true.
-TEST(AppConfig, MeasureDetectorTauIsABoolOffByDefault) {
+// τ not told: measured from the frames unless tracker.measure_detector_tau is false.
+TEST(AppConfig, MeasureDetectorTauIsABoolOnByDefault) {
   AppConfig d;
-  EXPECT_FALSE(d.tracker.measure_detector_tau);
-  const auto on = write_yaml("measure_tau.yaml", "tracker:\n  measure_detector_tau: true\n");
+  EXPECT_TRUE(d.tracker.measure_detector_tau);
+  const auto off = write_yaml("measure_tau.yaml", "tracker:\n  measure_detector_tau: false\n");
   AppConfig c;
   std::string e;
-  EXPECT_TRUE(load_app_config(on, c, e)) << e;
-  EXPECT_TRUE(c.tracker.measure_detector_tau);
+  EXPECT_TRUE(load_app_config(off, c, e)) << e;
+  EXPECT_FALSE(c.tracker.measure_detector_tau);
   const auto bad = write_yaml("measure_tau_bad.yaml", "tracker:\n  measure_detector_tau: auto\n");
   AppConfig b;
   e.clear();

@@ -60,10 +60,10 @@ struct TrackerConfig {
   // simulated detector's sim.detector_tau_ns, as a calibration would measure it).
   double detector_tau_ns = 0;
   // With detector_tau_ns 0: measure τ from the frames themselves (the noise's correlation along
-  // the lines, line_correlation.hpp) and take the lag out as if told; false: no correction. Off
-  // by default: noise-free frames read the scene's edges as line correlation, and a pattern
-  // recorded through the same detector without its dwell_ns is taken as lag-free (README).
-  bool measure_detector_tau = false;
+  // the lines, line_correlation.hpp) and take the lag out as if told; false: no correction. A
+  // frame whose noise does not dominate its structure (noise-free, very high dose) is not read;
+  // a pattern set without dwell_ns counts the lag its own noise shows (README).
+  bool measure_detector_tau = true;
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
   double search_angle_step_deg = 20.0;
