@@ -155,9 +155,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     // A set of unknown dwell: the lag its own noise shows (a pattern recorded through the
     // detector at the tracking dwell has the frames' lag: none to take out), 0 for a clean crop.
     const PatternImage& im = spec.pattern;
-    const double rho = t.measure_tau && sets[i].dwell_ns == 0
-                           ? image_line_rho(line_correlation_sums(im.pixels.data(), im.width, im.height, im.width, 1))
-                           : 0.0;
+    const double rho = t.measure_tau && sets[i].dwell_ns == 0 ? pattern_line_rho(im.pixels.data(), im.width, im.height) : 0.0;
     t.pattern_measured_rho.push_back(rho);
   }
   t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;

@@ -58,10 +58,13 @@ int line_correlation_row_step(int w, int h) noexcept;
 // every line in 8 frames; 1.35 µs a band, 10.5 µs the whole ROI, standalone on this machine).
 int line_correlation_band_pairs(int w) noexcept;
 
-// ρ of an image read whole (a pattern at setup): its reading where its noise dominates its
-// structure and shows a lag (≥ DetectorTauEstimator::kLagFreeRho), else 0 — lag-free, or no lag
-// that can be told (a noise-free crop reads its edges: the gate is closed).
-double image_line_rho(const LineCorrelationSums& s) noexcept;
+// ρ of a w × h image (a pattern at setup) read in 16 × 16 px tiles: the median over the tiles
+// whose noise dominates their structure (the frames' gate). A pattern's structure fills most of
+// it, and read whole a lag-free pattern recorded at 8x the dose read its edges as ρ 0.31–0.57
+// (the held-out needle's, share 0.16–0.36). ≥ kLagFreeRho from ≥ kMinPatternTiles open tiles,
+// else 0 — lag-free, or no lag that can be told (a noise-free crop: every tile closed). Setup
+// only (allocates).
+double pattern_line_rho(const std::uint16_t* px, int w, int h);
 
 // The running estimate of ρ over the frames whose fit was good, weighted by their pairs (a
 // frame's share falls as pairs accumulate, down to 1/kMemoryFrames of an ROI frame's pairs). Two
@@ -88,11 +91,11 @@ class DetectorTauEstimator {
   // … and the noise at least one grey level (its variance 12x the levels' rounding, 1/12): a flat
   // noise-free band's rounding is deterministic, not noise (a ramp's reads ρ −1).
   static constexpr double kMinNoiseVar = 1.0;
-  // A pattern's gate (image_line_rho) is wider: a pattern averaged from 10 frames has 1/10 of a
-  // frame's noise variance against the same structure (the held-out needle, 10 frames at 2.5
-  // e⁻/px, τ 2 px: share 0.56, ρ 0.624 for 0.607), a noise-free crop has none (0.03).
-  static constexpr double kMinPatternNoiseShare = 0.3;
-  // A pattern (image_line_rho) reading below this is lag-free: a real micrograph's own noise
+  // A pattern's reading needs this many open tiles (a tile's ρ is good to ~0.07, the median of
+  // 6 to ~0.035): the held-out needle's pattern of 10 frames at the tracking dwell (2.5 e⁻/px,
+  // τ 2 px) opens ~12 of 64; lag-free ones recorded at 8x the dose 0–1.
+  static constexpr int kMinPatternTiles = 6;
+  // A pattern (pattern_line_rho) reading below this is lag-free: a real micrograph's own noise
   // reads 0.09–0.10 (lamella_on_post_eb.pgm, whose lag frames rendered from it carry too).
   static constexpr double kLagFreeRho = 0.15;
   // A pattern's and the frames' ρ closer than this are one detector at one dwell: no lag between
