@@ -792,6 +792,39 @@ TEST(NoFalseTracking, TwinOfThePatternPassingByDoesNotCarryThePoseAway) {
   }
 }
 
+// The same twin passing over the lamella on post at twice the speed (pose_envelope_probe
+// twin_passes_over_fast): the target is covered, held and lost, and the search after the loss
+// finds the merged image 14 px off, on the twin; it forgot the line, so the poses followed the
+// twin out of the field, TRACKING up to 266 px off (32 / 31 a row at 6 / 2.5 e-/px on 1703905).
+// The line's own place, measured in that search frame, scores with the winner: the winner is a
+// rival (UNCERTAIN) and the line stays to judge the poses after it (Tracker::rival_on_line).
+TEST(NoFalseTracking, TwinPassingOverFastDoesNotTakeThePoseAway) {
+  for (double dose : {6.0, 2.5}) {
+    pt::Scenario s = envelope_scene("lamella_post", "static", dose, 180);
+    s.start_x_px = 220;
+    s.edit_run = [](sempose::config::SimConfig& sc) {
+      auto& a = sc.targets[0].trajectory;  // the tracked target drifts right slowly
+      a = sempose::config::TrajectoryConfig{};
+      a.kind = "linear";
+      a.vx_px_s = 100;
+      a.margin_px = 110;
+      sempose::config::SimTargetConfig b = sc.targets[0];  // its twin runs over it from the right, 6x faster
+      b.enabled = true;
+      b.x_px = 760;
+      b.trajectory = sempose::config::TrajectoryConfig{};
+      b.trajectory.kind = "linear";
+      b.trajectory.vx_px_s = -600;
+      b.trajectory.margin_px = -200;
+      sc.targets[1] = b;
+    };
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    const FalseCount n = run_and_count(h, "lamella_post with a twin passing over fast, dose " + std::to_string(dose));
+    EXPECT_EQ(n.false_n, 0) << "TRACKING on the twin (32 / 31 before)";
+    EXPECT_GE(n.tracked, s.frames / 2) << "tracked before the twin passes and after it left";
+  }
+}
+
 // A frozen frame buffer (a scan generator's DMA block not refilled, a recording storing a frame
 // twice): frames 40-49 deliver frame 39's pixels again while the target moves on. Tracked as new,
 // the old image at the moved ROI reads as the target's move, the ROI follows it and the pose runs

@@ -707,6 +707,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.searched = true;
     tracking_speed_px = -1;
     const bool prior_known = motion.last_angle().known;
+    const AnglePrior angle_before = motion.last_angle();  // accept() below overwrites it
+    const double t_mid_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
     double found_scale = scale;
     // The expected scale is a prior: the SELECT's (else 1) for a new target, the last tracked
     // one after a loss. One level only for a new target whose size the SELECT told; after a loss
@@ -770,6 +772,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
                               : static_cast<std::uint8_t>(kReasonFlatFrame);
       go_lost();
     }
+    // A re-acquisition off the last TRACKING poses' line while the line's place holds a
+    // hypothesis scoring with it: a twin that covered the target, or the target itself.
+    // (keep_continuity then holds it UNCERTAIN until the poses keep to the line.)
+    line_rival = (e.state == TrackState::kTracking || e.state == TrackState::kUncertain) && tracking &&
+                 rival_on_line(bank, px, roi, frame.bits, e, angle_before, t_mid_s);
     // The search a controller's command started, run on this full-field frame: its pose says
     // so (reason 32) and waits for the next frame to confirm it, as one on an ROI frame in
     // flight is ACQUIRING with reason 32. Without the mark a REACQUIRE whose search found the
@@ -977,14 +984,70 @@ void Tracker::Impl::judge_fit(PoseEstimate& e, double off) const noexcept {
 // search starts it afresh (its pose is judged by the search's own checks).
 void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept {
   const double t_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
-  if (e.searched) anchor.forget();
-  if (held_frames > 0) anchor.doubt();
+  if (e.searched && !line_rival) anchor.forget();
+  if (held_frames > 0 || (e.searched && line_rival)) anchor.doubt();
   const bool followed = tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
   if (anchor.open() && followed && !anchor.confirm(t_s, e.x_px, e.y_px) && e.state == TrackState::kTracking) {
     e.state = TrackState::kUncertain;
     e.reason_bits |= kReasonUnexplained;
   }
   if (e.state == TrackState::kTracking) anchor.trusted(t_s, e.x_px, e.y_px);
+}
+
+// A twin of the pattern passing over the target covers it, the target is lost, and the search
+// after the loss finds the merged image or the twin (pose_envelope_probe twin_passes_over_fast:
+// the lamella on post re-found 14 px off on the twin, the poses then followed the twin out of
+// the field, TRACKING up to 266 px off, since the search forgot the line). Nothing in the winner
+// tells it from the target; the line does: the winner lies off where the last TRACKING poses
+// put the target, so that place is measured too (the ROI there, at the found scale and the last
+// tracked angle, the peak within the line's tolerance, the walk). A hypothesis there that scores
+// with the winner (not below it by significance_z() SDs of a difference of two scores) makes the
+// winner a rival: UNCERTAIN, and the line stays to judge the poses after it. Not a veto: a line
+// whose place holds nothing of the target's score (it left, jumped, turned) lets the winner be
+// judged as before. RT: one ROI load, one binned FFT and a walk, on such search frames only.
+bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* px, const Roi& field_roi, int bits,
+                                  const PoseEstimate& e, const AnglePrior& last, double t_s) noexcept {
+  double lx = 0, ly = 0, tol = 0;
+  if (!(cfg.max_false_probability > 0) || loss.calibrating() || !last.known || !anchor.line_at(t_s, lx, ly, tol)) return false;
+  const int pattern_px = sizes.pattern_px;
+  // A line too old to say where the target is (its tolerance a look-alike's distance) is forgotten.
+  if (tol > pattern_px / 4.0) return false;
+  // On the line: the target, or a twin still merged with it (twin_passes_over_fast at 2.5 e-/px:
+  // found 6 px off between the two, TRACKING, then the poses followed the twin out). A line that
+  // held frames had opened stays open: the poses after the search must keep to it.
+  if (std::hypot(e.x_px - lx, e.y_px - ly) <= tol) return anchor.open();
+  const int w = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.w}), h = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.h});
+  if (w < pattern_px || h < pattern_px) return false;
+  const double fx = lx + lag_shift_px - field_roi.x, fy = ly - field_roi.y;  // the line's place in this frame's pixels
+  const int x0 = std::clamp(static_cast<int>(std::lround(fx - (w - 1) / 2.0)), 0, field_roi.w - w);
+  const int y0 = std::clamp(static_cast<int>(std::lround(fy - (h - 1) / 2.0)), 0, field_roi.h - h);
+  const std::uint16_t* cut = px + static_cast<std::size_t>(y0) * field_roi.w + x0;
+  const bool rescaled = std::fabs(e.scale - 1.0) > kRescaleFrom;
+  const double used_scale = rescaled ? e.scale : 1.0;
+  const std::uint16_t* load_px = cut;
+  std::ptrdiff_t load_stride = field_roi.w;
+  int load_bits = bits;
+  if (rescaled) {
+    load_px = rescaler.rescale(cut, w, h, field_roi.w, bits, used_scale);
+    load_stride = w;
+    load_bits = RoiRescaler::out_bits(bits);
+  }
+  if (!loader.load(load_px, w, h, load_stride, load_bits)) return false;
+  const double c = (pattern_px - 1) / 2.0;
+  const double ux = (w - 1) / 2.0 + (fx - x0 - (w - 1) / 2.0) / used_scale - c;  // the line's pattern top-left, loaded
+  const double uy = (h - 1) / 2.0 + (fy - y0 - (h - 1) / 2.0) / used_scale - c;
+  const double r_b = tol / used_scale / 2.0 + 1.0;  // binned px
+  const SearchWindow win{static_cast<int>(std::floor(ux / 2.0 - r_b)), static_cast<int>(std::floor(uy / 2.0 - r_b)),
+                         static_cast<int>(std::ceil(ux / 2.0 + r_b)), static_cast<int>(std::ceil(uy / 2.0 + r_b))};
+  const int j = angles.index_of(last.phi_deg);
+  half.correlate(bank.spectrum(j), maps.work());
+  const Measurement r = walk.measure(bank, j, find_peak(maps.work(), half.valid_w(), half.valid_h(), win), cfg.max_angle_steps_per_frame);
+  if (!r.valid) return false;
+  // Still on the line after the walk (it may climb to the winner's own maximum).
+  const double rx = x0 + (w - 1) / 2.0 + (r.ux + r.dx + c - (w - 1) / 2.0) * used_scale - fx;
+  const double ry = y0 + (h - 1) / 2.0 + (r.uy + r.dy + c - (h - 1) / 2.0) * used_scale - fy;
+  if (std::hypot(rx, ry) > tol) return false;
+  return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -301,6 +301,12 @@ struct Tracker::Impl {
   static constexpr unsigned kFitSampleEvery = 4;
   unsigned fit_frames = 0;
   void keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept;
+  // A re-acquisition search's winner lies off that line while the line's own place holds a
+  // hypothesis scoring with it (tracker.cpp, rival_on_line): the frame cannot tell the target
+  // from a twin that covered it. UNCERTAIN, and the line is kept (not forgotten with the search).
+  bool line_rival = false;
+  bool rival_on_line(const PatternBank& bank, const std::uint16_t* px, const Roi& field_roi, int bits, const PoseEstimate& e,
+                     const AnglePrior& last, double t_s) noexcept;
   // A torn frame (tracker.cpp, torn()): the rows of the footprint scanned first and those
   // scanned last put the target at places that differ by more than their noise allows (χ², 2
   // dof, at max_false_probability over the cuts) and by at least kTornApartPx

@@ -41,14 +41,8 @@ class ContinuityAnchor {
   // its last pose); kConfirmFrames in a row close the check. Call once per followed pose while
   // open; true: the check closed with this pose.
   bool confirm(double t_s, double x_px, double y_px) noexcept {
-    const int tail = (head_ - (n_ - 1) + kTrail) % kTrail;
-    const double span = t_[head_] - t_[tail];
-    if (!(span > 0)) return false;
-    const double frame_s = span / (n_ - 1);
-    const double ahead = t_s - t_[head_];
-    const double ex = x_[head_] + (x_[head_] - x_[tail]) / span * ahead;
-    const double ey = y_[head_] + (y_[head_] - y_[tail]) / span * ahead;
-    const double tol = kFalsePx + kDriftPxPerFrame * ahead / frame_s;
+    double ex = 0, ey = 0, tol = 0;
+    if (!line_at(t_s, ex, ey, tol)) return false;
     agreed_ = std::hypot(x_px - ex, y_px - ey) <= tol ? agreed_ + 1 : 0;
     if (agreed_ == 1) {
       first_t_ = t_s;
@@ -59,6 +53,8 @@ class ContinuityAnchor {
     // And moving along the line, not across it: a twin crossing the line's place lies on it for
     // ~3 frames (the lamella on post at 20 e-/px, 4 px a frame against the target's 1: closed on
     // it, TRACKING up to 212 px off after).
+    const int tail = (head_ - (n_ - 1) + kTrail) % kTrail;
+    const double span = t_[head_] - t_[tail];
     const double vx = (x_[head_] - x_[tail]) / span, vy = (y_[head_] - y_[tail]) / span;
     const double dt = t_s - first_t_;
     if (std::hypot(x_px - first_x_ - vx * dt, y_px - first_y_ - vy * dt) > kFalsePx) {
@@ -66,6 +62,20 @@ class ContinuityAnchor {
       return false;
     }
     open_ = false;
+    return true;
+  }
+  // Where the trail's line puts the target at t_s (x_px, y_px) and how far from there a pose of
+  // it may lie (tol_px: kFalsePx plus kDriftPxPerFrame per frame since the last TRACKING pose).
+  // False while the trail is not full (no line to go by).
+  bool line_at(double t_s, double& x_px, double& y_px, double& tol_px) const noexcept {
+    if (n_ < kTrail) return false;
+    const int tail = (head_ - (n_ - 1) + kTrail) % kTrail;
+    const double span = t_[head_] - t_[tail];
+    if (!(span > 0)) return false;
+    const double ahead = t_s - t_[head_];
+    x_px = x_[head_] + (x_[head_] - x_[tail]) / span * ahead;
+    y_px = y_[head_] + (y_[head_] - y_[tail]) / span * ahead;
+    tol_px = kFalsePx + kDriftPxPerFrame * ahead / (span / (n_ - 1));
     return true;
   }
   // A new target or stream (REACQUIRE, another pattern set) or a full-field search (its own
