@@ -241,6 +241,11 @@ std::vector<Case> cases() {
   v.push_back({"twin_passes_50px", [](pt::Scenario& s) { second_target(s, 50); }});
   v.push_back({"twin_passes_over_fast", [](pt::Scenario& s) { second_target(s, 0, -600); }});
   v.push_back({"twin_crosses_over_at_45deg", [](pt::Scenario& s) { second_target(s, 270, -300, -300, 580); }});
+  // Variants (branch twin2): crossing at 90° (the twin straight up through the target's path where
+  // it meets it), at 45° twice as fast, and at 45° from above.
+  v.push_back({"twin_crosses_over_at_90deg", [](pt::Scenario& s) { second_target(s, 270, 0, -300, 310); }});
+  v.push_back({"twin_crosses_over_at_45deg_fast", [](pt::Scenario& s) { second_target(s, 270, -600, -600, 535); }});
+  v.push_back({"twin_crosses_down_at_45deg", [](pt::Scenario& s) { second_target(s, -230, -300, 300, 530); }});
   // 7. Beam faults mid-run: saturated frames, a band of saturated lines, the lower half blanked
   // (black level), the lower half shifted 12 px (a scan glitch), a field region gone dark (an occluder).
   v.push_back({"saturated_frames_40_41", [](pt::Scenario& s) {

@@ -184,30 +184,39 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
 // target moving during the ~80 ms scan. Setup sized every buffer this uses; ~60 µs, on a
 // search frame only. Returns the search's measurement placed in that loaded ROI (for the split
 // check, torn()).
-Tracker::Impl::Loaded Tracker::Impl::search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px,
-                                                  const Roi& field_roi, int bits, PoseEstimate& e) noexcept {
-  const int w = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.w}), h = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.h});
-  const int pattern_px = sizes.pattern_px;
-  if (!m.valid || w < pattern_px || h < pattern_px) return {};
-  const double fx = e.x_px + lag_shift_px - field_roi.x, fy = e.y_px - field_roi.y;  // the pose in this frame's pixels
-  const int x0 = std::clamp(static_cast<int>(std::lround(fx - (w - 1) / 2.0)), 0, field_roi.w - w);
-  const int y0 = std::clamp(static_cast<int>(std::lround(fy - (h - 1) / 2.0)), 0, field_roi.h - h);
-  const std::uint16_t* cut = px + static_cast<std::size_t>(y0) * field_roi.w + x0;
-  const bool rescaled = std::fabs(e.scale - 1.0) > kRescaleFrom;
-  const double used_scale = rescaled ? e.scale : 1.0;
-  const std::uint16_t* load_px = cut;
+Tracker::Impl::FieldCut Tracker::Impl::load_field_cut(const std::uint16_t* px, const Roi& field_roi, int bits, double fx,
+                                                      double fy, double load_scale) noexcept {
+  FieldCut cut;
+  cut.w = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.w});
+  cut.h = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.h});
+  if (cut.w < sizes.pattern_px || cut.h < sizes.pattern_px) return cut;
+  cut.x0 = std::clamp(static_cast<int>(std::lround(fx - (cut.w - 1) / 2.0)), 0, field_roi.w - cut.w);
+  cut.y0 = std::clamp(static_cast<int>(std::lround(fy - (cut.h - 1) / 2.0)), 0, field_roi.h - cut.h);
+  const std::uint16_t* at = px + static_cast<std::size_t>(cut.y0) * field_roi.w + cut.x0;
+  const bool rescaled = std::fabs(load_scale - 1.0) > kRescaleFrom;
+  cut.used_scale = rescaled ? load_scale : 1.0;
+  const std::uint16_t* load_px = at;
   std::ptrdiff_t load_stride = field_roi.w;
   int load_bits = bits;
   if (rescaled) {
-    load_px = rescaler.rescale(cut, w, h, field_roi.w, bits, used_scale);
-    load_stride = w;
+    load_px = rescaler.rescale(at, cut.w, cut.h, field_roi.w, bits, cut.used_scale);
+    load_stride = cut.w;
     load_bits = RoiRescaler::out_bits(bits);
   }
-  if (!loader.load(load_px, w, h, load_stride, load_bits)) return {};
-  // The pattern's top-left in the loaded ROI (RoiRescaler::to_raw inverted about its centre).
-  const double c = (pattern_px - 1) / 2.0;
-  const double lx = (w - 1) / 2.0 + (fx - x0 - (w - 1) / 2.0) / used_scale - c;
-  const double ly = (h - 1) / 2.0 + (fy - y0 - (h - 1) / 2.0) / used_scale - c;
+  cut.valid = loader.load(load_px, cut.w, cut.h, load_stride, load_bits);
+  return cut;
+}
+
+Tracker::Impl::Loaded Tracker::Impl::search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px,
+                                                  const Roi& field_roi, int bits, PoseEstimate& e) noexcept {
+  if (!m.valid) return {};
+  const double fx = e.x_px + lag_shift_px - field_roi.x, fy = e.y_px - field_roi.y;  // the pose in this frame's pixels
+  const FieldCut cut = load_field_cut(px, field_roi, bits, fx, fy, e.scale);
+  if (!cut.valid) return {};
+  const double used_scale = cut.used_scale;
+  // The pattern's top-left in the loaded ROI.
+  const double c = (sizes.pattern_px - 1) / 2.0;
+  const double lx = cut.loaded_x(fx) - c, ly = cut.loaded_y(fy) - c;
   Measurement at = m;
   at.ux = static_cast<int>(std::floor(lx));
   at.uy = static_cast<int>(std::floor(ly));
@@ -708,6 +717,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     tracking_speed_px = -1;
     const bool prior_known = motion.last_angle().known;
     const AnglePrior angle_before = motion.last_angle();  // accept() below overwrites it
+    bool turned = false;
     const double t_mid_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
     double found_scale = scale;
     // The expected scale is a prior: the SELECT's (else 1) for a new target, the last tracked
@@ -748,6 +758,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       untorn_scale = scale;
       scale_tracked = true;
       const bool at_edge = at_field_edge(e, e.scale);
+      turned = turned_off_line(m, e, t_mid_s);
       open_flip_check(m, prior_known, at_edge);
       // The search frame's pose is judged like a tracked one (trusted_pose: below the explained
       // bound it waits for the stream's pose noise; above it by its own σ, search_sigma).
@@ -776,7 +787,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // hypothesis scoring with it: a twin that covered the target, or the target itself.
     // (keep_continuity then holds it UNCERTAIN until the poses keep to the line.)
     line_rival = (e.state == TrackState::kTracking || e.state == TrackState::kUncertain) && tracking &&
-                 rival_on_line(bank, px, roi, frame.bits, e, angle_before, t_mid_s);
+                 (turned || rival_on_line(bank, px, roi, frame.bits, e, angle_before, t_mid_s));
     // The search a controller's command started, run on this full-field frame: its pose says
     // so (reason 32) and waits for the next frame to confirm it, as one on an ROI frame in
     // flight is ACQUIRING with reason 32. Without the mark a REACQUIRE whose search found the
@@ -828,6 +839,20 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   // (Its origin where the target's true place is: the frame shows it lag_shift_px further on.)
   check_motion(bank, m, e, swept, scored.x - lag_shift_px + (rescaled ? 0.5 * (loaded_w - 1) * (1.0 - used_scale) : 0.0),
                scored.y + (rescaled ? 0.5 * (loaded_h - 1) * (1.0 - used_scale) : 0.0), used_scale, place);
+  // A pose turned from the line of an open continuity check (a turned re-acquisition kept it
+  // open: turned_off_line) measures its opposite hypothesis too, the one the line predicts: the
+  // flip check takes it when it wins (twin_crosses_over_at_45deg: the pose left on the target's
+  // own 180° look-alike 15 px off once the twin had passed, the target itself scoring 0.94 to its
+  // 0.75-0.83). Only UNCERTAIN poses are at stake: the line vouches for the result.
+  if (!flip_open && cfg.max_false_probability > 0 && anchor.open()) {
+    ContinuityAnchor::Line line;
+    const double t_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
+    if (anchor.line_at(t_s, line) && ContinuityAnchor::turned(e.phi_deg, line)) {
+      flip_open = true;
+      flip_lead = FlipLead{};
+      flip_circle = FlipLead{};
+    }
+  }
   // The flip check before the scale probe and σ, which read the hypothesis kept.
   const bool flipped = flip_open && settle_flip(bank, m, e, place);
   const ScaleReading reading = scale_probe.read(bank, m);
@@ -987,11 +1012,11 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   if (e.searched && !line_rival) anchor.forget();
   if (held_frames > 0 || (e.searched && line_rival)) anchor.doubt();
   const bool followed = tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
-  if (anchor.open() && followed && !anchor.confirm(t_s, e.x_px, e.y_px) && e.state == TrackState::kTracking) {
+  if (anchor.open() && followed && !anchor.confirm(t_s, e.x_px, e.y_px, e.phi_deg) && e.state == TrackState::kTracking) {
     e.state = TrackState::kUncertain;
     e.reason_bits |= kReasonUnexplained;
   }
-  if (e.state == TrackState::kTracking) anchor.trusted(t_s, e.x_px, e.y_px);
+  if (e.state == TrackState::kTracking) anchor.trusted(t_s, e.x_px, e.y_px, e.phi_deg, e.score);
 }
 
 // A twin of the pattern passing over the target covers it, the target is lost, and the search
@@ -1007,8 +1032,9 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
 // judged as before. RT: one ROI load, one binned FFT and a walk, on such search frames only.
 bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* px, const Roi& field_roi, int bits,
                                   const PoseEstimate& e, const AnglePrior& last, double t_s) noexcept {
-  double lx = 0, ly = 0, tol = 0;
-  if (!(cfg.max_false_probability > 0) || loss.calibrating() || !last.known || !anchor.line_at(t_s, lx, ly, tol)) return false;
+  ContinuityAnchor::Line line;
+  if (!(cfg.max_false_probability > 0) || loss.calibrating() || !last.known || !anchor.line_at(t_s, line)) return false;
+  const double lx = line.x_px, ly = line.y_px, tol = line.tol_px;
   const int pattern_px = sizes.pattern_px;
   // A line too old to say where the target is (its tolerance a look-alike's distance) is forgotten.
   if (tol > pattern_px / 4.0) return false;
@@ -1016,27 +1042,12 @@ bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* 
   // found 6 px off between the two, TRACKING, then the poses followed the twin out). A line that
   // held frames had opened stays open: the poses after the search must keep to it.
   if (std::hypot(e.x_px - lx, e.y_px - ly) <= tol) return anchor.open();
-  const int w = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.w}), h = std::min({sizes.roi_px, sizes.roi_fft_px, field_roi.h});
-  if (w < pattern_px || h < pattern_px) return false;
   const double fx = lx + lag_shift_px - field_roi.x, fy = ly - field_roi.y;  // the line's place in this frame's pixels
-  const int x0 = std::clamp(static_cast<int>(std::lround(fx - (w - 1) / 2.0)), 0, field_roi.w - w);
-  const int y0 = std::clamp(static_cast<int>(std::lround(fy - (h - 1) / 2.0)), 0, field_roi.h - h);
-  const std::uint16_t* cut = px + static_cast<std::size_t>(y0) * field_roi.w + x0;
-  const bool rescaled = std::fabs(e.scale - 1.0) > kRescaleFrom;
-  const double used_scale = rescaled ? e.scale : 1.0;
-  const std::uint16_t* load_px = cut;
-  std::ptrdiff_t load_stride = field_roi.w;
-  int load_bits = bits;
-  if (rescaled) {
-    load_px = rescaler.rescale(cut, w, h, field_roi.w, bits, used_scale);
-    load_stride = w;
-    load_bits = RoiRescaler::out_bits(bits);
-  }
-  if (!loader.load(load_px, w, h, load_stride, load_bits)) return false;
+  const FieldCut cut = load_field_cut(px, field_roi, bits, fx, fy, e.scale);
+  if (!cut.valid) return false;
   const double c = (pattern_px - 1) / 2.0;
-  const double ux = (w - 1) / 2.0 + (fx - x0 - (w - 1) / 2.0) / used_scale - c;  // the line's pattern top-left, loaded
-  const double uy = (h - 1) / 2.0 + (fy - y0 - (h - 1) / 2.0) / used_scale - c;
-  const double r_b = tol / used_scale / 2.0 + 1.0;  // binned px
+  const double ux = cut.loaded_x(fx) - c, uy = cut.loaded_y(fy) - c;  // the line's pattern top-left, loaded
+  const double r_b = tol / cut.used_scale / 2.0 + 1.0;  // binned px
   const SearchWindow win{static_cast<int>(std::floor(ux / 2.0 - r_b)), static_cast<int>(std::floor(uy / 2.0 - r_b)),
                          static_cast<int>(std::ceil(ux / 2.0 + r_b)), static_cast<int>(std::ceil(uy / 2.0 + r_b))};
   const int j = angles.index_of(last.phi_deg);
@@ -1044,10 +1055,32 @@ bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* 
   const Measurement r = walk.measure(bank, j, find_peak(maps.work(), half.valid_w(), half.valid_h(), win), cfg.max_angle_steps_per_frame);
   if (!r.valid) return false;
   // Still on the line after the walk (it may climb to the winner's own maximum).
-  const double rx = x0 + (w - 1) / 2.0 + (r.ux + r.dx + c - (w - 1) / 2.0) * used_scale - fx;
-  const double ry = y0 + (h - 1) / 2.0 + (r.uy + r.dy + c - (h - 1) / 2.0) * used_scale - fy;
+  const double rx = cut.frame_x(r.ux + r.dx + c) - fx, ry = cut.frame_y(r.uy + r.dy + c) - fy;
   if (std::hypot(rx, ry) > tol) return false;
   return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score);
+}
+
+// A re-acquisition off the line, turned by more than ContinuityAnchor::kTurnedDeg from the
+// line's angle, and scoring below the level the line was tracked at (pose_envelope_probe
+// twin_crosses_over_at_45deg: the lamella on post covered by a twin crossing at 45° was re-found
+// 78 px off on a turned look-alike of the merged image, 0.83 where the line scored 0.93, then
+// followed onto the target's own 180° look-alike 15 px off: TRACKING 180° off on 108 of 180
+// frames). A target does not turn 180° while lost (the search's own tie-break), and one re-found
+// after a jump scores at its level; a twin's merged image does not. Turned by the evidence, not
+// a tie: the winner leads its opposite by significance_z() SDs (a near-symmetric target's turned
+// copy is its flip check's business). Below the level by the confirmed margin (kConfirmShare of
+// the room 1 − level²) and the noise of a score difference. The line is kept: UNCERTAIN until a
+// pose keeps to it, place and angle.
+bool Tracker::Impl::turned_off_line(const Measurement& m, const PoseEstimate& e, double t_s) const noexcept {
+  ContinuityAnchor::Line line;
+  if (!(cfg.max_false_probability > 0) || loss.calibrating() || !anchor.line_at(t_s, line)) return false;
+  if (line.tol_px > sizes.pattern_px / 4.0 || std::hypot(e.x_px - line.x_px, e.y_px - line.y_px) <= line.tol_px ||
+      !ContinuityAnchor::turned(e.phi_deg, line))
+    return false;
+  const double z = significance_z();
+  if (!(m.flip_score >= -1.0f) || m.score - m.flip_score < z * flip_sd(m.score)) return false;
+  const double level = line.score;
+  return e.score < level - std::max(LossPolicy::kConfirmShare * (1.0 - level * level), z * flip_sd(level));
 }
 
 // ---------------------------------------------------------------------------------------

@@ -252,6 +252,20 @@ struct Tracker::Impl {
     Measurement at;
     double used_scale = 1.0;
   };
+  // The ROI the next frame would scan around a place (fx, fy) of a full-field frame (the frame's
+  // pixels), cut from it and loaded at load_scale (resampled by 1/load_scale about its centre, as
+  // an ROI frame is); valid: loaded (not flat, the field holds the ROI). Setup sized every buffer.
+  struct FieldCut {
+    bool valid = false;
+    int x0 = 0, y0 = 0, w = 0, h = 0;
+    double used_scale = 1.0;
+    // A place of the frame in the loaded ROI's pixels (RoiRescaler::to_raw inverted), and back.
+    double loaded_x(double fx) const noexcept { return (w - 1) / 2.0 + (fx - x0 - (w - 1) / 2.0) / used_scale; }
+    double loaded_y(double fy) const noexcept { return (h - 1) / 2.0 + (fy - y0 - (h - 1) / 2.0) / used_scale; }
+    double frame_x(double lx) const noexcept { return x0 + (w - 1) / 2.0 + (lx - (w - 1) / 2.0) * used_scale; }
+    double frame_y(double ly) const noexcept { return y0 + (h - 1) / 2.0 + (ly - (h - 1) / 2.0) * used_scale; }
+  };
+  FieldCut load_field_cut(const std::uint16_t* px, const Roi& field_roi, int bits, double fx, double fy, double load_scale) noexcept;
   Loaded search_sigma(const PatternBank& bank, const Measurement& m, const std::uint16_t* px, const Roi& field_roi, int bits,
                       PoseEstimate& e) noexcept;
   void go_lost() noexcept;
@@ -307,6 +321,9 @@ struct Tracker::Impl {
   bool line_rival = false;
   bool rival_on_line(const PatternBank& bank, const std::uint16_t* px, const Roi& field_roi, int bits, const PoseEstimate& e,
                      const AnglePrior& last, double t_s) noexcept;
+  // A re-acquisition off the line, turned from it and below the line's level (tracker.cpp): the
+  // line is kept as for a rival.
+  bool turned_off_line(const Measurement& m, const PoseEstimate& e, double t_s) const noexcept;
   // A torn frame (tracker.cpp, torn()): the rows of the footprint scanned first and those
   // scanned last put the target at places that differ by more than their noise allows (χ², 2
   // dof, at max_false_probability over the cuts) and by at least kTornApartPx

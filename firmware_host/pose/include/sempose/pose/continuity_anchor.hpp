@@ -19,12 +19,16 @@ class ContinuityAnchor {
   static constexpr double kFalsePx = 3.0;      // issue 13's false-pose distance
   static constexpr double kDriftPxPerFrame = 0.25;  // the line's error growing per frame since
 
-  // A TRACKING pose at t_s (after consistent() vouched for it while the check is open).
-  void trusted(double t_s, double x_px, double y_px) noexcept {
+  // A TRACKING pose at t_s and its score (after confirm() vouched for it while the check is open).
+  void trusted(double t_s, double x_px, double y_px, double phi_deg, double score) noexcept {
+    // The angle unwrapped along the trail (a spin's rate reads across ±180°).
+    const double phi = n_ > 0 ? phi_[head_] + std::remainder(phi_deg - phi_[head_], 360.0) : phi_deg;
     head_ = (head_ + 1) % kTrail;
     t_[head_] = t_s;
     x_[head_] = x_px;
     y_[head_] = y_px;
+    phi_[head_] = phi;
+    score_[head_] = score;
     if (n_ < kTrail) ++n_;
   }
   // A frame whose target the tracker could not vouch for (held): the check opens, once the
@@ -40,10 +44,13 @@ class ContinuityAnchor {
   // Whether the pose at t_s lies on the trail's line (kFalsePx + kDriftPxPerFrame per frame since
   // its last pose); kConfirmFrames in a row close the check. Call once per followed pose while
   // open; true: the check closed with this pose.
-  bool confirm(double t_s, double x_px, double y_px) noexcept {
-    double ex = 0, ey = 0, tol = 0;
-    if (!line_at(t_s, ex, ey, tol)) return false;
-    agreed_ = std::hypot(x_px - ex, y_px - ey) <= tol ? agreed_ + 1 : 0;
+  // And the pose's angle within kTurnedDeg of the line's: the target's own 180° look-alike lies
+  // within a growing tolerance of the line (the lamella on post's, 15 px off).
+  bool confirm(double t_s, double x_px, double y_px, double phi_deg) noexcept {
+    Line l;
+    if (!line_at(t_s, l)) return false;
+    const bool on = std::hypot(x_px - l.x_px, y_px - l.y_px) <= l.tol_px && !turned(phi_deg, l);
+    agreed_ = on ? agreed_ + 1 : 0;
     if (agreed_ == 1) {
       first_t_ = t_s;
       first_x_ = x_px;
@@ -64,18 +71,28 @@ class ContinuityAnchor {
     open_ = false;
     return true;
   }
-  // Where the trail's line puts the target at t_s (x_px, y_px) and how far from there a pose of
-  // it may lie (tol_px: kFalsePx plus kDriftPxPerFrame per frame since the last TRACKING pose).
-  // False while the trail is not full (no line to go by).
-  bool line_at(double t_s, double& x_px, double& y_px, double& tol_px) const noexcept {
+  // Where the trail's line puts the target at some time: place, angle (the trail's turn rate
+  // carried on), how far from the place a pose of it may lie (kFalsePx plus kDriftPxPerFrame per
+  // frame since the last TRACKING pose), and the trail's mean score (the level it was tracked at).
+  struct Line {
+    double x_px = 0, y_px = 0, phi_deg = 0, tol_px = 0, score = 0;
+  };
+  // Turned by more than this from the line: a 180° look-alike, not the target turning on.
+  static constexpr double kTurnedDeg = 90.0;
+  static bool turned(double phi_deg, const Line& l) noexcept { return std::fabs(std::remainder(phi_deg - l.phi_deg, 360.0)) > kTurnedDeg; }
+  // The line at t_s; false while the trail is not full (no line to go by).
+  bool line_at(double t_s, Line& l) const noexcept {
     if (n_ < kTrail) return false;
     const int tail = (head_ - (n_ - 1) + kTrail) % kTrail;
     const double span = t_[head_] - t_[tail];
     if (!(span > 0)) return false;
     const double ahead = t_s - t_[head_];
-    x_px = x_[head_] + (x_[head_] - x_[tail]) / span * ahead;
-    y_px = y_[head_] + (y_[head_] - y_[tail]) / span * ahead;
-    tol_px = kFalsePx + kDriftPxPerFrame * ahead / (span / (n_ - 1));
+    l.x_px = x_[head_] + (x_[head_] - x_[tail]) / span * ahead;
+    l.y_px = y_[head_] + (y_[head_] - y_[tail]) / span * ahead;
+    l.phi_deg = phi_[head_] + (phi_[head_] - phi_[tail]) / span * ahead;
+    l.tol_px = kFalsePx + kDriftPxPerFrame * ahead / (span / (n_ - 1));
+    l.score = 0;
+    for (int i = 0; i < n_; ++i) l.score += score_[i] / n_;
     return true;
   }
   // A new target or stream (REACQUIRE, another pattern set) or a full-field search (its own
@@ -87,7 +104,7 @@ class ContinuityAnchor {
   }
 
  private:
-  double t_[kTrail] = {}, x_[kTrail] = {}, y_[kTrail] = {};
+  double t_[kTrail] = {}, x_[kTrail] = {}, y_[kTrail] = {}, phi_[kTrail] = {}, score_[kTrail] = {};
   double first_t_ = 0, first_x_ = 0, first_y_ = 0;  // the first of the agreeing poses in a row
   int head_ = 0, n_ = 0, agreed_ = 0;
   bool open_ = false;
