@@ -469,19 +469,19 @@ TEST(ContinuityAnchor, ClosesOnTheLineNotOnAMotionThatTurnedBack) {
   using sempose::pose::ContinuityAnchor;
   const double dt = 0.01;  // 1 px a frame along x
   ContinuityAnchor along;
-  for (int i = 0; i < ContinuityAnchor::kTrail; ++i) along.trusted(i * dt, 100.0 + i, 50.0);
+  for (int i = 0; i < ContinuityAnchor::kTrail; ++i) along.trusted(i * dt, 100.0 + i, 50.0, 0.0, 0.9);
   along.doubt();
   ASSERT_TRUE(along.open());
   bool closed = false;
-  for (int i = ContinuityAnchor::kTrail; i < ContinuityAnchor::kTrail + 5 && !closed; ++i) closed = along.confirm(i * dt, 100.0 + i, 50.0);
+  for (int i = ContinuityAnchor::kTrail; i < ContinuityAnchor::kTrail + 5 && !closed; ++i) closed = along.confirm(i * dt, 100.0 + i, 50.0, 0.0);
   EXPECT_TRUE(closed) << "poses on the line close the check";
   EXPECT_FALSE(along.open());
 
   ContinuityAnchor turned;
-  for (int i = 0; i < ContinuityAnchor::kTrail; ++i) turned.trusted(i * dt, 100.0 + i, 50.0);
+  for (int i = 0; i < ContinuityAnchor::kTrail; ++i) turned.trusted(i * dt, 100.0 + i, 50.0, 0.0, 0.9);
   turned.doubt();
   for (int i = ContinuityAnchor::kTrail; i < ContinuityAnchor::kTrail + 50; ++i)
-    EXPECT_FALSE(turned.confirm(i * dt, 100.0 + 2 * (ContinuityAnchor::kTrail - 1) - i, 50.0)) << "frame " << i;
+    EXPECT_FALSE(turned.confirm(i * dt, 100.0 + 2 * (ContinuityAnchor::kTrail - 1) - i, 50.0, 0.0)) << "frame " << i;
   EXPECT_TRUE(turned.open());
   turned.forget();
   EXPECT_FALSE(turned.open());
