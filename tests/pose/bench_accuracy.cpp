@@ -604,11 +604,15 @@ int main(int argc, char** argv) {
     ZSums z;
     for (std::size_t f = 0; f < h.poses().size(); ++f) {
       const PoseEstimate& e = h.poses()[f];
+      // sempose's pose is the target when the beam passed it (PoseEstimate::t_beam_ns): judged
+      // against the truth at that time, not at mid-scan (a full-field search frame scans a moving
+      // target up to half its ~78 ms scan away from mid-scan; in a ROI frame the two agree).
+      const hal::TargetTruth& seen = h.records()[f].as_scanned;
       {
         // σ's check: the measured pose's error over its σ, on the poses the RMS errors are over.
-        const hal::TargetTruth& tr = h.records()[f].truth;
+        const hal::TargetTruth& tr = seen;
         const bool jump_frame = row.motion == "jump" && f > 0 &&
-                                std::hypot(tr.x_px - h.records()[f - 1].truth.x_px, tr.y_px - h.records()[f - 1].truth.y_px) > 20;
+                                std::hypot(tr.x_px - h.records()[f - 1].as_scanned.x_px, tr.y_px - h.records()[f - 1].as_scanned.y_px) > 20;
         const double ex = e.meas_x_px - tr.x_px, ey = e.meas_y_px - tr.y_px, ephi = angle_error(e.meas_phi_deg, tr.phi_deg);
         if (e.state == TrackState::kTracking && !e.searched && !jump_frame && std::hypot(ex, ey) <= 3.0 && std::fabs(ephi) <= 10.0)
           z.add(ex, ey, ephi, e.scale - tr.scale, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg, e.sigma_scale);
@@ -619,7 +623,7 @@ int main(int argc, char** argv) {
       // BENCH_TRACE=1: one line per pose on stderr (state, score, normalised χ², error, true
       // and estimated scale, reason bits, correlations spent, start search) to see what separates false poses from true ones.
       if (std::getenv("BENCH_TRACE")) {
-        const hal::TargetTruth& tr = h.records()[f].truth;
+        const hal::TargetTruth& tr = seen;
         std::fprintf(stderr, "T %s %s %g %zu st%d score %.4f chi2 %.3f dpos %.3f dphi %.3f scale %.3f est %.3f rb %02x ex %.3f ey %.3f sx %.3f sy %.3f sphi %.3f steps %d srch %d\n", row.target.c_str(),
                      row.label.c_str(), row.dose, f, static_cast<int>(e.state), e.score, e.chi2,
                      std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), angle_error(e.phi_deg, tr.phi_deg), tr.scale, e.scale, e.reason_bits,
@@ -627,7 +631,7 @@ int main(int argc, char** argv) {
                      static_cast<int>(e.searched));
       }
       if (!std::isfinite(e.x_px) || !std::isfinite(e.phi_deg) || !std::isfinite(e.score)) ++bad;
-      sem.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, h.records()[f].truth});
+      sem.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, seen});
     }
     const Summary a = summarize(sem, row.motion == "jump");
     const RunStats rs = h.stats();
