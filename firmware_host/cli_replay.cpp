@@ -258,6 +258,7 @@ int run_replay(int argc, char** argv) {
     std::fprintf(stderr, "sempose replay: %s\n", made.message.c_str());
     return 2;
   }
+  for (const auto& w : trackers.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   for (std::size_t i = 0; i < trackers.names.size(); ++i) {
     std::fprintf(stderr, "target %zu '%s': pattern bank, spectra and buffers %.1f MB\n", i, trackers.names[i].c_str(),
                  trackers.trackers[i]->memory_bytes() / 1e6);

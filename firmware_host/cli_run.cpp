@@ -319,6 +319,7 @@ int sempose::cli::run(int argc, char** argv) {
   }
   for (const auto& p : pipe->placements()) std::printf("thread %s\n", p.c_str());
   for (const auto& w : pipe->warnings()) std::printf("warning: %s\n", w.c_str());
+  for (const auto& w : run.trackers.warnings) std::printf("warning: %s\n", w.c_str());
 
   // systemd (Type=notify): READY once setup is done; the watchdog is fed from this loop only
   // while every stage makes progress. Without NOTIFY_SOCKET these are no-ops.
@@ -458,11 +459,17 @@ int sempose::cli::run(int argc, char** argv) {
                   t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), a.accepted, a.rejected, a.deferred,
                   a.support_fraction, a.template_updates, a.template_weight);
     }
-    // τ measured from the frames (no tracker.detector_tau_ns): what to configure once known.
+    // τ measured from the frames (no tracker.detector_tau_ns): what to configure once known;
+    // told, whether the frames and the patterns' own noise agreed with it.
     const pose::Tracker::DetectorTauStatus d = run.trackers.trackers[static_cast<std::size_t>(t)]->detector_tau_status();
     if (d.measuring)
       std::printf("detector %d %s: measured line_rho=%.3f tau_px=%.2f tau_ns=%.0f over %.0f ROI frames (0: a fast detector)\n",
                   t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), d.rho, d.tau_px, d.tau_ns, d.frames);
+    if (d.measuring && d.told_tau_ns > 0)
+      std::printf("detector %d %s: told tau_ns=%.0f: frames %s; pattern sets whose own noise overruled their dwell_ns: %d\n", t,
+                  run.trackers.names[static_cast<std::size_t>(t)].c_str(), d.told_tau_ns,
+                  d.frames_disagree ? "DISAGREE (the told lag kept: check tracker.detector_tau_ns and the scan)" : "agree or not settled",
+                  d.patterns_told_overruled);
   }
   if (hist_dir.empty()) {
     std::printf("histograms: not written (no --hist-dir / output.hist_dir)\n");

@@ -64,6 +64,7 @@ struct Scenario {
   double detector_tau_ns = 0;     // > 0: the detector's line low-pass alone (250 ns = 1 px at 250 ns dwell)
   std::uint32_t pattern_dwell_ns = 0;  // > 0: the pattern recorded at this dwell (else at the frames' dwell_ns)
   bool tell_detector_tau = true;       // the tracker is told the simulated detector's τ (tracker.detector_tau_ns)
+  double told_detector_tau_ns = 0;     // > 0: told this τ instead (a detector swapped since its calibration)
   // The pattern recorded through no low-pass (a clean crop: its set's dwell_ns 0) while the frames
   // go through detector_tau_ns. The warped target's pattern always is; its frames are low-passed
   // along each line here (the tracker is never told τ there).
@@ -307,7 +308,8 @@ class SimHarness {
     // warped crop (Poisson electrons scaled to the image's levels).
     config::TrackerConfig tcd = tc;
     tcd.refine.black_level = warped_ ? 0.0 : sim_cfg_.output_offset;
-    if (!warped_ && s.tell_detector_tau && !(tcd.detector_tau_ns > 0)) tcd.detector_tau_ns = sim_cfg_.detector_tau_ns;
+    if (!warped_ && s.tell_detector_tau && !(tcd.detector_tau_ns > 0))
+      tcd.detector_tau_ns = s.told_detector_tau_ns > 0 ? s.told_detector_tau_ns : sim_cfg_.detector_tau_ns;
     tracker_ = Tracker::create(tcd, std::move(sets), limits_, status_);
     pixels_.assign(static_cast<std::size_t>(s.field_w) * s.field_h, 0);
     out_.resize(static_cast<std::size_t>(s.frames));

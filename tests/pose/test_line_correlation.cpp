@@ -213,5 +213,23 @@ TEST(LineCorrelation, PatternIsReadInTheTilesWhereItsNoiseDominates) {
   }
 }
 
+// A told τ is overruled only where the readings differ by more than their own error in ρ and
+// the lags by more than the measured correction's own: the simulator's τ 120 ns at 250 ns (ρ
+// 0.125, lag 0.14 px) against a pattern reading rounded to lag-free agrees; a pattern told at
+// the frames' dwell of τ 4 px (ρ 0.78) but reading 0.01 does not, nor frames told τ 1 px (0.37)
+// reading 0.77. A noise-free pattern opens no tile: no reading, which is not "lag-free".
+TEST(LineCorrelation, ToldLagIsOverruledOnlyBeyondTheReadingsError) {
+  EXPECT_FALSE(DetectorTauEstimator::told_disagrees(std::exp(-250.0 / 120.0), 0.0));
+  EXPECT_FALSE(DetectorTauEstimator::told_disagrees(std::exp(-1.0), 0.33));
+  EXPECT_FALSE(DetectorTauEstimator::told_disagrees(std::exp(-0.25), 0.748));  // τ 4 px read as 3.45
+  EXPECT_TRUE(DetectorTauEstimator::told_disagrees(std::exp(-0.25), 0.01));
+  EXPECT_TRUE(DetectorTauEstimator::told_disagrees(std::exp(-1.0), 0.77));
+  EXPECT_TRUE(DetectorTauEstimator::told_disagrees(0.0, 0.6));  // told lag-free, recorded through the detector
+  const std::vector<std::uint16_t> flat(static_cast<std::size_t>(kSide) * kSide, 1000);
+  const PatternLineRho none = read_pattern_line_rho(flat.data(), kSide, kSide);
+  EXPECT_FALSE(none.readable());
+  EXPECT_EQ(none.lag_rho(), 0.0);
+}
+
 }  // namespace
 }  // namespace sempose::pose

@@ -101,6 +101,7 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
     rt::Status st;
     auto tracker = pose::Tracker::create(tracker_cfg, std::move(per_target[i]), limits, st);
     if (!tracker) return rt::Status::failure("target " + out.names[i] + ": " + st.message);
+    if (!st.message.empty()) out.warnings.push_back("target " + out.names[i] + ": " + st.message);
     out.memory_bytes += tracker->memory_bytes();
     // Learned appearance: its rebuilds run on a non-RT worker thread (created here, on the
     // main thread, so it inherits main's placement off the RT cores).

@@ -65,7 +65,15 @@ int line_correlation_band_pairs(int w) noexcept {
   return static_cast<int>(std::max<std::int64_t>(1, DetectorTauEstimator::kPairBudget / 8 / products));
 }
 
-double pattern_line_rho(const std::uint16_t* px, int w, int h) {
+bool PatternLineRho::readable() const noexcept { return open_tiles >= DetectorTauEstimator::kMinPatternTiles; }
+
+double PatternLineRho::lag_rho() const noexcept {
+  return readable() && rho >= DetectorTauEstimator::kLagFreeRho ? rho : 0.0;
+}
+
+double pattern_line_rho(const std::uint16_t* px, int w, int h) { return read_pattern_line_rho(px, w, h).lag_rho(); }
+
+PatternLineRho read_pattern_line_rho(const std::uint16_t* px, int w, int h) {
   constexpr int kTile = 16, skip = LineCorrelationSums::kSkipPx;
   // A tile's sub-image starts kSkipPx columns early (its first pixels are skipped as a line's
   // start) and 2 lines long (the gate's third line): kTile × kTile products each. The median
@@ -79,10 +87,23 @@ double pattern_line_rho(const std::uint16_t* px, int w, int h) {
           line_correlation_sums(px + static_cast<std::ptrdiff_t>(y0) * w + (x0 - skip), tw, th, w, 1);
       if (t.noise_dominates(DetectorTauEstimator::kMinNoiseShare)) open.push_back(t.rho());
     }
-  if (static_cast<int>(open.size()) < DetectorTauEstimator::kMinPatternTiles) return 0.0;
+  PatternLineRho r;
+  r.open_tiles = static_cast<int>(open.size());
+  if (!r.readable()) return r;
   std::nth_element(open.begin(), open.begin() + static_cast<std::ptrdiff_t>(open.size() / 2), open.end());
-  const double rho = std::min(open[open.size() / 2], DetectorTauEstimator::kMaxRho);
-  return rho >= DetectorTauEstimator::kLagFreeRho ? rho : 0.0;
+  r.rho = std::min(open[open.size() / 2], DetectorTauEstimator::kMaxRho);
+  return r;
+}
+
+double DetectorTauEstimator::lag_of_rho(double rho) noexcept {
+  if (!(rho >= kFastRho)) return 0.0;
+  const double r = std::min(rho, kMaxRho);
+  return r / (1.0 - r);
+}
+
+bool DetectorTauEstimator::told_disagrees(double told_rho, double measured_rho) noexcept {
+  return std::fabs(told_rho - measured_rho) >= kToldRhoTolerance &&
+         std::fabs(lag_of_rho(told_rho) - lag_of_rho(measured_rho)) >= kToldLagTolerancePx;
 }
 
 double DetectorTauEstimator::mapped(double rho, double from_dwell, double to_dwell) const noexcept {
@@ -129,8 +150,7 @@ double DetectorTauEstimator::rho_at(double dwell_ns) const noexcept {
 }
 
 double DetectorTauEstimator::lag_px(double dwell_ns) const noexcept {
-  const double r = std::min(rho_at(dwell_ns), kMaxRho);
-  return r < kFastRho ? 0.0 : r / (1.0 - r);
+  return lag_of_rho(rho_at(dwell_ns));
 }
 
 double DetectorTauEstimator::tau_px() const noexcept {

@@ -577,7 +577,7 @@ void Tracker::Impl::go_lost() noexcept {
 // goes through the temporal filter (a pass-through unless tracker.filter is on), timed at
 // mid-scan: with a varying dwell the ROI's centre is scanned mid-frame.
 double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noexcept {
-  if (!measure_tau) {
+  if (!measure_tau && !check_told_tau) {
     // Told τ: the lag at this dwell against the pattern's (0 when either dwell is unknown).
     return frame.dwell_ns > 0 && set < pattern_lag_px.size()
                ? DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns) - pattern_lag_px[set]
@@ -588,7 +588,8 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
   // lines (~2.3k products, a few µs: the whole ROI every 8th frame), a full-field frame (the
   // start search, ms anyway) all its lines. A reading whose noise does not dominate its scene
   // is no reading (DetectorTauEstimator::read). A pattern set of unknown dwell counts the lag its
-  // own noise showed at setup; a frame of unknown dwell is taken at the estimate's own.
+  // own noise showed at setup; a frame of unknown dwell is taken at the estimate's own. Told
+  // τ: the same readings check it (told_checked_lag_shift).
   if (!frame.bad && frame.pixels != nullptr && !loss.calibrating()) {
     const int w = frame.roi.w, h = frame.roi.h;
     const bool full_field = w >= frame.field_w && h >= frame.field_h;
@@ -600,6 +601,7 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
   } else {
     tau_estimate.read(LineCorrelationSums{}, frame_dwell_ns);  // nothing pending: the kept estimate
   }
+  if (check_told_tau) return told_checked_lag_shift(set);
   if (!tau_estimate.has_reading()) return 0.0;  // the frames' lag not told yet: nothing to take out
   const double set_dwell = set < pattern_dwell_ns.size() ? pattern_dwell_ns[set] : 0.0;
   if (!(set_dwell > 0)) {
@@ -612,9 +614,28 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
   return tau_estimate.lag_px(frame_dwell_ns) - pattern_lag;
 }
 
+// Told τ checked: the frames' lag as told (their readings disagreeing are reported, not used:
+// tracker_impl.hpp); a set overruled at setup counts its own reading, and a reading within
+// kSameDetectorRho of the frames' is the same detector at the same dwell: nothing between them.
+// A set not overruled: exactly the told lags, as without the check.
+double Tracker::Impl::told_checked_lag_shift(std::uint8_t set) noexcept {
+  if (!(frame_dwell_ns > 0) || set >= pattern_lag_px.size()) return 0.0;
+  const double told_rho = std::exp(-frame_dwell_ns / cfg.detector_tau_ns);
+  if (!frames_disagree && tau_estimate.frames_kept() >= DetectorTauEstimator::kToldCheckFrames &&
+      DetectorTauEstimator::told_disagrees(told_rho, tau_estimate.rho_at(frame_dwell_ns))) {
+    frames_disagree = true;
+    frames_disagree_status.store(true, std::memory_order_relaxed);
+  }
+  const double frame_lag = DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns);
+  if (!pattern_told_overruled[set]) return frame_lag - pattern_lag_px[set];
+  const double pattern_rho = pattern_measured_rho[set];
+  if (pattern_rho > 0 && std::fabs(told_rho - pattern_rho) < DetectorTauEstimator::kSameDetectorRho) return 0.0;
+  return frame_lag - DetectorTauEstimator::lag_of_rho(pattern_rho);
+}
+
 void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, double level_cap) noexcept {
   e.state = TrackState::kTracking;
-  if (measure_tau) {
+  if (measure_tau || check_told_tau) {
     tau_estimate.keep();
     measured_rho.store(tau_estimate.rho_at(tau_estimate.reference_dwell_ns()), std::memory_order_relaxed);
     measured_tau_px.store(tau_estimate.tau_px(), std::memory_order_relaxed);
@@ -1159,8 +1180,13 @@ void Tracker::request_reacquire(bool commanded) noexcept {
 
 Tracker::DetectorTauStatus Tracker::detector_tau_status() const noexcept {
   const Impl& t = *impl_;
-  return {t.measure_tau, t.measured_rho.load(std::memory_order_relaxed), t.measured_tau_px.load(std::memory_order_relaxed),
-          t.measured_tau_ns.load(std::memory_order_relaxed), t.measured_tau_frames.load(std::memory_order_relaxed)};
+  DetectorTauStatus s{t.measure_tau || t.check_told_tau, t.measured_rho.load(std::memory_order_relaxed),
+                      t.measured_tau_px.load(std::memory_order_relaxed), t.measured_tau_ns.load(std::memory_order_relaxed),
+                      t.measured_tau_frames.load(std::memory_order_relaxed)};
+  s.told_tau_ns = t.cfg.detector_tau_ns > 0 ? t.cfg.detector_tau_ns : 0.0;
+  s.frames_disagree = t.frames_disagree_status.load(std::memory_order_relaxed);
+  s.patterns_told_overruled = t.patterns_overruled;
+  return s;
 }
 
 std::size_t Tracker::memory_bytes() const noexcept {

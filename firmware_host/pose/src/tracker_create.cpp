@@ -2,6 +2,7 @@
 // floors. Allocates; never called on an RT thread.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -110,6 +111,8 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   auto impl = std::make_unique<Impl>(cfg, sizes, limits.field_w, limits.field_h);
   Impl& t = *impl;
   t.measure_tau = !(cfg.detector_tau_ns > 0) && cfg.measure_detector_tau;
+  t.check_told_tau = cfg.detector_tau_ns > 0 && cfg.measure_detector_tau;
+  std::string told_note;  // the sets whose own noise overrules their told lag (a warning)
   // Kept for the appearance learner (the bank spec takes the originals).
   std::vector<PatternImage> prior_patterns, prior_shapes;
   if (cfg.appearance.enabled)
@@ -154,9 +157,27 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.pattern_dwell_ns.push_back(sets[i].dwell_ns);
     // A set of unknown dwell: the lag its own noise shows (a pattern recorded through the
     // detector at the tracking dwell has the frames' lag: none to take out), 0 for a clean crop.
+    // Told τ: the lag the set's dwell_ns implies, checked against the same reading.
     const PatternImage& im = spec.pattern;
-    const double rho = t.measure_tau && sets[i].dwell_ns == 0 ? pattern_line_rho(im.pixels.data(), im.width, im.height) : 0.0;
-    t.pattern_measured_rho.push_back(rho);
+    const bool read = (t.measure_tau && sets[i].dwell_ns == 0) || t.check_told_tau;
+    const PatternLineRho reading = read ? read_pattern_line_rho(im.pixels.data(), im.width, im.height) : PatternLineRho{};
+    const double told_rho = sets[i].dwell_ns > 0 && t.check_told_tau
+                                ? std::exp(-static_cast<double>(sets[i].dwell_ns) / cfg.detector_tau_ns)
+                                : 0.0;
+    const bool overruled =
+        t.check_told_tau && reading.readable() && DetectorTauEstimator::told_disagrees(told_rho, reading.lag_rho());
+    t.pattern_told_overruled.push_back(overruled ? 1 : 0);
+    t.pattern_measured_rho.push_back(reading.lag_rho());
+    if (overruled) {
+      ++t.patterns_overruled;
+      char b[256];
+      std::snprintf(b, sizeof b,
+                    "%spattern set %zu: its own noise shows line_rho %.2f (%d tiles), tracker.detector_tau_ns %.0f at its "
+                    "dwell_ns %u implies %.2f (lag %.2f px, told %.2f px): its measured lag is used",
+                    told_note.empty() ? "" : "; ", i, reading.rho, reading.open_tiles, cfg.detector_tau_ns, sets[i].dwell_ns,
+                    told_rho, DetectorTauEstimator::lag_of_rho(reading.lag_rho()), DetectorTauEstimator::lag_of_rho(told_rho));
+      told_note += b;
+    }
   }
   t.score_samples = static_cast<double>(t.fine_mask.count()) * t.prefilter_noise_gain;
   // The split check's noise: the score noise model's pixels per independent sample.
@@ -198,6 +219,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     status.message = "tracker: warning: no allocation-free FFTW plan found for " + std::to_string(sizes.roi_fft_px) +
                      "x" + std::to_string(sizes.roi_fft_px) + " or the coarse size; the loop may call malloc";
   }
+  if (!told_note.empty()) status.message += (status.message.empty() ? "tracker: warning: " : "; ") + told_note;
   return std::unique_ptr<Tracker>(new Tracker(std::move(impl)));
 }
 

@@ -94,11 +94,26 @@ struct Tracker::Impl {
   // status. A band of lines a frame (tau_band_line: where the next band starts), so no frame
   // pays for the whole read.
   bool measure_tau = false;
+  // τ told and tracker.measure_detector_tau: the same readings check it. A pattern set whose
+  // own noise disagrees with its told lag (DetectorTauEstimator::told_disagrees: a clean crop
+  // given a dwell_ns, a recording through the detector given none) counts the lag its noise
+  // shows (pattern_told_overruled, decided at setup). Frames whose readings disagree with τ at
+  // their dwell (a detector swapped, a dwell changed without the config — or a scan fault the
+  // gate lets through: every 4th line dropped reads ρ 0.73–0.79 at 20 e⁻/px) are reported
+  // (frames_disagree, sticky) and the told lag kept: used, that reading put 110 poses > 3 px off
+  // (README). Decided on the kept estimate from kToldCheckFrames on.
+  bool check_told_tau = false;
+  bool frames_disagree = false;
+  std::vector<char> pattern_told_overruled;
+  std::atomic<bool> frames_disagree_status{false};
+  int patterns_overruled = 0;
   DetectorTauEstimator tau_estimate;
   int tau_band_line = 0;
   std::vector<double> pattern_dwell_ns;
   std::vector<double> pattern_measured_rho;
   std::atomic<double> measured_rho{0}, measured_tau_px{0}, measured_tau_ns{0}, measured_tau_frames{0};
+  // The frames' lag told; the set's lag told or, overruled, its own.
+  double told_checked_lag_shift(std::uint8_t set) noexcept;
   // This frame's lag against the active set's pattern (px along x), told or measured.
   double lag_shift_of(const PoseFrame& frame, std::uint8_t set) noexcept;
 

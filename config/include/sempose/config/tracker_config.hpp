@@ -62,7 +62,10 @@ struct TrackerConfig {
   // With detector_tau_ns 0: measure τ from the frames themselves (the noise's correlation along
   // the lines, line_correlation.hpp) and take the lag out as if told; false: no correction. A
   // frame whose noise does not dominate its structure (noise-free, very high dose) is not read;
-  // a pattern set without dwell_ns counts the lag its own noise shows (README).
+  // a pattern set without dwell_ns counts the lag its own noise shows (README). With
+  // detector_tau_ns given, the same readings check it: a pattern set whose own noise disagrees
+  // with the lag its dwell_ns implies counts its measured lag instead (a setup warning); frames
+  // whose readings disagree with τ at their dwell are reported (Tracker::detector_tau_status()).
   bool measure_detector_tau = true;
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;

@@ -24,6 +24,7 @@ struct TrackerSetup {
   std::vector<std::string> names;
   std::vector<std::string> pattern_origins;  // "file.pgm" or "simulator target 0"
   std::size_t memory_bytes = 0;              // banks + spectra + FFT buffers, all targets
+  std::vector<std::string> warnings;         // the trackers' setup warnings ("target NAME: …")
   TrackerSetup();
   ~TrackerSetup();
   TrackerSetup(TrackerSetup&&) noexcept;

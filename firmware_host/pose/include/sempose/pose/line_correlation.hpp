@@ -65,6 +65,17 @@ int line_correlation_band_pairs(int w) noexcept;
 // else 0 — lag-free, or no lag that can be told (a noise-free crop: every tile closed). Setup
 // only (allocates).
 double pattern_line_rho(const std::uint16_t* px, int w, int h);
+// The same reading with how many tiles it rests on: the median ρ of the open tiles as read
+// (capped at kMaxRho, not yet rounded to lag-free), readable() from kMinPatternTiles on. A
+// told τ is checked against it (DetectorTauEstimator::told_disagrees), so "cannot be told"
+// must not read as "lag-free".
+struct PatternLineRho {
+  double rho = 0;
+  int open_tiles = 0;
+  bool readable() const noexcept;
+  double lag_rho() const noexcept;  // ρ as a lag: readable and ≥ kLagFreeRho, else 0
+};
+PatternLineRho read_pattern_line_rho(const std::uint16_t* px, int w, int h);
 
 // The running estimate of ρ over the frames whose fit was good, weighted by their pairs (a
 // frame's share falls as pairs accumulate, down to 1/kMemoryFrames of an ROI frame's pairs). Two
@@ -102,6 +113,21 @@ class DetectorTauEstimator {
   // them. A pattern's reading carries its structure's leak (the held-out needle: +0.017, which at
   // ρ 0.6 is 0.1 px of lag that is not there).
   static constexpr double kSameDetectorRho = 0.03;
+  // A told τ (tracker.detector_tau_ns, a set's dwell_ns) and what the noise shows disagree when
+  // their ρ differ by at least kToldRhoTolerance and the lags by at least kToldLagTolerancePx.
+  // The readings' own error: a pattern's median of ≥ 6 tiles ~0.035 plus its structure's leak
+  // (+0.017), the frames' estimate in the tracker ≤ 0.03 low at τ 4 px (3.45 px read for 4);
+  // 0.1 is ~3x either. The lag's: what the measured correction itself misses (it overshoots
+  // by 0.2–0.9 px at τ 2–4 px, the shift model), so a told value nearer than that is kept.
+  static constexpr double kToldRhoTolerance = 0.1;
+  static constexpr double kToldLagTolerancePx = 0.5;
+  // The frames check a told τ from this many ROI frames' worth of kept pairs on (~18k products,
+  // ~8 accepted frames' bands: the statistical SD of ρ ~0.007, 14x below kToldRhoTolerance),
+  // not kSettledFrames (~128 frames of bands).
+  static constexpr double kToldCheckFrames = 1;
+  static bool told_disagrees(double told_rho, double measured_rho) noexcept;
+  // The lag ρ/(1 − ρ) px of a line correlation ρ (0 below kFastRho, capped at kMaxRho).
+  static double lag_of_rho(double rho) noexcept;
 
   // This frame's reading: lag_px() includes it from now on; keep() makes it part of the estimate
   // (a frame whose fit was good), otherwise the next reading replaces it. A reading below

@@ -138,9 +138,17 @@ class Tracker {
   // τ in px at the first frame's dwell and in ns (0: a fast detector, ρ below
   // DetectorTauEstimator::kFastRho, or not measuring), over how many ROI frames' worth of accepted
   // frames (settled from kSettledFrames). Readable from any thread.
+  // τ told (tracker.detector_tau_ns): the same measurement checks it (measuring unless
+  // tracker.measure_detector_tau is off); frames_disagree: the frames' readings disagreed with
+  // it (a detector swapped, a dwell changed without the config, or a scan fault: reported, the
+  // told lag kept); patterns_told_overruled: the pattern sets whose own noise disagreed with
+  // the lag their dwell_ns implies (a clean crop given a dwell) and whose reading is used.
   struct DetectorTauStatus {
     bool measuring = false;
     double rho = 0, tau_px = 0, tau_ns = 0, frames = 0;
+    double told_tau_ns = 0;
+    bool frames_disagree = false;
+    int patterns_told_overruled = 0;
   };
   DetectorTauStatus detector_tau_status() const noexcept;
   // Bank + spectra + FFT buffers, bytes (printed at start).
