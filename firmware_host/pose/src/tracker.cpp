@@ -96,7 +96,10 @@ void Tracker::Impl::check_motion(const PatternBank& bank, Measurement& m, PoseEs
   const double level = loss.recent_level();
   const bool below_level =
       motion.motion_known() && level > 0 && m.score < level - significance_z() * flip_sd(level);
-  if ((!surprising || loss.confirmed(m.score)) && !below_level) return;
+  // A surprising pose at the target's level is measured against the prediction too: a second
+  // object of the same pattern scores at that level wherever it is (jump_declined below).
+  const bool jump_at_level = surprising && motion.motion_known() && loss.confirmed(m.score);
+  if ((!surprising || loss.confirmed(m.score)) && !below_level && !jump_at_level) return;
   if (!swept && cfg.recover_sweep_deg > 0) {
     const int j_pred = angles.index_of(motion.predicted_phi_deg());
     // Only positions the motion makes plausible: the sweep over the whole ROI found a
@@ -119,7 +122,8 @@ void Tracker::Impl::check_motion(const PatternBank& bank, Measurement& m, PoseEs
     Measurement r = sweep.sweep(bank, j_pred, cfg.recover_sweep_deg, cfg.recover_step_deg, cfg.max_angle_steps_per_frame, win);
     r.steps += m.steps;
     rival_within_noise = rival_within_noise || rivals(m, r, e_scale);
-    if (r.score > m.score) {
+    if (r.score > m.score || (surprising && declines_jump(m, r, ux, uy, plausible_px, e_scale))) {
+      jump_declined = jump_declined || r.score <= m.score;
       m = r;
       place(m, e);
     } else {
@@ -150,6 +154,24 @@ bool Tracker::Impl::rivals(const Measurement& a, const Measurement& b, double us
   if (apart_px <= LossPolicy::kFalsePx && apart_deg <= LossPolicy::kFalseDeg) return false;
   const float kept = std::max(a.score, b.score), other = std::min(a.score, b.score);
   return static_cast<double>(kept) - other < significance_z() * flip_sd(kept);
+}
+
+// A surprising pose m, and r, the best hypothesis where the motion puts the target (the sweep's
+// window about the prediction, ux / uy its pattern top-left in the loaded ROI): the jump is
+// declined when r is a hypothesis of its own (more than the false-pose rule's kFalsePx from m,
+// and still within the window after the walk: not the shoulder of m's peak) scoring at the
+// target's level (LossPolicy::confirmed). The frame then holds two objects at the target's
+// level, and only the motion tells which is the target: a second object of the same pattern
+// beside it (pose_envelope_probe twin_crosses_down_at_45deg: the lamella on post's pose jumped
+// 35 px onto the twin crossing its path at 0.80, its own place scoring at its level, and followed
+// the twin, TRACKING up to 282 px off). A real jump leaves its old place empty, so its pose is
+// taken as before. The motion's hypothesis is kept, UNCERTAIN (the frame favoured the other).
+bool Tracker::Impl::declines_jump(const Measurement& m, const Measurement& r, double ux, double uy, double plausible_px,
+                                  double used_scale) const noexcept {
+  if (!(cfg.max_false_probability > 0) || !m.valid || !r.valid || !loss.confirmed(r.score)) return false;
+  const double apart_px = used_scale * std::hypot(m.ux + m.dx - r.ux - r.dx, m.uy + m.dy - r.uy - r.dy);
+  const double from_prediction_px = used_scale * std::hypot(r.ux + r.dx - ux, r.uy + r.dy - uy);
+  return apart_px > LossPolicy::kFalsePx && from_prediction_px <= plausible_px + 2.0 * used_scale;
 }
 
 void Tracker::Impl::to_estimate(const Measurement& m, int origin_x, int origin_y, PoseEstimate& e) const noexcept {
@@ -663,6 +685,7 @@ void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, 
 
 PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   PoseEstimate e;
+  jump_declined = false;
   const std::uint8_t set = active.load(std::memory_order_relaxed);
   e.pattern_set = set;
   e.x_px = motion.x_px();
@@ -939,7 +962,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
-      if (flip_open || rival_within_noise || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
+      if (flip_open || rival_within_noise || jump_declined || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
       if (at_field_edge(e, used_scale)) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonOutOfField;
@@ -1032,8 +1055,12 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   const double t_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
   if (e.searched && !line_rival) anchor.forget();
   if (held_frames > 0 || (e.searched && line_rival)) anchor.doubt();
+  // A declined jump (check_motion): a second object at the target's level beside it, which may
+  // cover it next; the poses after it must keep to the line as after a held frame, and this one
+  // (UNCERTAIN) does not count as keeping to it.
+  if (jump_declined) anchor.contested();
   const bool followed = tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
-  if (anchor.open() && followed && !anchor.confirm(t_s, e.x_px, e.y_px, e.phi_deg) && e.state == TrackState::kTracking) {
+  if (anchor.open() && followed && !jump_declined && !anchor.confirm(t_s, e.x_px, e.y_px, e.phi_deg) && e.state == TrackState::kTracking) {
     e.state = TrackState::kUncertain;
     e.reason_bits |= kReasonUnexplained;
   }

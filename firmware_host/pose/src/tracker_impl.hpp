@@ -312,6 +312,11 @@ struct Tracker::Impl {
   // the frame cannot tell which is the target (a torn frame: the target jumped mid-scan and
   // half the ROI shows it at each place). Followed, reported UNCERTAIN.
   bool rival_within_noise = false;
+  // The motion check kept the hypothesis the motion predicts over a surprising one scoring better,
+  // because the predicted place holds the target's level too (declines_jump): reported UNCERTAIN.
+  bool jump_declined = false;
+  bool declines_jump(const Measurement& m, const Measurement& r, double ux, double uy, double plausible_px,
+                     double used_scale) const noexcept;
   // Where the last TRACKING poses put the target (continuity_anchor.hpp): after a held frame a
   // pose is TRACKING again only where that motion leads (a twin passing over drags the pose).
   ContinuityAnchor anchor;

@@ -40,6 +40,14 @@ class ContinuityAnchor {
       agreed_ = 0;
     }
   }
+  // A frame that showed a second object at the target's level beside it (a declined jump): the
+  // check opens as for a held frame, and the poses in a row start again, since the object may
+  // cover the target next (twin_crosses_down_at_45deg: closed on three poses beside the twin, then
+  // the twin merged with the target and took the pose along, TRACKING up to 282 px off).
+  void contested() noexcept {
+    doubt();
+    agreed_ = 0;
+  }
   bool open() const noexcept { return open_; }
   // Whether the pose at t_s lies on the trail's line (kFalsePx + kDriftPxPerFrame per frame since
   // its last pose); kConfirmFrames in a row close the check. Call once per followed pose while
