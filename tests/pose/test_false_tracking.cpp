@@ -860,6 +860,22 @@ TEST(NoFalseTracking, TwinCrossingAtTheTargetsLevelDoesNotTakeThePoseAlong) {
   }
 }
 
+// A twin crossing the needle tip's path from above at 1 e-/px (pose_envelope_probe
+// twin_crosses_down_at_45deg): the target, partly covered, was lost, and the search found the twin
+// while the line's place held the target itself below the twin's score but at a level the search
+// would take as found: the line was forgotten and the poses followed the twin, TRACKING up to 64 px
+// off (5 of 180 on 52c8e65, 1 at 20 e-/px). Such a place makes the winner a rival
+// (Tracker::rival_on_line): UNCERTAIN, the line kept.
+TEST(NoFalseTracking, TwinCoveringTheTargetIsNotTakenByTheSearchAfter) {
+  const double dose = 1.0;
+  const pt::Scenario s = twin_scene("needle_tip", dose, -230, -300, 300, 530);
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  const FalseCount n = run_and_count(h, "needle_tip with a twin crossing from above, dose 1");
+  EXPECT_EQ(n.false_n, 0) << "TRACKING on the twin after the search (5 before)";
+  EXPECT_GE(n.tracked, s.frames / 2) << "tracked before the twin and after it";
+}
+
 // A frozen frame buffer (a scan generator's DMA block not refilled, a recording storing a frame
 // twice): frames 40-49 deliver frame 39's pixels again while the target moves on. Tracked as new,
 // the old image at the moved ROI reads as the target's move, the ROI follows it and the pose runs

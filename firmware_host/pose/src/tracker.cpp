@@ -1050,10 +1050,17 @@ void Tracker::Impl::judge_fit(PoseEstimate& e, double off) const noexcept {
 // A held frame (the target there, its pose not vouched for) opens the continuity check: the
 // followed poses after it are TRACKING again only once they lie where the last TRACKING poses'
 // motion leads (continuity_anchor.hpp). Until then UNCERTAIN, kReasonUnexplained. A full-field
-// search starts it afresh (its pose is judged by the search's own checks).
+// search that found the target starts it afresh (its pose is judged by the search's own checks).
 void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept {
   const double t_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
-  if (e.searched && !line_rival) anchor.forget();
+  // A search that found nothing while another target of a look-alike set held a place it skipped
+  // (held_by_others) keeps the line: two tracked needle tips of one pattern crossing at 90° were
+  // both lost in the overlap, the searches of one found nothing for 5 frames while the other sat on
+  // the merged image, forgot its line, then took the other's needle, TRACKING to the end
+  // (rival_on_line). Alone, a target whose searches find nothing forgets it as before (one that
+  // left the field and came back on another line).
+  const bool found = e.state == TrackState::kTracking || e.state == TrackState::kUncertain;
+  if (e.searched && !line_rival && (found || frame.held_by_others.count == 0)) anchor.forget();
   if (held_frames > 0 || (e.searched && line_rival)) anchor.doubt();
   // A declined jump (check_motion): a second object at the target's level beside it, which may
   // cover it next; the poses after it must keep to the line as after a held frame, and this one
@@ -1074,8 +1081,11 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
 // tells it from the target; the line does: the winner lies off where the last TRACKING poses
 // put the target, so that place is measured too (the ROI there, at the found scale and the last
 // tracked angle, the peak within the line's tolerance, the walk). A hypothesis there that scores
-// with the winner (not below it by significance_z() SDs of a difference of two scores) makes the
-// winner a rival: UNCERTAIN, and the line stays to judge the poses after it. Not a veto: a line
+// with the winner (not below it by significance_z() SDs of a difference of two scores), or one the
+// search itself would take as found (LossPolicy::found: a second object there, however the other
+// one's body in its window lowers its score: the needle tips of keep_continuity, its own needle at
+// 0.540 where the other one scored 0.626; its attainable score is not measured there), makes the winner a rival: UNCERTAIN, and the line stays to judge
+// the poses after it. Not a veto: a line
 // whose place holds nothing of the target's score (it left, jumped, turned) lets the winner be
 // judged as before. RT: one ROI load, one binned FFT and a walk, on such search frames only.
 bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* px, const Roi& field_roi, int bits,
@@ -1105,7 +1115,7 @@ bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* 
   // Still on the line after the walk (it may climb to the winner's own maximum).
   const double rx = cut.frame_x(r.ux + r.dx + c) - fx, ry = cut.frame_y(r.uy + r.dy + c) - fy;
   if (std::hypot(rx, ry) > tol) return false;
-  return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score);
+  return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score) || loss.found(r, 0.0);
 }
 
 // A re-acquisition off the line, turned by more than ContinuityAnchor::kTurnedDeg from the
