@@ -263,6 +263,7 @@ int run_replay(int argc, char** argv) {
     std::fprintf(stderr, "target %zu '%s': pattern bank, spectra and buffers %.1f MB\n", i, trackers.names[i].c_str(),
                  trackers.trackers[i]->memory_bytes() / 1e6);
   }
+  for (const std::string& note : trackers.symmetry_notes) std::fprintf(stderr, "note: %s\n", note.c_str());
 
   std::map<std::pair<long, int>, Truth> truth;
   if (!truth_path.empty()) {

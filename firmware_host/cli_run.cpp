@@ -283,6 +283,7 @@ int sempose::cli::run(int argc, char** argv) {
   for (std::size_t i = 0; i < run.trackers.names.size(); ++i) {
     std::printf("  target %zu %s: pattern %s\n", i, run.trackers.names[i].c_str(), run.trackers.pattern_origins[i].c_str());
   }
+  for (const std::string& note : run.trackers.symmetry_notes) std::printf("note: %s\n", note.c_str());
   std::printf("memory: pattern banks + spectra %.1f MiB, frame pool %.1f MiB\n", run.trackers.memory_bytes / 1048576.0,
               pipe->frame_pool_bytes() / 1048576.0);
   std::printf("output: %s%s%s\n", run.can.description.c_str(), run.csv ? ", CSV " : "",

@@ -33,7 +33,9 @@ using namespace sempose::pose::testing;
 
 namespace {
 
-double angle_error(double a, double b) { return std::fmod(a - b + 540.0, 360.0) - 180.0; }
+// Modulo 360°/order: a pattern that looks the same turned by that much declares its angle known
+// modulo it (PoseEstimate::angle_order: the tracker's declaration, not the bench's).
+double angle_error(double a, double b, int order = 1) { return std::remainder(a - b, 360.0 / std::max(1, order)); }
 
 // Mean error (x, y in the target's own frame, φ) over sub-pixel phases: the bias.
 struct Bias {
@@ -70,6 +72,7 @@ struct Sample {
   bool valid;
   double x, y, phi;
   hal::TargetTruth truth;
+  int angle_order = 1;  // the estimate's declared rotational order (a peer: 1)
 };
 
 // jumps: the run's motion jumps (elsewhere a large step between frames is only the first
@@ -88,7 +91,7 @@ Summary summarize(const std::vector<Sample>& v, bool jumps) {
       ++r.jumps;
     }
     const double dpos = std::hypot(v[f].x - tr.x_px, v[f].y - tr.y_px);
-    const double dphi = angle_error(v[f].phi, tr.phi_deg);
+    const double dphi = angle_error(v[f].phi, tr.phi_deg, v[f].angle_order);
     const bool ok = std::isfinite(dpos) && std::isfinite(dphi) && dpos <= 3.0 && std::fabs(dphi) <= 10.0;
     if (v[f].valid) {
       ++r.valid;
@@ -225,9 +228,9 @@ Bias warp_bias(const config::TrackerConfig& tc, double phi, double dose, int n) 
     // Into the target's frame: its +x axis is (cos φ, −sin φ) on screen (CCW with y down).
     b.along += ex * c - ey * s;
     b.across += ex * s + ey * c;
-    b.phi += angle_error(e.phi_deg, phi);
+    b.phi += angle_error(e.phi_deg, phi, e.angle_order);
     b.rms_px += ex * ex + ey * ey;
-    b.rms_deg += angle_error(e.phi_deg, phi) * angle_error(e.phi_deg, phi);
+    b.rms_deg += angle_error(e.phi_deg, phi, e.angle_order) * angle_error(e.phi_deg, phi, e.angle_order);
   }
   b.along /= n;
   b.across /= n;
@@ -275,9 +278,9 @@ Bias sim_bias(const config::TrackerConfig& tc, const std::string& target, double
     const double ex = e.x_px - tr.x_px, ey = e.y_px - tr.y_px;
     b.along += ex * c - ey * s;
     b.across += ex * s + ey * c;
-    b.phi += angle_error(e.phi_deg, tr.phi_deg);
+    b.phi += angle_error(e.phi_deg, tr.phi_deg, e.angle_order);
     b.rms_px += ex * ex + ey * ey;
-    b.rms_deg += angle_error(e.phi_deg, tr.phi_deg) * angle_error(e.phi_deg, tr.phi_deg);
+    b.rms_deg += angle_error(e.phi_deg, tr.phi_deg, e.angle_order) * angle_error(e.phi_deg, tr.phi_deg, e.angle_order);
   }
   b.along /= n;
   b.across /= n;
@@ -613,7 +616,7 @@ int main(int argc, char** argv) {
         const hal::TargetTruth& tr = seen;
         const bool jump_frame = row.motion == "jump" && f > 0 &&
                                 std::hypot(tr.x_px - h.records()[f - 1].as_scanned.x_px, tr.y_px - h.records()[f - 1].as_scanned.y_px) > 20;
-        const double ex = e.meas_x_px - tr.x_px, ey = e.meas_y_px - tr.y_px, ephi = angle_error(e.meas_phi_deg, tr.phi_deg);
+        const double ex = e.meas_x_px - tr.x_px, ey = e.meas_y_px - tr.y_px, ephi = angle_error(e.meas_phi_deg, tr.phi_deg, e.angle_order);
         if (e.state == TrackState::kTracking && !e.searched && !jump_frame && std::hypot(ex, ey) <= 3.0 && std::fabs(ephi) <= 10.0)
           z.add(ex, ey, ephi, e.scale - tr.scale, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg, e.sigma_scale);
       }
@@ -626,12 +629,12 @@ int main(int argc, char** argv) {
         const hal::TargetTruth& tr = seen;
         std::fprintf(stderr, "T %s %s %g %zu st%d score %.4f chi2 %.3f dpos %.3f dphi %.3f scale %.3f est %.3f rb %02x ex %.3f ey %.3f sx %.3f sy %.3f sphi %.3f steps %d srch %d\n", row.target.c_str(),
                      row.label.c_str(), row.dose, f, static_cast<int>(e.state), e.score, e.chi2,
-                     std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), angle_error(e.phi_deg, tr.phi_deg), tr.scale, e.scale, e.reason_bits,
+                     std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), angle_error(e.phi_deg, tr.phi_deg, e.angle_order), tr.scale, e.scale, e.reason_bits,
                      e.meas_x_px - tr.x_px, e.meas_y_px - tr.y_px, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg, e.angle_steps,
                      static_cast<int>(e.searched));
       }
       if (!std::isfinite(e.x_px) || !std::isfinite(e.phi_deg) || !std::isfinite(e.score)) ++bad;
-      sem.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, seen});
+      sem.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, seen, e.angle_order});
     }
     const Summary a = summarize(sem, row.motion == "jump");
     const RunStats rs = h.stats();
@@ -693,7 +696,7 @@ int main(int argc, char** argv) {
       std::vector<Sample> cs;
       for (std::size_t f = 0; f < hc.poses().size(); ++f) {
         const PoseEstimate& e = hc.poses()[f];
-        cs.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, hc.records()[f].truth});
+        cs.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, hc.records()[f].truth, e.angle_order});
       }
       const Summary c = summarize(cs, row.motion == "jump");
       auto noise_part = [](double rms, double bias) { return std::sqrt(std::max(0.0, rms * rms - bias * bias)); };

@@ -4,7 +4,8 @@
 // second target of the same pattern, beam faults. Closed loop on the simulator (sim_harness.hpp);
 // prints one row per case × target × dose: frames, TRACKING share, false TRACKING poses (> 3 px or
 // > 10° off target 0's truth when the beam passed it, or TRACKING while its centre is outside the field) and the largest
-// error of a TRACKING pose. Not a test: it measures (README, Tests: pose_false_tracking_test).
+// error of a TRACKING pose, the angle modulo 360°/n for a pattern the tracker declares of rotational order n (the last
+// column). Not a test: it measures (README, Tests: pose_false_tracking_test).
 //   pose_envelope_probe [--case SUBSTRING] [--target NAME] [--dose D] [--frames-list] [--trace] [--measure-tau on|off]
 // --frames-list: every false TRACKING pose; --trace: every frame's state, pose and truth (stderr);
 // --measure-tau: tracker.measure_detector_tau (off: the lag of a detector nobody told is left in).
@@ -385,8 +386,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  std::printf("%-32s %-12s %5s | %6s %6s %6s %5s %8s %8s | %6s %5s %6s\n", "case", "target", "dose", "frames", "trk%", "unc%", "false",
-              "max_px", "max_deg", "dx_px", "tau", "rho");
+  std::printf("%-32s %-12s %5s | %6s %6s %6s %5s %8s %8s | %6s %5s %6s | %s\n", "case", "target", "dose", "frames", "trk%", "unc%", "false",
+              "max_px", "max_deg", "dx_px", "tau", "rho", "order");
   for (const Case& c : cases()) {
     if (!only_case.empty() && c.name.find(only_case) == std::string::npos) continue;
     for (const std::string& target : c.targets) {
@@ -420,7 +421,7 @@ int main(int argc, char** argv) {
           if (trace)
             std::fprintf(stderr, "T %zu %s x %.1f y %.1f tx %.1f ty %.1f err %.2f px %.2f deg score %.3f chi2 %.2f scale %.4f truth %.4f reasons %d%s", f,
                          sempose::pose::to_string(e.state), e.x_px, e.y_px, t.x_px, t.y_px, std::hypot(e.x_px - t.x_px, e.y_px - t.y_px),
-                         std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)), e.score, e.chi2, e.scale, t.scale,
+                         pt::declared_angle_error_deg(e, t.phi_deg), e.score, e.chi2, e.scale, t.scale,
                          static_cast<int>(e.reason_bits), e.searched ? " searched" : "");
           if (trace && t2.present) std::fprintf(stderr, " second %.1f %.1f %.1f", t2.x_px, t2.y_px, t2.phi_deg);
           if (trace) std::fprintf(stderr, " mid %.2f", std::hypot(e.x_px - t_mid.x_px, e.y_px - t_mid.y_px));
@@ -429,7 +430,7 @@ int main(int argc, char** argv) {
           ++tracking;
           sum_dx += e.x_px - t.x_px;
           const double px = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
-          const double deg = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
+          const double deg = pt::declared_angle_error_deg(e, t.phi_deg);
           max_px = std::max(max_px, px);
           max_deg = std::max(max_deg, deg);
           const bool off = !t.present || px > 3.0 || deg > 10.0;
@@ -443,9 +444,10 @@ int main(int argc, char** argv) {
         }
         // The TRACKING poses' mean x error (along the lines) and τ as the tracker measured it.
         const auto tau = h.tracker()->detector_tau_status();
-        std::printf("%-32s %-12s %5.1f | %6d %6.1f %6.1f %5d %8.2f %8.2f | %+6.2f %5.2f %6.3f\n", c.name.c_str(), target.c_str(), dose, s.frames,
+        // The pattern's declared rotational order (the angles above are judged modulo 360°/order).
+        std::printf("%-32s %-12s %5.1f | %6d %6.1f %6.1f %5d %8.2f %8.2f | %+6.2f %5.2f %6.3f | %d\n", c.name.c_str(), target.c_str(), dose, s.frames,
                     100.0 * tracking / s.frames, 100.0 * uncertain / s.frames, false_n, max_px, max_deg,
-                    tracking ? sum_dx / tracking : 0.0, tau.tau_px, tau.rho);
+                    tracking ? sum_dx / tracking : 0.0, tau.tau_px, tau.rho, h.tracker()->symmetry(h.tracker()->pattern_set()).order);
         std::fputs(frames.c_str(), stdout);
         std::fflush(stdout);
       }

@@ -233,6 +233,13 @@ struct PeerPose {
   hal::TargetTruth truth;
 };
 
+// A pose's angle error as the tracker declares its angle: modulo 360°/angle_order (a pattern
+// that looks the same turned by that much, PoseEstimate::angle_order), in [0, 180/order]. The
+// declaration is the tracker's, never the harness's.
+inline double declared_angle_error_deg(const PoseEstimate& e, double truth_phi_deg) noexcept {
+  return std::fabs(std::remainder(e.phi_deg - truth_phi_deg, 360.0 / std::max<int>(1, e.angle_order)));
+}
+
 // CPU time of the calling thread: what a computation costs, whatever else shares the cores.
 inline std::int64_t thread_cpu_ns() noexcept {
   timespec ts{};

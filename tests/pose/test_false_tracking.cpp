@@ -187,7 +187,7 @@ TEST_P(ScaleRamp, TrackedWithoutFalsePoses) {
     ++tracked;
     if (f >= kStartFrames) ++tracked_after_start;
     if (3 * f < h.poses().size()) ++tracked_first_third;
-    const double dphi = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
+    const double dphi = pt::declared_angle_error_deg(e, t.phi_deg);
     if (!(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && dphi <= 10.0)) ++false_n;
   }
   std::printf("%-12s scale -> %.2f dose %4.1f: TRACKING %d/%d, false %d\n", s.target.c_str(), s.scale_to, s.dose_e,
@@ -225,7 +225,7 @@ FalseCount count_false(const pt::SimHarness& h) {
     c.searches += e.searched;
     if (e.state != TrackState::kTracking) continue;
     ++c.tracked;
-    const double dphi = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
+    const double dphi = pt::declared_angle_error_deg(e, t.phi_deg);
     if (!(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && dphi <= 10.0)) ++c.false_n;
   }
   return c;
@@ -408,7 +408,7 @@ TEST(NoFalseTracking, SpinPastTheRecordedOrientationIsFollowed) {
   for (std::size_t f = 0; f < h.poses().size(); ++f) {
     const auto& e = h.poses()[f];
     if (e.state != TrackState::kTracking) continue;
-    worst_deg = std::max(worst_deg, std::fabs(std::remainder(e.phi_deg - h.records()[f].truth.phi_deg, 360.0)));
+    worst_deg = std::max(worst_deg, pt::declared_angle_error_deg(e, h.records()[f].truth.phi_deg));
   }
   std::printf("lamella spin dose 6, 150 frames: TRACKING %d/%d, false %d, worst TRACKING angle error %.2f deg\n", c.tracked,
               s.frames, c.false_n, worst_deg);
@@ -493,7 +493,7 @@ TEST(NoFalseTracking, StaticClutterHoldingThePoseIsNotTracking) {
       // each place; frame 39 of every row, Known limitations), told by the step times.
       const bool torn = scanned_across_a_step(h, f, s.step_period_s);
       const double err = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
-      const double err_deg = std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0));
+      const double err_deg = pt::declared_angle_error_deg(e, t.phi_deg);
       const bool off = err > sempose::pose::LossPolicy::kFalsePx || err_deg > sempose::pose::LossPolicy::kFalseDeg;
       const bool followed = e.state == TrackState::kTracking || e.state == TrackState::kUncertain;
       held_off += followed && off && !e.searched;
@@ -593,7 +593,7 @@ TornTally tally_torn_frames(const pt::SimHarness& h, const pt::Scenario& s) {
     const bool torn = scanned_across_a_step(h, f, s.step_period_s);
     const double off_px = std::hypot(e.x_px - t.x_px, e.y_px - t.y_px);
     const bool off = off_px > sempose::pose::LossPolicy::kFalsePx ||
-                     std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)) > sempose::pose::LossPolicy::kFalseDeg;
+                     pt::declared_angle_error_deg(e, t.phi_deg) > sempose::pose::LossPolicy::kFalseDeg;
     const bool tracking = e.state == TrackState::kTracking;
     if (torn) {
       ++c.torn_n;
@@ -930,7 +930,7 @@ TEST(NoFalseTracking, ScanGlitchShiftingHalfTheFrameIsNotTracking) {
     const auto& t = h.records()[f].truth;
     if (e.state != TrackState::kTracking || e.searched) continue;
     ++tracked;
-    false_n += !(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && std::fabs(std::remainder(e.phi_deg - t.phi_deg, 360.0)) <= 10.0);
+    false_n += !(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && pt::declared_angle_error_deg(e, t.phi_deg) <= 10.0);
   }
   std::printf("needle_tip, half the frame shifted 12 px on frames 40-49, dose 20: ROI frames TRACKING %d, false %d\n", tracked,
               false_n);

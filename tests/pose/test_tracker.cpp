@@ -65,6 +65,62 @@ TEST(TrackerCreate, RejectsBadPatterns) {
   EXPECT_NE(st.message.find("flat"), std::string::npos) << st.message;
 }
 
+// The rotational order each pattern declares (pattern_symmetry.hpp): the procedural lamella looks
+// the same turned by 180° (its angle is known modulo 180°, and its poses say so); the needle tip
+// and the lamella on its post (the post breaks the lamella's symmetry) do not. Recorded at a high
+// and a low dose (the pattern's own noise lowers its self-similarity and the off-pose score alike).
+TEST(TrackerSymmetry, SimulatedTargetsDeclareTheirOrder) {
+  for (double dose : {20.0, 2.5}) {
+    for (const auto& [target, order] : {std::pair{"needle_tip", 1}, std::pair{"lamella_post", 1}, std::pair{"lamella", 2}}) {
+      Scenario s;
+      s.target = target;
+      s.dose_e = dose;
+      s.frames = 2;
+      SimHarness h(s, small_config());
+      ASSERT_TRUE(h.status().ok) << h.status().message;
+      const PatternSymmetry sym = h.tracker()->symmetry(0);
+      std::printf("%-12s dose %4.1f: order %d, turned 180/120/90/60: %.3f %.3f %.3f %.3f, same look from %.3f\n", target, dose,
+                  sym.order, sym.self_score[0], sym.self_score[1], sym.self_score[2], sym.self_score[3], sym.same_look_score);
+      EXPECT_EQ(sym.order, order) << target << " at " << dose << " e-/px";
+      h.run();
+      EXPECT_EQ(h.poses().back().angle_order, order) << "the pose declares its pattern's order";
+    }
+  }
+}
+
+// A drawn cross looks the same turned by 90°: order 4. Without one arm (a T) it looks like
+// nothing turned: order 1 (a detail that breaks the symmetry is declared, not averaged away).
+TEST(TrackerSymmetry, CrossIsFourFoldAndATeeIsNot) {
+  const auto draw = [](bool left_arm) {
+    const int n = 128;
+    PatternImage im = flat_image(n, n, 50);
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        const int u = x - n / 2, v = y - n / 2;
+        const bool bar_h = std::abs(v) < 8 && std::abs(u) < 44 && (left_arm || u > -8);
+        const bool bar_v = std::abs(u) < 8 && std::abs(v) < 44;
+        const auto texture = static_cast<std::uint16_t>((static_cast<unsigned>(x * 7919 + y * 104729) >> 3) % 9);
+        im.pixels[static_cast<std::size_t>(y) * n + x] = static_cast<std::uint16_t>((bar_h || bar_v ? 200 : 50) + texture);
+      }
+    return im;
+  };
+  hal::ScanLimits lim;
+  lim.field_w = 640;
+  lim.field_h = 480;
+  lim.max_roi_w = lim.max_roi_h = 256;
+  for (const auto& [left_arm, order] : {std::pair{true, 4}, std::pair{false, 1}}) {
+    std::vector<PatternSet> sets(1);
+    sets[0].image = draw(left_arm);
+    rt::Status st;
+    auto t = Tracker::create(small_config(), std::move(sets), lim, st);
+    ASSERT_NE(t, nullptr) << st.message;
+    const PatternSymmetry sym = t->symmetry(0);
+    std::printf("%s: order %d, turned 180/120/90/60: %.3f %.3f %.3f %.3f, same look from %.3f\n", left_arm ? "cross" : "tee",
+                sym.order, sym.self_score[0], sym.self_score[1], sym.self_score[2], sym.self_score[3], sym.same_look_score);
+    EXPECT_EQ(sym.order, order) << (left_arm ? "the cross" : "the tee");
+  }
+}
+
 // Start search finds the target at paper-like noise, several doses and angles.
 class Acquire : public ::testing::TestWithParam<std::tuple<double, double>> {};
 TEST_P(Acquire, FindsTargetOnFullField) {

@@ -1,6 +1,7 @@
 #include "sempose/pipeline/tracker_setup.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <exception>
 
 #include "sempose/hal/pgm.hpp"
@@ -16,6 +17,22 @@ TrackerSetup::TrackerSetup(TrackerSetup&&) noexcept = default;
 TrackerSetup& TrackerSetup::operator=(TrackerSetup&&) noexcept = default;
 
 namespace {
+// "target T pattern set K looks the same turned by 180° (self-NCC 0.82, ...)": empty for order 1.
+std::string symmetry_note(const pose::Tracker& tracker, const std::string& name, std::size_t set) {
+  const pose::PatternSymmetry sym = tracker.symmetry(set);
+  if (sym.order <= 1) return {};
+  const std::size_t k = static_cast<std::size_t>(
+      std::find(pose::PatternSymmetry::kOrders.begin(), pose::PatternSymmetry::kOrders.end(), sym.order) -
+      pose::PatternSymmetry::kOrders.begin());
+  char b[320];
+  std::snprintf(b, sizeof b,
+                "target %s pattern set %zu looks the same turned by %.0f deg (self-NCC %.2f, a pose 3 px / 10 deg off "
+                "scores %.2f): its angle is known modulo %.0f deg, the turn about (%+.1f, %+.1f) px from the pattern's centre",
+                name.c_str(), set, 360.0 / sym.order, sym.self_score[k], sym.same_look_score, 360.0 / sym.order,
+                sym.centre_dx_px, sym.centre_dy_px);
+  return b;
+}
+
 // The simulator's pattern: recorded at a slow dwell, averaged over 10 scans (as in the paper).
 constexpr int kPatternFrames = 10;
 constexpr double kSimNmPerPx = 40.0;  // the paper's scale (~40 nm per pixel)
@@ -103,6 +120,10 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
     if (!tracker) return rt::Status::failure("target " + out.names[i] + ": " + st.message);
     if (!st.message.empty()) out.warnings.push_back("target " + out.names[i] + ": " + st.message);
     out.memory_bytes += tracker->memory_bytes();
+    for (std::size_t set = 0; set < tracker->pattern_set_count(); ++set) {
+      std::string note = symmetry_note(*tracker, out.names[i], set);
+      if (!note.empty()) out.symmetry_notes.push_back(std::move(note));
+    }
     // Learned appearance: its rebuilds run on a non-RT worker thread (created here, on the
     // main thread, so it inherits main's placement off the RT cores).
     tracker->start_appearance_worker();

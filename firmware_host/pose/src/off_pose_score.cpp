@@ -1,6 +1,7 @@
 #include "sempose/pose/off_pose_score.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "sempose/pose/loss_policy.hpp"
@@ -29,21 +30,36 @@ double overlap_zncc(const float* a, const float* b, int n, int dx, int dy) noexc
   return va > 0 && vb > 0 ? cov / std::sqrt(va * vb) : 0;
 }
 
-}  // namespace
-
-double off_pose_score(const PatternBank& bank, double angle_step_deg) noexcept {
+// The pattern's ZNCC against itself at each false-pose offset (the four shifts, then the turn;
+// the turn -1 when the bank has one angle).
+std::array<double, 5> off_pose_scores(const PatternBank& bank, double angle_step_deg) noexcept {
   const int n = bank.size_px();
   const float* p0 = bank.pattern(0);
   const int r = static_cast<int>(std::ceil(LossPolicy::kFalsePx));
   const int d = static_cast<int>(std::ceil(LossPolicy::kFalsePx / std::sqrt(2.0)));  // a diagonal step ≥ the radius
-  double best = 0;
-  for (const auto& s : {std::pair{r, 0}, std::pair{0, r}, std::pair{d, d}, std::pair{d, -d}})
-    best = std::max(best, overlap_zncc(p0, p0, n, s.first, s.second));
+  std::array<double, 5> s{};
+  int k = 0;
+  for (const auto& o : {std::pair{r, 0}, std::pair{0, r}, std::pair{d, d}, std::pair{d, -d}})
+    s[k++] = overlap_zncc(p0, p0, n, o.first, o.second);
+  s[4] = -1;
   if (angle_step_deg > 0 && bank.angles() > 1) {
     const int j = std::min(bank.angles() - 1, static_cast<int>(std::ceil(LossPolicy::kFalseDeg / angle_step_deg - 1e-9)));
-    best = std::max(best, overlap_zncc(p0, bank.pattern(j), n, 0, 0));
+    s[4] = overlap_zncc(p0, bank.pattern(j), n, 0, 0);
   }
-  return std::clamp(best, 0.0, 1.0);
+  return s;
+}
+
+}  // namespace
+
+double off_pose_score(const PatternBank& bank, double angle_step_deg) noexcept {
+  const auto s = off_pose_scores(bank, angle_step_deg);
+  return std::clamp(*std::max_element(s.begin(), s.end()), 0.0, 1.0);
+}
+
+double nearest_off_pose_score(const PatternBank& bank, double angle_step_deg) noexcept {
+  auto s = off_pose_scores(bank, angle_step_deg);
+  if (s[4] < -0.5) s[4] = s[0];  // no turn measured: the shifts only
+  return std::clamp(*std::min_element(s.begin(), s.end()), 0.0, 1.0);
 }
 
 }  // namespace sempose::pose

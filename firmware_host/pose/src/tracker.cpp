@@ -150,7 +150,8 @@ void Tracker::Impl::check_motion(const PatternBank& bank, Measurement& m, PoseEs
 bool Tracker::Impl::rivals(const Measurement& a, const Measurement& b, double used_scale) const noexcept {
   if (!(cfg.max_false_probability > 0) || !a.valid || !b.valid) return false;
   const double apart_px = used_scale * std::hypot(a.ux + a.dx - b.ux - b.dx, a.uy + a.dy - b.uy - b.dy);
-  const double apart_deg = std::fabs(rt::wrap_deg((a.j + a.dj - b.j - b.dj) * angles.step_deg));
+  // Modulo the pattern's declared order: its looks 360°/order apart are one hypothesis.
+  const double apart_deg = std::fabs(std::remainder((a.j + a.dj - b.j - b.dj) * angles.step_deg, 360.0 / angle_order));
   if (apart_px <= LossPolicy::kFalsePx && apart_deg <= LossPolicy::kFalseDeg) return false;
   const float kept = std::max(a.score, b.score), other = std::min(a.score, b.score);
   return static_cast<double>(kept) - other < significance_z() * flip_sd(kept);
@@ -688,6 +689,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   jump_declined = false;
   const std::uint8_t set = active.load(std::memory_order_relaxed);
   e.pattern_set = set;
+  if (set < symmetry.size()) angle_order = symmetry[set].order;
+  e.angle_order = static_cast<std::uint8_t>(angle_order);
   e.x_px = motion.x_px();
   e.y_px = motion.y_px();
   e.phi_deg = motion.phi_deg();
@@ -783,6 +786,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     if (m.valid) {
       to_estimate(m, roi.x + rx, roi.y + ry, e);
       unlag(e);
+      // A pattern of declared order n: the n looks are one, so the angle reported is the look
+      // nearest the last one (within ±180°/n of it), the continuity a controller reads; with no
+      // last angle the search's own choice, which no frame can check (README: Symmetric targets).
+      if (angle_order > 1 && angle_before.known) {
+        const double turn = 360.0 / angle_order;
+        e.phi_deg = rt::wrap_deg(e.phi_deg + turn * std::round(std::remainder(angle_before.phi_deg - e.phi_deg, 360.0) / turn));
+        e.meas_phi_deg = e.phi_deg;
+      }
     }
     e.scale = m.valid ? std::clamp(found_scale, kScaleMin, kScaleMax) : scale;
     const double attainable = m.valid ? attainable_score(px, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y, m.j) : 0.0;
@@ -1208,6 +1219,9 @@ float Tracker::noise_floor_field(std::size_t set) const noexcept {
   return set < impl_->noise_floors.size() ? impl_->noise_floors[set].field : -1.0f;
 }
 std::uint8_t Tracker::pattern_set() const noexcept { return impl_->active.load(std::memory_order_relaxed); }
+PatternSymmetry Tracker::symmetry(std::size_t set) const noexcept {
+  return set < impl_->symmetry.size() ? impl_->symmetry[set] : PatternSymmetry{};
+}
 double Tracker::nm_per_px() const noexcept { return impl_->nm_per_px[impl_->active.load(std::memory_order_relaxed)]; }
 void Tracker::request_reacquire(bool commanded) noexcept {
   // Sticky: a command and sempose's own request before the same frame still mark it.

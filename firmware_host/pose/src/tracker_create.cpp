@@ -151,6 +151,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.set_score_samples.push_back((bank->has_shape() ? bank->mean_support_count() : static_cast<double>(t.fine_mask.count())) *
                                   t.prefilter_noise_gain);
     t.off_share.push_back(off_pose_score(*bank, cfg.angle_step_deg));
+    t.symmetry.push_back(measure_symmetry(*bank, nearest_off_pose_score(*bank, cfg.angle_step_deg)));
     t.banks.push_back(std::move(bank));
     t.nm_per_px.push_back(sets[i].nm_per_px);
     t.pattern_lag_px.push_back(DetectorLag::px(cfg.detector_tau_ns, sets[i].dwell_ns));

@@ -26,6 +26,7 @@
 #include "sempose/pose/motion_model.hpp"
 #include "sempose/pose/orientation_walk.hpp"
 #include "sempose/pose/pattern_bank.hpp"
+#include "sempose/pose/pattern_symmetry.hpp"
 #include "sempose/pose/pose_filter.hpp"
 #include "sempose/pose/pose_refinement.hpp"
 #include "sempose/pose/pose_uncertainty.hpp"
@@ -329,6 +330,11 @@ struct Tracker::Impl {
   // false-pose radius would be (off_share, off_pose_score.hpp): UNCERTAIN, kReasonUnexplained.
   void judge_fit(PoseEstimate& e, double off) const noexcept;
   std::vector<double> off_share;  // each set's off_pose_score; setup
+  // Each set's rotational self-similarity (pattern_symmetry.hpp); setup. angle_order: the active
+  // set's declared order, set at each update(): its hypotheses 360°/order apart are one look, so
+  // a search's angle is taken nearest the last one.
+  std::vector<PatternSymmetry> symmetry;
+  int angle_order = 1;
   // The level learns from every kFitSampleEvery-th ROI frame (fit_frames counts them): the
   // attainable score on the others only when a judgement needs it; ≤ 1/4 of its cost on a
   // target scoring above the bounds, and the ring's 32 frames span ~130.

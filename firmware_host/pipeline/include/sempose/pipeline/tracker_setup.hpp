@@ -25,6 +25,9 @@ struct TrackerSetup {
   std::vector<std::string> pattern_origins;  // "file.pgm" or "simulator target 0"
   std::size_t memory_bytes = 0;              // banks + spectra + FFT buffers, all targets
   std::vector<std::string> warnings;         // the trackers' setup warnings ("target NAME: …")
+  // One line per pattern set that looks the same turned (pose::PatternSymmetry, order > 1): the
+  // startup log tells the operator that its target's angle is known modulo 360°/order.
+  std::vector<std::string> symmetry_notes;
   TrackerSetup();
   ~TrackerSetup();
   TrackerSetup(TrackerSetup&&) noexcept;

@@ -10,5 +10,9 @@
 namespace sempose::pose {
 
 double off_pose_score(const PatternBank& bank, double angle_step_deg) noexcept;
+// The smallest of the same offsets' scores: the false pose the pattern tells best from the
+// target. A hypothesis scoring above it is no more told from the target than a pose the
+// false-pose rule already counts as wrong (pattern_symmetry.hpp).
+double nearest_off_pose_score(const PatternBank& bank, double angle_step_deg) noexcept;
 
 }  // namespace sempose::pose

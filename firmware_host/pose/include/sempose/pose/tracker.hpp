@@ -11,6 +11,7 @@
 #include "sempose/config/scan_config.hpp"
 #include "sempose/config/tracker_config.hpp"
 #include "sempose/pose/pattern_image.hpp"
+#include "sempose/pose/pattern_symmetry.hpp"
 #include "sempose/pose/pose_frame.hpp"
 #include "sempose/pose/track_state.hpp"
 #include "sempose/rt/result.hpp"
@@ -42,6 +43,12 @@ struct PoseEstimate {
   // measured (no match, or a frame of the start search).
   double sigma_x_px = 0, sigma_y_px = 0, sigma_phi_deg = 0, sigma_scale = 0;
   std::uint8_t pattern_set = 0;
+  // The pattern set's declared rotational order (Tracker::symmetry, README: Symmetric targets):
+  // the target looks the same turned by 360°/angle_order, so phi_deg is known modulo that only.
+  // Within it the angle keeps to the continuity line (the walk follows the turn; a search with a
+  // last angle takes the look nearest it); which of the looks a first search took is
+  // unobservable. 1: the angle is known in full.
+  std::uint8_t angle_order = 1;
   int angle_steps = 0;  // correlations spent on orientation this frame
   bool searched = false;  // this frame ran the full-field start search
   // When the beam passed the measured pose point (the frame's clock, ns): the scan start plus
@@ -108,6 +115,9 @@ class Tracker {
   float noise_floor_roi(std::size_t set) const noexcept;
   float noise_floor_field(std::size_t set) const noexcept;
   std::uint8_t pattern_set() const noexcept;
+  // A set's rotational self-similarity measured at setup (pattern_symmetry.hpp); set out of
+  // range: order 1.
+  PatternSymmetry symmetry(std::size_t set) const noexcept;
   double nm_per_px() const noexcept;
   // Forget the target and search the field again. `commanded` (a controller's REACQUIRE, a
   // SELECT of a new look): the first pose the search gives carries reason 32 and is at most
