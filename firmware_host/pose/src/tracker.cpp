@@ -100,6 +100,7 @@ void Tracker::Impl::check_motion(const PatternBank& bank, Measurement& m, PoseEs
   // object of the same pattern scores at that level wherever it is (jump_declined below).
   const bool jump_at_level = surprising && motion.motion_known() && loss.confirmed(m.score);
   if ((!surprising || loss.confirmed(m.score)) && !below_level && !jump_at_level) return;
+  surprised = true;
   if (!swept && cfg.recover_sweep_deg > 0) {
     const int j_pred = angles.index_of(motion.predicted_phi_deg());
     // Only positions the motion makes plausible: the sweep over the whole ROI found a
@@ -518,12 +519,7 @@ bool Tracker::Impl::search_settled(const Measurement& m, const PoseEstimate& e) 
   return false;
 }
 
-// One more frame of the flip check: the opposite hypothesis measured as the search measures it
-// (binned FFT at φ+180° around the pose, the climb, walk and fit), its score difference added.
-// Settled when the mean difference is significant: by the larger of the noise model's SD and
-// the differences' own spread. Returns true when the opposite one won (m and e are then its).
-template <class Place>
-bool Tracker::Impl::settle_flip(const PatternBank& bank, Measurement& m, PoseEstimate& e, const Place& place) noexcept {
+Measurement Tracker::Impl::opposite_of(const PatternBank& bank, const Measurement& m, PoseEstimate& e) noexcept {
   const int jf = angles.wrap(m.j + angles.count / 2);
   half.correlate(bank.spectrum(jf), maps.work());
   const int reach = sizes.pattern_px / 8;  // binned px: a quarter pattern, as the search
@@ -531,6 +527,58 @@ bool Tracker::Impl::settle_flip(const PatternBank& bank, Measurement& m, PoseEst
   Measurement f = walk.measure(bank, jf, find_peak(maps.work(), half.valid_w(), half.valid_h(), around),
                                cfg.max_angle_steps_per_frame);
   e.angle_steps += f.steps + 1;
+  return f;
+}
+
+// A pose that jumped (the motion check was surprised) may be the target's turned look-alike: a
+// target turned 180° between two frames (or a walk that slipped onto it) shows a partly
+// symmetric pattern's own turned copy beside the true place, and the walk from the predicted
+// angle lands there (the lamella on its post turned 180° at 2.5 e-/px: the walk's pose 15-17 px
+// and 180° off at 0.66-0.69, the target's level 0.72; the motion model learnt the jump and the
+// pose was TRACKING on 14 frames; the true hypothesis scored 0.705-0.737 in the same frames). The
+// opposite hypothesis is measured once, and when it scores above the pose kept, the pose is not
+// this frame's best explanation: the flip check opens, the poses are UNCERTAIN until the paired
+// differences settle it, and the winner is tracked. Not when it is merely within the noise of a
+// difference of two scores (significance_z() × flip_sd): the lamella on post's true re-found
+// poses after a jump at 2.5 e-/px have their opposite within it, and the check held 3-4 frames
+// of two `--quick` jump rows UNCERTAIN (recovery 1 -> 4 frames). One binned FFT and a walk on a
+// surprising frame only; a target the turn does not fit (the needle tip) scores far below. A
+// pattern of declared order > 1 is not checked here: its turned look is the target (its angle is
+// declared modulo 360°/order). Nor while the pose is held (a frame the pattern did not explain)
+// or off the continuity line (anchor open): there the frame is not the target's alone, and the
+// line decides (twin_crosses_over_at_45deg, lamella on post at 2.5 e-/px: under the passing twin
+// the opposite outscored the held true pose, 0.61 to 0.53, and the check took it: 84 TRACKING
+// poses 15 px and 180° off where the base had 3).
+template <class Place>
+void Tracker::Impl::open_flip_on_jump(const PatternBank& bank, const Measurement& m, PoseEstimate& e, double t_s,
+                                      const Place& place) noexcept {
+  ContinuityAnchor::Line line;
+  if (flip_open || !surprised || angle_order > 1 || held_frames > 0 || anchor.open() || !(cfg.max_false_probability > 0) ||
+      loss.calibrating() || !m.valid || !anchor.line_at(t_s, line))
+    return;
+  // Only a pose off the last TRACKING poses' line (continuity_anchor.hpp): turn_180's look-alike
+  // 15-17 px from it. A pose on it that the motion check doubts for its score alone is the target
+  // (twin_crosses_down_at_45deg at 6 e-/px: opened on such a pose as the twin came near, the
+  // check cost a frame the fit level learnt from and the twin was later TRACKING on 52 frames
+  // where fc3265b had 0).
+  if (std::hypot(e.x_px - line.x_px, e.y_px - line.y_px) <= line.tol_px) return;
+  const Measurement f = opposite_of(bank, m, e);
+  if (!f.valid || !(f.score > m.score)) return;
+  PoseEstimate at;  // and the opposite on the line: the target the line leads to
+  place(f, at);
+  if (std::hypot(at.x_px - line.x_px, at.y_px - line.y_px) > line.tol_px) return;
+  flip_open = true;
+  flip_lead = FlipLead{};
+  flip_circle = FlipLead{};
+}
+
+// One more frame of the flip check: the opposite hypothesis measured as the search measures it
+// (binned FFT at φ+180° around the pose, the climb, walk and fit), its score difference added.
+// Settled when the mean difference is significant: by the larger of the noise model's SD and
+// the differences' own spread. Returns true when the opposite one won (m and e are then its).
+template <class Place>
+bool Tracker::Impl::settle_flip(const PatternBank& bank, Measurement& m, PoseEstimate& e, const Place& place) noexcept {
+  Measurement f = opposite_of(bank, m, e);
   if (!f.valid) return false;
   const double d = static_cast<double>(m.score) - f.score;
   flip_lead.add(d);
@@ -887,6 +935,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   };
   bool swept = false;
   rival_within_noise = false;
+  surprised = false;
   Measurement m = track(bank, swept, set, {load_px, load_stride});
   place(m, e);
   // The loaded ROI's origin in the field (a rescaled ROI is resampled about its centre).
@@ -908,6 +957,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       flip_circle = FlipLead{};
     }
   }
+  open_flip_on_jump(bank, m, e, 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns)),
+                    place);
   // The flip check before the scale probe and σ, which read the hypothesis kept.
   const bool flipped = flip_open && settle_flip(bank, m, e, place);
   const ScaleReading reading = scale_probe.read(bank, m);

@@ -332,7 +332,8 @@ struct Tracker::Impl {
   std::vector<double> off_share;  // each set's off_pose_score; setup
   // Each set's rotational self-similarity (pattern_symmetry.hpp); setup. angle_order: the active
   // set's declared order, set at each update(): its hypotheses 360°/order apart are one look, so
-  // a search's angle is taken nearest the last one.
+  // a jump does not open the flip check on them (open_flip_on_jump) and a search's angle is taken
+  // nearest the last one.
   std::vector<PatternSymmetry> symmetry;
   int angle_order = 1;
   // The level learns from every kFitSampleEvery-th ROI frame (fit_frames counts them): the
@@ -418,6 +419,14 @@ struct Tracker::Impl {
   bool search_settled(const Measurement& m, const PoseEstimate& e) noexcept;
   template <class Place>
   bool settle_flip(const PatternBank& bank, Measurement& m, PoseEstimate& e, const Place& place) noexcept;
+  // The hypothesis 180° from m, measured as the search measures it (binned FFT at φ + 180°
+  // around m's place, the walk): the flip check's other side.
+  Measurement opposite_of(const PatternBank& bank, const Measurement& m, PoseEstimate& e) noexcept;
+  // This frame's pose surprised the motion check (check_motion ran its search): a jump the
+  // target's turned look-alike beside it can explain (open_flip_on_jump).
+  bool surprised = false;
+  template <class Place>
+  void open_flip_on_jump(const PatternBank& bank, const Measurement& m, PoseEstimate& e, double t_s, const Place& place) noexcept;
   // level_cap: the most the target's own level learns from this pose (a search frame's
   // attainable score with tracker.attainable_pattern_noise; 1: the score itself).
   void accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, double level_cap = 1.0) noexcept;
