@@ -351,19 +351,33 @@ class SimHarness {
       return;
     }
     // Test helper: WarpScene::render allocates its output (warp_out_ keeps its capacity).
-    hal::Pose2 p = trajectory_.at(mid);
-    if (static_cast<long long>(seq) == s_.kick_frame) {
-      p.x_px += s_.kick_x_px;
-      p.y_px += s_.kick_y_px;
-      p.phi_deg += s_.kick_phi_deg;
-    }
-    warped_scene().render(kWarpCx, kWarpCy, p.x_px, p.y_px, p.phi_deg, s_.field_w, s_.field_h, warp_out_,
-                          s_.noise ? s_.dose_e : 0.0, s_.seed * 7919 + seq, roi);
+    // Scanned row by row as the simulator's scenes are: each row shows the target where it is
+    // when that row is scanned (a moving target shows sheared and stretched).
+    const double row_s = static_cast<double>(limits_.scan_time_ns(roi.w, roi.h, s_.dwell_ns)) * 1e-9 / roi.h;
+    const double start_s = static_cast<double>(t - hal::SimSource::kVirtualEpochNs) * 1e-9;
+    const auto pose_at = [&](double at_s) {
+      hal::Pose2 q = trajectory_.at(at_s);
+      if (static_cast<long long>(seq) == s_.kick_frame) {
+        q.x_px += s_.kick_x_px;
+        q.y_px += s_.kick_y_px;
+        q.phi_deg += s_.kick_phi_deg;
+      }
+      return q;
+    };
+    const auto row_time = [&](double row) { return start_s + (std::clamp(row - roi.y, 0.0, roi.h - 1.0) + 0.5) * row_s; };
+    warped_scene().render_rows(kWarpCx, kWarpCy, [&](int py) { return pose_at(row_time(py)); }, s_.field_w, s_.field_h,
+                               warp_out_, s_.noise ? s_.dose_e : 0.0, s_.seed * 7919 + seq, roi);
     std::copy(warp_out_.begin(), warp_out_.end(), out);
     if (s_.detector_tau_ns > 0) low_pass_lines(roi, out);
+    const hal::Pose2 p = pose_at(mid);
     for (int i = 0; i < hal::kMaxTargets; ++i) truth[i] = hal::TargetTruth{};
     truth[0] = {p.x_px, p.y_px, p.phi_deg, true};
-    if (as_scanned) *as_scanned = truth[0];
+    if (as_scanned) {
+      // When the beam passed the pose point: its row's time, found by iterating row -> time -> row.
+      hal::Pose2 q = p;
+      for (int k = 0; k < 3; ++k) q = pose_at(row_time(std::round(q.y_px)));
+      *as_scanned = {q.x_px, q.y_px, q.phi_deg, true};
+    }
   }
 
   // Another tracker on the same sequence: frame f is scanned from the same virtual time as
@@ -422,8 +436,10 @@ class SimHarness {
       render(meta.roi, t, meta.seq, pixels_.data(), meta.truth, &rec.t_mid_s, &rec.as_scanned);
       rec.truth = meta.truth[0];
       rec.second = meta.truth[1];
-      t += limits_.scan_time_ns(meta.roi.w, meta.roi.h, s_.dwell_ns) + 500'000;  // + modelled compute
-      meta.t_scan_end_ns = t;
+      // The scan ends when its last row is scanned (as a scan source stamps it); the tracker's
+      // compute (modelled) comes after it, before the next scan.
+      meta.t_scan_end_ns = t + limits_.scan_time_ns(meta.roi.w, meta.roi.h, s_.dwell_ns);
+      t = meta.t_scan_end_ns + 500'000;
       const std::int64_t t0 = rt::now_ns(), c0 = thread_cpu_ns();
       {
         // Heap calls made inside the tracker (the simulator's own are not its business).

@@ -15,6 +15,7 @@
 #include "sempose/hal/frame.hpp"
 #include "sempose/hal/image.hpp"
 #include "sempose/hal/pgm.hpp"
+#include "sempose/hal/trajectory.hpp"
 
 namespace sempose::pose::testing {
 
@@ -78,11 +79,19 @@ struct WarpScene {
   // roi: render only that part of the field (out is roi.w × roi.h); default: the whole field.
   void render(double cx, double cy, double x, double y, double phi_deg, int fw, int fh, std::vector<hal::Pixel>& out,
               double dose_e = 0, std::uint64_t seed = 1, hal::Roi roi = {}) const {
+    render_rows(cx, cy, [&](int) { return hal::Pose2{x, y, phi_deg}; }, fw, fh, out, dose_e, seed, roi);
+  }
+  // As render(), the target's pose per row (pose_of_row(py)): a raster scan of a moving target.
+  template <class PoseOfRow>
+  void render_rows(double cx, double cy, const PoseOfRow& pose_of_row, int fw, int fh, std::vector<hal::Pixel>& out,
+                   double dose_e = 0, std::uint64_t seed = 1, hal::Roi roi = {}) const {
     if (roi.w <= 0 || roi.h <= 0) roi = {0, 0, fw, fh};
     out.resize(static_cast<std::size_t>(roi.w) * roi.h);
-    const double rad = phi_deg * M_PI / 180.0, cs = std::cos(rad), sn = std::sin(rad);
     std::mt19937_64 rng(seed);
-    for (int py = roi.y; py < roi.y + roi.h; ++py)
+    for (int py = roi.y; py < roi.y + roi.h; ++py) {
+      const hal::Pose2 pose = pose_of_row(py);
+      const double x = pose.x_px, y = pose.y_px;
+      const double rad = pose.phi_deg * M_PI / 180.0, cs = std::cos(rad), sn = std::sin(rad);
       for (int px = roi.x; px < roi.x + roi.w; ++px) {
         // Inverse of the CCW screen rotation (same formula as rotate_pattern and the simulator).
         const double dx = px - x, dy = py - y;
@@ -93,6 +102,7 @@ struct WarpScene {
         }
         out[static_cast<std::size_t>(py - roi.y) * roi.w + (px - roi.x)] = to_level(b);
       }
+    }
   }
 
   static hal::Pixel to_level(double b) noexcept {
