@@ -56,6 +56,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("max_false_probability", c.max_false_probability, 0.0, 0.5);
   s.opt("detector_tau_ns", c.detector_tau_ns, 0.0, 1e6);
   s.opt("measure_detector_tau", c.measure_detector_tau);
+  s.opt("correct_scan_motion", c.correct_scan_motion);
   s.opt("search_downsample", c.search_downsample, 1, 32);
   s.opt("search_angle_step_deg", c.search_angle_step_deg, 0.25, 90.0);
   s.opt("search_candidates", c.search_candidates, 1, 64);

@@ -156,20 +156,26 @@ TEST(AppConfig, StartSearchScaleSpan) {
   EXPECT_NE(e.find("tracker.search_scale_max: 0.9 is outside the allowed range [1, 1.45]"), std::string::npos) << e;
 }
 
-// τ not told: measured from the frames unless tracker.measure_detector_tau is false.
-TEST(AppConfig, MeasureDetectorTauIsABoolOnByDefault) {
+// τ not told: measured from the frames unless tracker.measure_detector_tau is false; the scan's
+// motion bias taken out when tracker.correct_scan_motion is true (off by default).
+TEST(AppConfig, MeasureDetectorTauAndCorrectScanMotionAreBools) {
   AppConfig d;
   EXPECT_TRUE(d.tracker.measure_detector_tau);
-  const auto off = write_yaml("measure_tau.yaml", "tracker:\n  measure_detector_tau: false\n");
-  AppConfig c;
-  std::string e;
-  EXPECT_TRUE(load_app_config(off, c, e)) << e;
-  EXPECT_FALSE(c.tracker.measure_detector_tau);
-  const auto bad = write_yaml("measure_tau_bad.yaml", "tracker:\n  measure_detector_tau: auto\n");
-  AppConfig b;
-  e.clear();
-  EXPECT_FALSE(load_app_config(bad, b, e));
-  EXPECT_NE(e.find(bad + ":2:25: tracker.measure_detector_tau: 'auto'"), std::string::npos) << e;
+  EXPECT_FALSE(d.tracker.correct_scan_motion);
+  for (const std::string key : {"measure_detector_tau", "correct_scan_motion"}) {
+    const bool value = key == "correct_scan_motion";  // the other way round from the default
+    const auto other = write_yaml(key + ".yaml", "tracker:\n  " + key + ": " + (value ? "true" : "false") + "\n");
+    AppConfig c;
+    std::string e;
+    EXPECT_TRUE(load_app_config(other, c, e)) << e;
+    EXPECT_EQ(key == "measure_detector_tau" ? c.tracker.measure_detector_tau : c.tracker.correct_scan_motion, value) << key;
+    const auto bad = write_yaml(key + "_bad.yaml", "tracker:\n  " + key + ": auto\n");
+    AppConfig b;
+    e.clear();
+    EXPECT_FALSE(load_app_config(bad, b, e));
+    const std::string where = bad + ":2:" + std::to_string(key.size() + 5) + ": tracker." + key + ": 'auto'";
+    EXPECT_NE(e.find(where), std::string::npos) << e;
+  }
 }
 
 TEST(AppConfig, WrongTypeAndChoice) {

@@ -417,6 +417,8 @@ int main(int argc, char** argv) {
     else if (a == "--sigma-pattern-noise" && i + 1 < argc) tc.sigma_pattern_noise = std::string(argv[++i]) != "off";
     else if (a == "--rate-poses" && i + 1 < argc) tc.predict_rate_poses = std::atoi(argv[++i]);
     else if (a == "--attainable-pattern-noise" && i + 1 < argc) tc.attainable_pattern_noise = std::string(argv[++i]) != "off";
+    else if (a == "--scan-motion" && i + 1 < argc)
+      tc.correct_scan_motion = std::string(argv[++i]) == "on";
     else if (a == "--measure-tau" && i + 1 < argc) {
       tc.measure_detector_tau = std::string(argv[++i]) != "off";
       measure_tau_off = !tc.measure_detector_tau;
@@ -432,7 +434,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off] [--measure-tau on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off] [--measure-tau on|off] [--scan-motion on|off]\n", argv[0]);
       return 2;
     }
   }

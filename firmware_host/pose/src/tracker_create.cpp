@@ -152,6 +152,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
                                   t.prefilter_noise_gain);
     t.off_share.push_back(off_pose_score(*bank, cfg.angle_step_deg));
     t.symmetry.push_back(measure_symmetry(*bank, nearest_off_pose_score(*bank, cfg.angle_step_deg)));
+    if (cfg.correct_scan_motion) t.scan_motion.emplace_back(*bank);
     t.banks.push_back(std::move(bank));
     t.nm_per_px.push_back(sets[i].nm_per_px);
     t.pattern_lag_px.push_back(DetectorLag::px(cfg.detector_tau_ns, sets[i].dwell_ns));

@@ -34,6 +34,7 @@
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/pose/roi_rescaler.hpp"
 #include "sempose/pose/scale_probe.hpp"
+#include "sempose/pose/scan_motion.hpp"
 #include "sempose/pose/split_consistency.hpp"
 #include "sempose/pose/stale_frame_check.hpp"
 #include "sempose/pose/start_search.hpp"
@@ -88,6 +89,12 @@ struct Tracker::Impl {
   // this frame's lag minus the active set's (px, taken out of every pose's x: tracker.cpp).
   std::vector<double> pattern_lag_px;
   double lag_shift_px = 0;
+  // Per pattern set, how a target's motion during the scan biases its measured pose
+  // (scan_motion.hpp), and this frame's velocity per scanned row (scan_velocity(), tracker.cpp):
+  // the bias is taken out of every pose as the lag is out of x.
+  std::vector<ScanMotionResponse> scan_motion;
+  const ScanMotionResponse* frame_scan_motion = nullptr;
+  double row_vx_px = 0, row_vy_px = 0, row_turn_deg = 0;
   // τ not told (tracker.detector_tau_ns 0) and tracker.measure_detector_tau: measured from each
   // frame's noise, kept from the frames whose pose was accepted (accept()), and the lags taken
   // from it instead; the pattern sets' dwells for their own lag, or, a set without one, the
@@ -259,6 +266,20 @@ struct Tracker::Impl {
   void unlag(PoseEstimate& e) const noexcept {
     e.x_px -= lag_shift_px;
     e.meas_x_px = e.x_px;
+  }
+  // The target's velocity (and turn rate) per scanned row this frame (frame.t_scan_* give the row's time), from
+  // the motion model's velocity once the motion since the search is known (the first velocity
+  // after a search spans the field's scan); 0 before, and without time stamps.
+  void scan_velocity(const PoseFrame& frame) noexcept;
+  void unskew(PoseEstimate& e) const noexcept {
+    if (frame_scan_motion == nullptr || (row_vx_px == 0 && row_vy_px == 0 && row_turn_deg == 0)) return;
+    const ScanMotionBias b = frame_scan_motion->bias(e.phi_deg, scale, row_vx_px, row_vy_px, row_turn_deg);
+    e.x_px -= b.x_px;
+    e.y_px -= b.y_px;
+    e.phi_deg = rt::wrap_deg(e.phi_deg - b.phi_deg);
+    e.meas_x_px = e.x_px;
+    e.meas_y_px = e.y_px;
+    e.meas_phi_deg = e.phi_deg;
   }
   // A start search's pose gets σ as an ROI frame's does: the ROI around it cut from the field,
   // loaded at the found scale, the fit's covariance at the search's pose (tracker.cpp). Returns
