@@ -328,6 +328,7 @@ struct Tracker::Impl {
   double last_x = 0, last_y = 0, last_phi = 0, last_score = 0;
   bool still_doubt = false;  // a fall while still is open
   double still_level = 0;    // the last accepted score before that fall
+  double last_dwell_ns = 0, still_dwell_ns = 0;  // the dwells last_score and still_level were scanned at
   // The motion check's sweep found a second hypothesis more than the false-pose rule's 3 px /
   // 10° from the pose kept whose score is within the noise of the kept one's (the two differ
   // by less than significance_z() SDs of a difference of two independent scores, flip_sd):
