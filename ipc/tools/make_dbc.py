@@ -13,6 +13,11 @@ import argparse
 TARGETS = 4
 BLOCK = 0x10
 
+# The DBC's VERSION: "sempose-<n>", n = ipc::kWireVersion (protocol.hpp; tests/ipc checks both).
+WIRE_VERSION = 2
+
+ANGLE_ORDER = ("Rotational order n of the target's pattern (it looks the same turned by 360/n deg): phi is known modulo 360/n deg only, and a TRACKING pose reports the look nearest the last angle. 1: phi is absolute; 2: phi or phi+180 (a lamella); 0: not said (an order above 7)")
+
 # (name, start, length, signed, factor, offset, min, max, unit, comment)
 POSE_XY = [
     ("x", 0, 28, True, 1, 0, -134217728, 134217727, "nm", "Pattern centre x in the scan field (saturating)"),
@@ -27,7 +32,8 @@ POSE_ATTR = [
      "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded (a REACQUIRE, or sempose's own re-search when look_alike is 1), 64 angle unsettled, "
      "128 unexplained (the pattern does not explain the window up to noise)"),
     ("seq", 40, 8, False, 1, 0, 0, 255, "", "Pose sequence counter (low 8 bits), same in POSE_XY"),
-    ("age", 48, 15, False, 1, 0, 0, 32767, "us", "Beam on the target (the time the pose is valid for) to send (saturating)"),
+    ("age", 48, 12, False, 8, 0, 0, 32760, "us", "Beam on the target (the time the pose is valid for) to send, in 8 us steps (rounded, saturating)"),
+    ("angle_order", 60, 3, False, 1, 0, 0, 7, "", ANGLE_ORDER),
     ("look_alike", 63, 1, False, 1, 0, 0, 1, "",
      "1: a target with the same pattern is on this pose's place (state UNCERTAIN while both are there), or this pose comes from the search sempose started because of it (reason 32 on such a frame is sempose's own, not a controller REACQUIRE)"),
 ]
@@ -52,6 +58,7 @@ POSE_FD = [
     ("sigma_phi", 400, 32, False, 0.000001, 0, 0, 4294.967295, "deg", "1 sigma of phi, calibrated (0 = not measured)"),
     ("sigma_scale", 432, 32, False, 0.000001, 0, 0, 4294.967295, "", "1 sigma of target_scale (0 = not measured)"),
     ("look_alike", 464, 1, False, 1, 0, 0, 1, "", "See POSE_ATTR"),
+    ("angle_order", 472, 8, False, 1, 0, 0, 7, "", ANGLE_ORDER),
 ]
 POSE_UNC = [
     ("sigma_x", 0, 12, False, 0.1, 0, 0, 409.5, "nm", "1 sigma of x, calibrated (0 = not measured, saturating)"),
@@ -105,14 +112,14 @@ def main():
     for t in range(TARGETS):
         b = a.base + BLOCK * t
         msgs.append((b + 0, "POSE_XY_T%d" % t, 8, "SEMPOSE", POSE_XY, "Pose of target %d: position" % t, False, 0))
-        msgs.append((b + 1, "POSE_ATTR_T%d" % t, 8, "SEMPOSE", POSE_ATTR, "Pose of target %d: orientation, score, state, age" % t, False, 0))
+        msgs.append((b + 1, "POSE_ATTR_T%d" % t, 8, "SEMPOSE", POSE_ATTR, "Pose of target %d: orientation (and its rotational order), score, state, age" % t, False, 0))
         msgs.append((b + 2, "POSE_FD_T%d" % t, 64, "SEMPOSE", POSE_FD, "Pose of target %d as one CAN FD frame (instead of XY+ATTR+UNC)" % t, True, 0))
         msgs.append((b + 3, "POSE_UNC_T%d" % t, 8, "SEMPOSE", POSE_UNC, "Pose of target %d: 1 sigma of x, y, phi, scale; the target's scale" % t, False, 0))
     msgs.append((a.base + 0x40, "HEARTBEAT", 8, "SEMPOSE", HEARTBEAT, "Status at can.heartbeat_hz", False, 100))
     msgs.append((cmd_id, "COMMAND", 8, "CONTROLLER", COMMAND, "Command from the controller; invalid ones are counted and ignored", False, 0))
     out = []
     w = out.append
-    w('VERSION "sempose-1"\n\n')
+    w('VERSION "sempose-%d"\n\n' % WIRE_VERSION)
     w("NS_ :\n\tCM_\n\tBA_DEF_\n\tBA_\n\tVAL_\n\tBA_DEF_DEF_\n\nBS_:\n\nBU_: SEMPOSE CONTROLLER\n\n")
     for mid, name, dlc, sender, sigs, _, _, _ in msgs:
         w("BO_ %d %s: %d %s\n" % (mid, name, dlc, sender))

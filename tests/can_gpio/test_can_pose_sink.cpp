@@ -75,7 +75,7 @@ TEST(CanPoseSink, ClassicPoseIsThreeFramesWithTheSameSequence) {
   EXPECT_EQ(da.seq, dxy.seq);
   EXPECT_EQ(da.phi_mdeg, 12500);
   EXPECT_EQ(da.score_milli, 900);
-  EXPECT_EQ(da.age_us, 2500);   // scan end 1 ms, sent at 3.5 ms
+  EXPECT_EQ(da.age_us, 2504);   // scan end 1 ms, sent at 3.5 ms: 2500 µs to the nearest 8 µs step
   EXPECT_EQ(da.state, ipc::WireState::kTracking);
   EXPECT_EQ(ch.last_t_ns(), 3'500'000);
   EXPECT_EQ(sink.counters().poses_sent.load(), 1u);
@@ -99,7 +99,7 @@ TEST(CanPoseSink, FdChannelSendsOne64BytePoseFrame) {
 
 // CAN's age runs from when the beam passed the target (PoseRecord::t_beam_ns), the time the pose
 // is valid for: a full-field search frame's pose is tens of ms older than its scan's end. The
-// classic frame's 15-bit age saturates; the FD frame's carries it whole. (Base: age from the
+// classic frame's age (8 µs steps) saturates; the FD frame's carries it whole. (Base: age from the
 // scan's end, 2500 µs here.)
 TEST(CanPoseSink, AgeRunsFromWhenTheBeamPassedTheTarget) {
   auto p = pose(0, 5);
@@ -110,7 +110,7 @@ TEST(CanPoseSink, AgeRunsFromWhenTheBeamPassedTheTarget) {
   ASSERT_EQ(cs.publish(p, 82'500'000), pl::PublishResult::kSent);
   ipc::PoseAttr da;
   ASSERT_TRUE(ipc::decode_pose_attr(classic.sent(1).data, classic.sent(1).len, da));
-  EXPECT_EQ(da.age_us, 32767) << "41.5 ms: saturated";
+  EXPECT_EQ(da.age_us, 32760) << "41.5 ms: saturated";
   hal::MemoryCanChannel fd(64, /*fd=*/true);
   co::CanPoseSink fs(fd, {});
   ASSERT_EQ(fs.publish(p, 82'500'000), pl::PublishResult::kSent);
@@ -120,7 +120,7 @@ TEST(CanPoseSink, AgeRunsFromWhenTheBeamPassedTheTarget) {
   p.t_beam_ns = 79'000'000;  // an ROI frame's target about mid-scan
   ASSERT_EQ(cs.publish(p, 82'500'000), pl::PublishResult::kSent);
   ASSERT_TRUE(ipc::decode_pose_attr(classic.sent(4).data, classic.sent(4).len, da));
-  EXPECT_EQ(da.age_us, 3500);
+  EXPECT_EQ(da.age_us, 3504);
 }
 
 TEST(CanPoseSink, NonFinitePoseIsSentAsLostBadFrame) {

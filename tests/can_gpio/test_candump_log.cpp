@@ -160,7 +160,8 @@ TEST(CandumpLog, PythonCanReadsItAndTheDbcDecodesIt) {
     p.phi_deg = -170.0 + 17.3 * i;
     p.score = 0.05 * i - 0.2;
     p.seq = static_cast<std::uint32_t>(250 + i);  // wraps through 255 -> 0
-    p.age_ns = 1000 * i;
+    p.age_ns = 8000 * i;  // the classic age's 8 µs steps
+    p.angle_order = static_cast<std::uint8_t>(1 + i % 7);
     p.state = static_cast<ipc::WireState>(i % 3);
     poses.push_back(p);
     hal::CanFrame xy, at;
@@ -207,7 +208,8 @@ TEST(CandumpLog, PythonCanReadsItAndTheDbcDecodesIt) {
     EXPECT_EQ(value(lat, "state"), i % 3);
     EXPECT_EQ(value(lxy, "seq"), (250 + i) % 256);
     EXPECT_EQ(value(lat, "seq"), value(lxy, "seq"));
-    EXPECT_EQ(value(lat, "age"), i);
+    EXPECT_EQ(value(lat, "age"), 8 * i);
+    EXPECT_EQ(value(lat, "angle_order"), 1 + i % 7);
   }
   EXPECT_NE(lines[40].find(" 112 FD POSE_FD_T1 "), std::string::npos) << lines[40];
   EXPECT_NEAR(value(lines[40], "x"), poses[3].x_nm, 0.5);

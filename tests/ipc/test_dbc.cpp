@@ -158,6 +158,7 @@ TEST_F(DbcTest, ClassicPoseFramesDecodeToTheEncodedValues) {
     p.seq = static_cast<std::uint32_t>(i * 7);
     p.age_ns = static_cast<std::int64_t>(i) * 131'071;
     p.look_alike = i % 5 == 0;
+    p.angle_order = static_cast<std::uint8_t>(1 + i % 7);
     const int t = i % ipc::kMaxTargets;
     std::uint8_t xy[8], at[8];
     ipc::encode_pose_xy(p, xy);
@@ -171,7 +172,8 @@ TEST_F(DbcTest, ClassicPoseFramesDecodeToTheEncodedValues) {
     EXPECT_EQ(sig(id_at, "state", at), i % 3);
     EXPECT_EQ(sig(id_at, "reason", at), i % 256);
     EXPECT_EQ(sig(id_at, "seq", at), p.seq % 256);
-    EXPECT_EQ(sig(id_at, "age", at), std::min<std::int64_t>(p.age_ns / 1000, 32767));
+    EXPECT_NEAR(sig(id_at, "age", at), std::min<double>(p.age_ns / 1000.0, 32760), 4 + 1e-9) << "8 µs steps, rounded";
+    EXPECT_EQ(sig(id_at, "angle_order", at), 1 + i % 7);
     EXPECT_EQ(sig(id_at, "look_alike", at), i % 5 == 0 ? 1 : 0) << "the flag sits in the age's old top bit";
   }
 }
@@ -268,6 +270,7 @@ TEST_F(DbcTest, FdPoseFrameDecodesToTheEncodedValues) {
   p.sigma_phi_deg = 0.123456;
   p.sigma_scale = 0.001234;
   p.reason_bits = 0xA2;  // bit 7: unexplained
+  p.angle_order = 4;
   std::uint8_t d[64];
   ipc::encode_pose_fd(p, d);
   const auto id = ids_.pose_fd(1);
@@ -290,6 +293,15 @@ TEST_F(DbcTest, FdPoseFrameDecodesToTheEncodedValues) {
   EXPECT_NEAR(sig(id, "sigma_y", d), 4.5, 1e-9);
   EXPECT_NEAR(sig(id, "sigma_phi", d), 0.123456, 1e-9);
   EXPECT_NEAR(sig(id, "sigma_scale", d), 0.001234, 1e-9);
+  EXPECT_EQ(sig(id, "angle_order", d), 4);
+}
+
+// A wire-format change bumps both ipc::kWireVersion and the DBC's VERSION (make_dbc.py).
+TEST_F(DbcTest, VersionStringMatchesTheProtocol) {
+  std::ifstream in(std::string(SEMPOSE_SOURCE_DIR) + "/ipc/sempose.dbc");
+  std::string first;
+  std::getline(in, first);
+  EXPECT_EQ(first, "VERSION \"sempose-" + std::to_string(ipc::kWireVersion) + "\"");
 }
 
 TEST_F(DbcTest, HeartbeatAndCommandDecodeByTheDbc) {

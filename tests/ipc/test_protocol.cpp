@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <utility>
 
 #include "sempose/ipc/protocol.hpp"
 #include "sempose/rt/alloc_counter.hpp"
@@ -30,6 +31,17 @@ ipc::PoseValues sample_pose() {
   p.frame_seq = 0x1'0000'0042ull;
   p.nm_per_px = 39.5;
   return p;
+}
+
+// p encoded as POSE_ATTR and as POSE_FD, each decoded back.
+std::pair<ipc::PoseAttr, ipc::PoseFd> through_attr_and_fd(const ipc::PoseValues& p) {
+  std::uint8_t attr[8], fd[64];
+  ipc::encode_pose_attr(p, attr);
+  ipc::encode_pose_fd(p, fd);
+  std::pair<ipc::PoseAttr, ipc::PoseFd> out;
+  EXPECT_TRUE(ipc::decode_pose_attr(attr, 8, out.first));
+  EXPECT_TRUE(ipc::decode_pose_fd(fd, 64, out.second));
+  return out;
 }
 
 }  // namespace
@@ -64,7 +76,8 @@ TEST(PoseFrames, ClassicRoundTrip) {
   EXPECT_EQ(da.phi_mdeg, -37123);
   EXPECT_EQ(da.score_milli, 877);
   EXPECT_EQ(da.state, ipc::WireState::kTracking);
-  EXPECT_EQ(da.age_us, 2345);
+  EXPECT_EQ(da.age_us, 2344) << "2345.678 µs to the nearest 8 µs step";
+  EXPECT_EQ(da.angle_order, 1);
   EXPECT_FALSE(da.look_alike);
   auto q = p;
   q.look_alike = true;
@@ -72,7 +85,8 @@ TEST(PoseFrames, ClassicRoundTrip) {
   ipc::encode_pose_attr(q, attr);
   ASSERT_TRUE(ipc::decode_pose_attr(attr, 8, da));
   EXPECT_TRUE(da.look_alike);
-  EXPECT_EQ(da.age_us, 32767);
+  EXPECT_EQ(da.age_us, 32760);
+  EXPECT_EQ(da.angle_order, 1);
   EXPECT_EQ(da.seq, 0x34);
   EXPECT_FALSE(ipc::decode_pose_xy(xy, 7, dxy)) << "wrong DLC must be refused";
 }
@@ -110,14 +124,53 @@ TEST(PoseFrames, FdRoundTrip) {
   EXPECT_EQ(f.sigma_phi_udeg, 123456u);
   EXPECT_EQ(f.sigma_scale_e6, 1234u);
   EXPECT_FALSE(f.look_alike);
-  for (int i = 58; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
+  EXPECT_EQ(f.angle_order, 1);
+  EXPECT_EQ(d[58], 0);
+  EXPECT_EQ(d[59], 1) << "angle_order is byte 59";
+  for (int i = 60; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
   p.look_alike = true;
   ipc::encode_pose_fd(p, d);
   ASSERT_TRUE(ipc::decode_pose_fd(d, 64, f));
   EXPECT_TRUE(f.look_alike);
   EXPECT_EQ(f.sigma_scale_e6, 1234u);
   EXPECT_EQ(d[58], 1) << "look_alike is bit 464, the lowest of byte 58";
-  for (int i = 59; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
+  for (int i = 60; i < 64; ++i) EXPECT_EQ(d[i], 0) << "reserved byte " << i;
+}
+
+// A symmetric target's angle is known modulo 360°/n only: every pose says n, in POSE_ATTR next to
+// the angle (bits 60-62, where the age's top bits were: the age keeps its 32.76 ms range in 8 µs
+// steps) and in POSE_FD (byte 59); neither the saturated age nor look_alike spills into it.
+TEST(PoseFrames, AngleOrderTravelsWithThePose) {
+  auto p = sample_pose();
+  p.age_ns = 1'000'000'000;
+  p.look_alike = true;
+  for (std::uint8_t order : {1, 2, 3, 4, 6, 7}) {
+    p.angle_order = order;
+    const auto [da, f] = through_attr_and_fd(p);
+    EXPECT_EQ(da.angle_order, order);
+    EXPECT_EQ(f.angle_order, order);
+    EXPECT_EQ(da.age_us, 32760) << "order " << int(order);
+    EXPECT_TRUE(da.look_alike);
+    EXPECT_TRUE(f.look_alike);
+    EXPECT_EQ(da.phi_mdeg, -37123);
+    EXPECT_EQ(f.age_us, 1'000'000u);
+  }
+  // An order the field cannot hold is "not said" (0), never a smaller one claiming more.
+  for (std::uint8_t order : {0, 8, 12, 255}) {
+    p.angle_order = order;
+    const auto [da, f] = through_attr_and_fd(p);
+    EXPECT_EQ(da.angle_order, 0) << int(order);
+    EXPECT_EQ(f.angle_order, 0) << int(order);
+    EXPECT_TRUE(da.look_alike);
+  }
+  // The age to the nearest 8 µs step, 0 at and below zero.
+  p.angle_order = 2;
+  for (auto [ns, us] : {std::pair<std::int64_t, int>{0, 0}, {3'999, 0}, {4'000, 8}, {11'999, 8}, {12'000, 16}, {32'763'999, 32760}}) {
+    p.age_ns = ns;
+    const ipc::PoseAttr da = through_attr_and_fd(p).first;
+    EXPECT_EQ(da.age_us, us) << ns << " ns";
+    EXPECT_EQ(da.angle_order, 2);
+  }
 }
 
 TEST(PoseFrames, UncertaintyRoundTripAndSaturation) {
@@ -169,7 +222,7 @@ TEST(PoseFrames, SaturatesOutOfRangeValues) {
   EXPECT_EQ(dxy.x_nm, ipc::signed_max(ipc::kXyBits));
   EXPECT_EQ(dxy.y_nm, ipc::signed_min(ipc::kXyBits));
   EXPECT_EQ(da.score_milli, 1000);
-  EXPECT_EQ(da.age_us, 32767);
+  EXPECT_EQ(da.age_us, 32760);
   EXPECT_FALSE(da.look_alike);
   p.score = -3;
   p.age_ns = -5;  // clock step: never a huge unsigned age

@@ -2,7 +2,8 @@
 //
 // Classic CAN 2.0, 8-byte frames, standard 11-bit ids from a configurable base (default 0x100):
 //   base + 0x10*t + 0   POSE_XY    x_nm, y_nm (signed 28 bit each, saturating), seq
-//   base + 0x10*t + 1   POSE_ATTR  phi (mdeg), score (1/1000), state, reason bits, seq, age_us
+//   base + 0x10*t + 1   POSE_ATTR  phi (mdeg), score (1/1000), state, reason bits, seq, age (8 µs),
+//                                  angle order, look_alike
 //   base + 0x10*t + 2   POSE_FD    (CAN FD only, 64 bytes) everything above at full width
 //   base + 0x10*t + 3   POSE_UNC   1σ of x, y (0.1 nm), φ (mdeg), scale; the target's scale; seq
 //   base + 0x40         HEARTBEAT  state, bus state, pattern set, dwell, counters (fixed rate)
@@ -11,6 +12,10 @@
 // of the per-target pose counter and is the same in the three classic frames of one pose, so
 // a receiver pairs them and sees gaps. A σ of 0 means "not measured" (no match, a frame of the
 // start search).
+//
+// The layout is versioned: kWireVersion below, the DBC's VERSION "sempose-<n>" (tests/ipc checks
+// the two agree). Version 2 put the angle's rotational order into POSE_ATTR (age there in 8 µs
+// steps to make room) and POSE_FD.
 //
 // Pure and header-only: encode/decode are noexcept, allocation-free, and depend on nothing
 // but the standard library. Out-of-range inputs saturate; NaN becomes 0 (see bit_pack.hpp).
@@ -22,6 +27,9 @@
 #include "sempose/ipc/bit_pack.hpp"
 
 namespace sempose::ipc {
+
+// +1 whenever a frame's layout or a signal's meaning changes (and the DBC's VERSION with it).
+inline constexpr int kWireVersion = 2;
 
 inline constexpr std::uint8_t kClassicLen = 8;
 inline constexpr std::uint8_t kFdLen = 64;
@@ -41,7 +49,9 @@ inline constexpr int kMaxPatternSets = 16;  // 4-bit field in the heartbeat
 inline constexpr unsigned kXyBits = 28;        // ±134 217 727 nm = ±134 mm
 inline constexpr unsigned kPhiBits = 19;       // ±262 143 mdeg holds ±180 000
 inline constexpr unsigned kScoreBits = 11;     // ±1023 holds ±1000 (score × 1000)
-inline constexpr unsigned kAgeBits = 15;       // 0..32 767 µs (bit 63 is look_alike)
+inline constexpr unsigned kAgeBits = 12;       // × 8 µs: 0..32 760 µs (bits 60-62 angle order, 63 look_alike)
+inline constexpr std::int64_t kAgeStepNs = 8'000;
+inline constexpr unsigned kAngleOrderBits = 3;  // 1..7 (pattern orders are 1, 2, 3, 4, 6); 0 = not said
 inline constexpr std::int64_t kPhiMaxMdeg = 180'000;
 inline constexpr std::int64_t kScoreMaxMilli = 1'000;
 // POSE_UNC (classic): σx, σy in 0.1 nm (12 bit: ≤ 409.5 nm), σφ in mdeg (11 bit: ≤ 2.047°),
@@ -120,8 +130,11 @@ struct PoseValues {
   // or this pose comes from the search sempose started because of it (its reason 32, on an
   // ACQUIRING frame, is then sempose's own, not a REACQUIRE).
   bool look_alike = false;
+  // The angle is known modulo 360°/angle_order (pose::PoseEstimate::angle_order: a target that
+  // looks the same turned by that much); 1 = a full turn. Outside 1..7 goes out as 0, "not said".
+  std::uint8_t angle_order = 1;
   std::uint32_t seq = 0;
-  std::int64_t age_ns = 0;       // scan end -> send
+  std::int64_t age_ns = 0;       // beam on the target -> send
   std::uint8_t pattern_set = 0;
   std::uint8_t target = 0;
   std::uint32_t dwell_ns = 0;
@@ -152,6 +165,16 @@ inline std::uint32_t age_to_us(std::int64_t age_ns, unsigned bits) noexcept {
   const std::int64_t us = age_ns / 1000;
   return static_cast<std::uint32_t>(clamp_i64(us, 0, static_cast<std::int64_t>(unsigned_max(bits))));
 }
+// POSE_ATTR's age: in kAgeStepNs steps, rounded to the nearest (≤ 4 µs off), saturating.
+inline std::uint32_t age_to_steps(std::int64_t age_ns) noexcept {
+  if (age_ns <= 0) return 0;
+  const std::int64_t steps = age_ns / kAgeStepNs + (age_ns % kAgeStepNs >= kAgeStepNs / 2 ? 1 : 0);
+  return static_cast<std::uint32_t>(clamp_i64(steps, 0, static_cast<std::int64_t>(unsigned_max(kAgeBits))));
+}
+// An order the field cannot hold is "not said" (0), never a smaller order that would claim more.
+inline std::uint8_t angle_order_to_wire(std::uint8_t order) noexcept {
+  return order >= 1 && order <= unsigned_max(kAngleOrderBits) ? order : 0;
+}
 
 // ---- decoded frames (wire integers) ----
 
@@ -168,7 +191,8 @@ struct PoseAttr {
   WireState state = WireState::kAcquiring;
   std::uint8_t reason_bits = 0;
   std::uint8_t seq = 0;
-  std::uint16_t age_us = 0;
+  std::uint16_t age_us = 0;        // a multiple of 8 (the wire's step)
+  std::uint8_t angle_order = 0;    // 1..7; 0 = not said
   bool look_alike = false;
   friend bool operator==(const PoseAttr&, const PoseAttr&) = default;
 };
@@ -193,6 +217,7 @@ struct PoseFd {
   std::uint32_t sigma_phi_udeg = 0;              // 1σ, µdeg
   std::uint32_t sigma_scale_e6 = 0;              // 1σ of the target's scale × 10⁶
   bool look_alike = false;
+  std::uint8_t angle_order = 0;    // 1..7; 0 = not said
   friend bool operator==(const PoseFd&, const PoseFd&) = default;
 };
 
@@ -274,7 +299,8 @@ inline void encode_pose_attr(const PoseValues& p, std::uint8_t* data) noexcept {
   put_bits(data, 30, 2, static_cast<std::uint8_t>(p.state) & 0x3u);
   put_bits(data, 32, 8, p.reason_bits);
   put_bits(data, 40, 8, p.seq & 0xFFu);
-  put_bits(data, 48, kAgeBits, age_to_us(p.age_ns, kAgeBits));
+  put_bits(data, 48, kAgeBits, age_to_steps(p.age_ns));
+  put_bits(data, 60, kAngleOrderBits, angle_order_to_wire(p.angle_order));
   put_bits(data, 63, 1, p.look_alike ? 1u : 0u);
 }
 
@@ -300,6 +326,7 @@ inline void encode_pose_fd(const PoseValues& p, std::uint8_t* data) noexcept {
   put_bits(data, 400, 32, unsigned_wire(p.sigma_phi_deg, 1e6, 32));
   put_bits(data, 432, 32, unsigned_wire(p.sigma_scale, 1e6, 32));
   put_bits(data, 464, 1, p.look_alike ? 1u : 0u);
+  put_bits(data, 472, 8, angle_order_to_wire(p.angle_order));
 }
 
 inline void encode_pose_unc(const PoseValues& p, std::uint8_t* data) noexcept {
@@ -355,7 +382,8 @@ inline bool decode_pose_attr(const std::uint8_t* data, std::uint8_t len, PoseAtt
   out.state = static_cast<WireState>(get_bits(data, 30, 2));
   out.reason_bits = static_cast<std::uint8_t>(get_bits(data, 32, 8));
   out.seq = static_cast<std::uint8_t>(get_bits(data, 40, 8));
-  out.age_us = static_cast<std::uint16_t>(get_bits(data, 48, kAgeBits));
+  out.age_us = static_cast<std::uint16_t>(get_bits(data, 48, kAgeBits) * (kAgeStepNs / 1000));
+  out.angle_order = static_cast<std::uint8_t>(get_bits(data, 60, kAngleOrderBits));
   out.look_alike = get_bits(data, 63, 1) != 0;
   return true;
 }
@@ -382,6 +410,7 @@ inline bool decode_pose_fd(const std::uint8_t* data, std::uint8_t len, PoseFd& o
   out.sigma_phi_udeg = static_cast<std::uint32_t>(get_bits(data, 400, 32));
   out.sigma_scale_e6 = static_cast<std::uint32_t>(get_bits(data, 432, 32));
   out.look_alike = get_bits(data, 464, 1) != 0;
+  out.angle_order = static_cast<std::uint8_t>(get_bits(data, 472, 8));
   return true;
 }
 
