@@ -3,7 +3,8 @@
 simulated SEM (virtual time), read the candump log with python-can's CanutilsLogReader,
 decode every frame with ipc/sempose.dbc, and compare with the pipeline's own poses.csv:
 every pose on the "bus", values equal (σ and scale in POSE_UNC too), sequence counters without
-gaps, heartbeats present, σ measured on the tracked poses.
+gaps, heartbeats present, σ measured on the tracked poses, and every pose's angle order (the
+procedural lamella's two-fold symmetry: 2; the gripper: 1) on the bus as in the CSV.
 
 usage: check_can_log.py SEMPOSE CONFIG_TEMPLATE OUT_DIR
 """
@@ -19,6 +20,8 @@ sys.path.insert(0, os.path.join(REPO, "ipc", "tools"))
 from sempose_dbc import Dbc  # noqa: E402
 
 STATES = {0: "TRACKING", 1: "ACQUIRING", 2: "LOST", 3: "UNCERTAIN"}
+# The rotational order each target's pattern declares (pose README, Symmetric targets).
+ANGLE_ORDER = {0: 2, 1: 1}
 SIM_NM_PER_PX = 40.0  # the scale of simulator-recorded patterns (firmware_host/pipeline tracker_setup.cpp)
 
 
@@ -78,6 +81,9 @@ def main(sempose, template, out):
                 problems.append(f"T{target} pose {k}: x,y {sxy['x']:g},{sxy['y']:g} vs {row['x_px']},{row['y_px']}")
             if abs(sat["phi"] - float(row["phi_deg"])) > 0.0011 or abs(sat["score"] - float(row["score"])) > 0.0011:
                 problems.append(f"T{target} pose {k}: phi/score {sat['phi']:.3f}/{sat['score']:.3f} vs {row['phi_deg']}/{row['score']}")
+            if int(sat["angle_order"]) != int(row["angle_order"]) or int(row["angle_order"]) != ANGLE_ORDER[target]:
+                problems.append(f"T{target} pose {k}: angle_order {sat['angle_order']:g} on the bus, {row['angle_order']} in the CSV, "
+                                f"want {ANGLE_ORDER[target]}")
             if STATES.get(int(sat["state"])) != row["status"]:
                 problems.append(f"T{target} pose {k}: state {sat['state']:g} vs {row['status']}")
             if sxy["seq"] != sat["seq"] or sxy["seq"] != k % 256:
@@ -85,7 +91,7 @@ def main(sempose, template, out):
         n_tracked = sum(r["status"] == "TRACKING" for r in mine)
         tracked = n_tracked / len(mine)
         print(f"target {target}: {len(mine)} poses on the bus = CSV, seq without gaps, tracked {tracked:.1%}, "
-              f"sigma on {with_sigma} of {n_tracked} tracked poses")
+              f"sigma on {with_sigma} of {n_tracked} tracked poses, angle order {ANGLE_ORDER[target]}")
         # Every tracked pose but a start search's has its σ (the first pose, and one after a loss).
         if with_sigma < 0.9 * n_tracked:
             problems.append(f"target {target}: sigma on only {with_sigma} of {n_tracked} tracked poses")

@@ -123,6 +123,27 @@ TEST(CanPoseSink, AgeRunsFromWhenTheBeamPassedTheTarget) {
   EXPECT_EQ(da.age_us, 3504);
 }
 
+// A pose of a two-fold symmetric target (a lamella) says so on the bus, classic and FD: its φ
+// is known modulo 180° (PoseRecord::angle_order from the tracker). Base: not on the wire.
+TEST(CanPoseSink, EveryPoseSaysItsAngleOrder) {
+  for (std::uint8_t order : {1, 2, 4}) {
+    auto p = pose(1, 7);
+    p.angle_order = order;
+    hal::MemoryCanChannel classic;
+    co::CanPoseSink cs(classic, {});
+    ASSERT_EQ(cs.publish(p, 3'500'000), pl::PublishResult::kSent);
+    ipc::PoseAttr da;
+    ASSERT_TRUE(ipc::decode_pose_attr(classic.sent(1).data, classic.sent(1).len, da));
+    EXPECT_EQ(da.angle_order, order);
+    hal::MemoryCanChannel fd(64, /*fd=*/true);
+    co::CanPoseSink fs(fd, {});
+    ASSERT_EQ(fs.publish(p, 3'500'000), pl::PublishResult::kSent);
+    ipc::PoseFd d;
+    ASSERT_TRUE(ipc::decode_pose_fd(fd.sent(0).data, fd.sent(0).len, d));
+    EXPECT_EQ(d.angle_order, order);
+  }
+}
+
 TEST(CanPoseSink, NonFinitePoseIsSentAsLostBadFrame) {
   hal::MemoryCanChannel ch;
   co::CanPoseSink sink(ch, {});

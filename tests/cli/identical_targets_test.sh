@@ -186,7 +186,11 @@ if any(s["look_alike"] == 1 for s in apart):
     print(f"FAIL apart: {sum(s['look_alike'] == 1 for s in apart)} poses flagged look_alike though the needles never meet"); fails += 1
 if any(int(s["reason"]) & 32 for s in apart):
     print("FAIL apart: a re-search (reason 32) though nothing was commanded"); fails += 1
-print(f"crossing on CAN: {uncertain} UNCERTAIN poses look_alike, {own} own searches; apart: 0 of {len(apart)}")
+# A needle tip has no rotational symmetry: every pose says its angle is absolute (order 1).
+orders = sorted({int(s["angle_order"]) for poses in list(cross.values()) + [apart] for s in poses})
+if orders != [1]:
+    print(f"FAIL needle poses declare angle orders {orders}, not [1]"); fails += 1
+print(f"crossing on CAN: {uncertain} UNCERTAIN poses look_alike, {own} own searches; apart: 0 of {len(apart)}; angle orders {orders}")
 sys.exit(1 if fails else 0)
 PY
 echo "identical_targets: passed"

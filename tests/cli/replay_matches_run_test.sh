@@ -61,7 +61,7 @@ cat "$work/replay.log"
 
 lines=$(wc -l <"$work/replay.csv")
 [ "$lines" -eq 61 ] && ok "replay: 60 poses (one per recorded frame) + header" || bad "replay: $lines lines"
-head -1 "$work/replay.csv" | grep -qx 'frame,t_ns,x_px,y_px,phi_deg,score,status,target,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale' && ok "pipeline's columns" || bad "header: $(head -1 "$work/replay.csv")"
+head -1 "$work/replay.csv" | grep -qx 'frame,t_ns,x_px,y_px,phi_deg,score,status,target,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale,angle_order' && ok "pipeline's columns" || bad "header: $(head -1 "$work/replay.csv")"
 tracking=$(grep -c ',TRACKING,' "$work/replay.csv" || true)
 [ "$tracking" -ge 50 ] && ok "$tracking TRACKING poses (a comparison of real poses, not of two empty tracks)" || bad "only $tracking TRACKING poses"
 for t in 0 1; do

@@ -28,6 +28,17 @@ std::string temp(const std::string& name) {
 
 bool same(Rgb a, Rgb b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
 
+// Reading `content` (written to p) must fail with an error that holds `message`.
+void expect_read_error(const std::string& p, const std::string& content, const std::string& message) {
+  std::ofstream(p) << content;
+  try {
+    read_pose_csv(p);
+    ADD_FAILURE() << "no error for " << content;
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 
 TEST(PoseCsv, ReadsRunAndReplayFiles) {
@@ -47,25 +58,27 @@ TEST(PoseCsv, ReadsRunAndReplayFiles) {
   EXPECT_EQ(read_pose_csv(p).front().target, "needle");
   std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status,scale\n0,0,1,2,3,0.5,TRACKING,0.9500\n";
   EXPECT_EQ(read_pose_csv(p).front().target, "");
+  EXPECT_EQ(read_pose_csv(p).front().angle_order, 1) << "a file that does not say: a full turn";
+  // sempose run's columns today: the σ and the angle's rotational order last (a lamella: 2).
+  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status,target,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale,angle_order\n"
+                      "0,0,1,2,3,0.5,TRACKING,0,1.0,0.1,0.1,0.2,0.001,2\n";
+  EXPECT_EQ(read_pose_csv(p).front().angle_order, 2);
+  EXPECT_EQ(read_pose_csv(p).front().target, "0");
+  // An order no pattern declares, and the column without the σ before it, are files sempose did not write.
+  expect_read_error(p,
+                    "frame,t_ns,x_px,y_px,phi_deg,score,status,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale,angle_order\n"
+                    "0,0,1,2,3,0.5,TRACKING,1.0,0.1,0.1,0.2,0.001,9\n",
+                    p + ":2: angle_order '9' is not a whole number in [1, 6]");
+  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status,scale,angle_order\n0,0,1,2,3,0.5,TRACKING,1.0,2\n";
+  EXPECT_THROW(read_pose_csv(p), std::runtime_error);
   fs::remove(p);
 }
 
 TEST(PoseCsv, ErrorsNameFileLineAndCell) {
   const std::string p = temp("bad.csv");
-  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,1,2,3,0.5,TRACKING\n1,0,1,zwei,3,0.5,TRACKING\n";
-  try {
-    read_pose_csv(p);
-    FAIL() << "no error";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find(p + ":3: 'zwei' is not a number"), std::string::npos) << e.what();
-  }
-  std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,nan,2,3,0.5,TRACKING\n";
-  try {
-    read_pose_csv(p);
-    FAIL() << "no error for nan";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find(p + ":2: 'nan' is not a finite number"), std::string::npos) << e.what();
-  }
+  expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,1,2,3,0.5,TRACKING\n1,0,1,zwei,3,0.5,TRACKING\n",
+                    p + ":3: 'zwei' is not a number");
+  expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,nan,2,3,0.5,TRACKING\n", p + ":2: 'nan' is not a finite number");
   // Cells sempose never writes: an unknown status, a score outside [-1, 1], a negative, a
   // fractional and a huge frame (the last two were converted with undefined behaviour), a time
   // beyond 64 bits.
@@ -82,13 +95,7 @@ TEST(PoseCsv, ErrorsNameFileLineAndCell) {
       {"0,0,1,2,1e200,0.5,TRACKING", "phi_deg '1e200' is not a number in [-360, 360]"},
   };
   for (const auto& [row, message] : cells) {
-    std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status\n" << row << "\n";
-    try {
-      read_pose_csv(p);
-      ADD_FAILURE() << "no error for " << row;
-    } catch (const std::runtime_error& e) {
-      EXPECT_NE(std::string(e.what()).find(p + ":2: " + message), std::string::npos) << e.what();
-    }
+    expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status\n" + row + "\n", p + ":2: " + message);
   }
   std::ofstream(p) << "x,y\n1,2\n";
   EXPECT_THROW(read_pose_csv(p), std::runtime_error);

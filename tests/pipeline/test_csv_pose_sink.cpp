@@ -52,6 +52,20 @@ std::vector<std::string> lines_of(const std::string& path) {
   return out;
 }
 
+// The file a sink writes for these poses, line by line (empty when it could not be written).
+std::vector<std::string> written_lines(const std::vector<PoseRecord>& poses, bool with_target_column) {
+  const std::string dir = temp_dir();
+  if (dir.empty()) return {};
+  CsvPoseSink sink(dir + "/poses.csv", 16, with_target_column);
+  if (!sink.open().ok) return {};
+  for (const auto& p : poses) EXPECT_EQ(sink.publish(p, 0), PublishResult::kSent);
+  sink.write_pending();
+  EXPECT_TRUE(sink.close());
+  auto lines = lines_of(dir + "/poses.csv");
+  fs::remove_all(dir);
+  return lines;
+}
+
 std::size_t columns(const std::string& line) { return static_cast<std::size_t>(std::count(line.begin(), line.end(), ',')) + 1; }
 
 // Sets this process's file size limit for its lifetime (the soft limit; restored after).
@@ -151,22 +165,27 @@ TEST(CsvPoseSinkFaults, DiskFullFromTheStartStillGivesTheHeaderOnceThereIsRoom) 
 // frame's target tens of ms before its scan's end), the scan's end only when not known.
 // (Base: always the scan's end.)
 TEST(CsvPoseSink, TimeColumnIsWhenTheBeamPassedTheTarget) {
-  const std::string dir = temp_dir();
-  ASSERT_FALSE(dir.empty());
-  CsvPoseSink sink(dir + "/poses.csv", 16, false);
-  ASSERT_TRUE(sink.open().ok);
   PoseRecord seen = pose(1), unknown = pose(2);
   seen.t_scan_end_ns = 80'000'000;
   seen.t_beam_ns = 41'000'000;
-  ASSERT_EQ(sink.publish(seen, 0), PublishResult::kSent);
-  ASSERT_EQ(sink.publish(unknown, 0), PublishResult::kSent);
-  sink.write_pending();
-  EXPECT_TRUE(sink.close());
-  const auto lines = lines_of(dir + "/poses.csv");
+  const auto lines = written_lines({seen, unknown}, false);
   ASSERT_EQ(lines.size(), 3u);
   EXPECT_EQ(lines[1].rfind("1,41000000,", 0), 0u) << lines[1];
   EXPECT_EQ(lines[2].rfind("2,2000,", 0), 0u) << lines[2];
-  fs::remove_all(dir);
+}
+
+// The last column says what phi_deg means: known modulo 360°/angle_order (a lamella: 2, its φ may
+// be φ + 180°), appended so readers that index the columns before it keep working. (Base: no
+// such column; a reader could not tell a lamella's φ from a needle's.)
+TEST(CsvPoseSink, LastColumnIsTheAngleOrder) {
+  PoseRecord needle = pose(1), lamella = pose(2);
+  lamella.angle_order = 2;
+  const auto lines = written_lines({needle, lamella}, true);
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(lines[0], "frame,t_ns,x_px,y_px,phi_deg,score,status,target,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale,angle_order");
+  for (const auto& l : lines) EXPECT_EQ(columns(l), 14u) << l;
+  EXPECT_EQ(lines[1].substr(lines[1].rfind(',')), ",1") << lines[1];
+  EXPECT_EQ(lines[2].substr(lines[2].rfind(',')), ",2") << lines[2];
 }
 
 TEST(CsvPoseSinkFaults, APoseTheWriterCouldNotKeepIsAWriteErrorNotASilentGap) {

@@ -34,6 +34,7 @@ ipc::PoseValues CanPoseSink::to_values(const pipeline::PoseRecord& p, std::int64
   v.state = to_wire(p.state);
   v.reason_bits = p.reason_bits;
   v.look_alike = p.look_alike;
+  v.angle_order = p.angle_order;
   // A pose that is not a number is not a pose: say so instead of sending a plausible 0.
   if (!std::isfinite(v.x_nm) || !std::isfinite(v.y_nm) || !std::isfinite(v.phi_deg) || !std::isfinite(v.score)) {
     v.x_nm = v.y_nm = v.phi_deg = v.score = 0;

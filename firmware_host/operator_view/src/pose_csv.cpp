@@ -53,6 +53,7 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
   int n = 0;
   bool with_target = false;
   std::size_t columns = 7;
+  std::size_t order_column = 0;  // 0: the file has none
   while (std::getline(in, line)) {
     ++n;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -61,19 +62,25 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
       if (line.rfind("frame,t_ns,x_px,y_px,phi_deg,score,status", 0) != 0) {
         throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale]");
       }
-      // Columns after status: target (several targets), scale and the four σ (newer files), in
-      // that order; the view reads none of the later ones, it only counts them.
+      // Columns after status: target (several targets), scale, the four σ and the angle's order
+      // (newer files), in that order; the view reads the order (the angle plot says what φ
+      // means) and only counts the others.
       std::string rest = line.substr(std::string("frame,t_ns,x_px,y_px,phi_deg,score,status").size());
+      const std::string order = ",angle_order";
+      const bool with_order = rest.size() >= order.size() && rest.compare(rest.size() - order.size(), order.size(), order) == 0;
+      if (with_order) rest.resize(rest.size() - order.size());
       const std::string sigmas = ",sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale";
       const bool with_sigma = rest.size() >= sigmas.size() && rest.compare(rest.size() - sigmas.size(), sigmas.size(), sigmas) == 0;
       if (with_sigma) rest.resize(rest.size() - sigmas.size());
       if ((rest != "" && rest != ",target" && rest != ",scale" && rest != ",target,scale") ||
-          (with_sigma && rest.find(",scale") == std::string::npos)) {
-        throw std::runtime_error(path + ":1: header '" + line +
-                                 "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale[" + sigmas + "]]");
+          (with_sigma && rest.find(",scale") == std::string::npos) || (with_order && !with_sigma)) {
+        throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale[" +
+                                 sigmas + "[" + order + "]]]");
       }
       with_target = rest.rfind(",target", 0) == 0;
-      columns = 7 + (with_target ? 1 : 0) + (rest.find(",scale") != std::string::npos ? 1 : 0) + (with_sigma ? 4 : 0);
+      columns = 7 + (with_target ? 1 : 0) + (rest.find(",scale") != std::string::npos ? 1 : 0) + (with_sigma ? 4 : 0) +
+                (with_order ? 1 : 0);
+      order_column = with_order ? columns - 1 : 0;
       continue;
     }
     std::vector<std::string> cells;
@@ -96,6 +103,8 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
     r.score = number_in(cells[5], where, "score", -1, 1, false);
     r.status = status(cells[6], where);
     if (with_target) r.target = cells[7];
+    // The orders a pattern can declare (pose::PatternSymmetry) are 1..6; more is not a file sempose wrote.
+    if (order_column != 0) r.angle_order = static_cast<int>(number_in(cells[order_column], where, "angle_order", 1, 6, true));
     rows.push_back(std::move(r));
   }
   if (rows.empty()) throw std::runtime_error(path + ": no poses");

@@ -3,6 +3,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
@@ -37,7 +38,11 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
        << "set output '" << stem << ".png'\n"
        << "set multiplot layout 4,1 title '" << title << "'\n"
        << "set grid\nset key outside right\nset lmargin 10\n";
-    const char* panels[4][2] = {{"3", "x (px)"}, {"4", "y (px)"}, {"5", "phi (deg)"}, {"6", "score (ZNCC)"}};
+    // A symmetric target's angle is known modulo 360°/n only: the axis says so (largest n shown).
+    int order = 1;
+    for (const auto& r : rows) order = std::max(order, r.angle_order);
+    const std::string phi_label = order > 1 ? "phi (deg, mod " + std::to_string(360 / order) + ")" : "phi (deg)";
+    const char* panels[4][2] = {{"3", "x (px)"}, {"4", "y (px)"}, {"5", phi_label.c_str()}, {"6", "score (ZNCC)"}};
     for (int p = 0; p < 4; ++p) {
       gp << "set ylabel '" << panels[p][1] << "'\n";
       gp << (p == 3 ? "set xlabel '" + std::string(timed ? "time (s)" : "frame") + "'\n" : "unset xlabel\n");

@@ -71,7 +71,7 @@ void CsvPoseSink::write_pending() {
   // must not leave a file of pose lines without one).
   const bool header = !header_written_;
   if (header) {
-    std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale\n",
+    std::fprintf(file_, "frame,t_ns,x_px,y_px,phi_deg,score,status%s,scale,sigma_x_px,sigma_y_px,sigma_phi_deg,sigma_scale,angle_order\n",
                  with_target_ ? ",target" : "");
   }
   std::uint64_t lines = 0;
@@ -86,6 +86,8 @@ void CsvPoseSink::write_pending() {
       std::fprintf(file_, ",%.4f", p.target_scale);  // the target's size over its pattern's
       // 1σ of the measured pose (0: not measured, e.g. a start-search frame).
       std::fprintf(file_, ",%.5f,%.5f,%.5f,%.6f", p.sigma_x_px, p.sigma_y_px, p.sigma_phi_deg, p.sigma_scale);
+      // phi_deg is known modulo 360°/angle_order (a pattern that looks the same turned by that).
+      std::fprintf(file_, ",%u", static_cast<unsigned>(p.angle_order));
       std::fputc('\n', file_);
       ++lines;
     }

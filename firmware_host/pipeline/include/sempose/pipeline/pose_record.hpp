@@ -22,6 +22,7 @@ inline PoseRecord make_pose_record(const hal::FrameMeta& m, const pose::PoseEsti
   p.state = est.state;
   p.reason_bits = est.reason_bits;
   p.look_alike = est.look_alike;
+  p.angle_order = est.angle_order;
   p.x_px = est.x_px;
   p.y_px = est.y_px;
   p.phi_deg = est.phi_deg;

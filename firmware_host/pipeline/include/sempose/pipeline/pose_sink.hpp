@@ -19,6 +19,9 @@ struct PoseRecord {
   pose::TrackState state = pose::TrackState::kAcquiring;
   std::uint8_t reason_bits = 0;     // pose::LostReason bits
   bool look_alike = false;           // see pose::PoseEstimate::look_alike (CAN: POSE_ATTR.look_alike)
+  // phi_deg is known modulo 360°/angle_order (pose::PoseEstimate::angle_order; CSV angle_order,
+  // CAN POSE_ATTR.angle_order): reported, so a reader knows what the angle means.
+  std::uint8_t angle_order = 1;
   double x_px = 0;
   double y_px = 0;
   double phi_deg = 0;               // (-180, 180]
