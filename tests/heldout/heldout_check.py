@@ -230,8 +230,11 @@ def run(cmd, log, timeout):
     return p.returncode, time.monotonic() - t0, p.stdout
 
 
-def angle_diff(a, b):
-    return abs((a - b + 540.0) % 360.0 - 180.0)
+def angle_diff(a, b, order=1):
+    """|a - b| in degrees modulo 360/order: the pose declares its angle known modulo that
+    (poses.csv angle_order, a target that looks the same turned by 360/order; 1 when not said)."""
+    turn = 360.0 / order
+    return abs((a - b + 1.5 * turn) % turn - 0.5 * turn)
 
 
 def evaluate(seq, poses_csv, truth_csv):
@@ -259,7 +262,7 @@ def evaluate(seq, poses_csv, truth_csv):
                 p["worst"] = (frame, float("inf"), float("inf"), r["score"])
                 continue
             dx = math.hypot(float(r["x_px"]) - tr[0], float(r["y_px"]) - tr[1])
-            da = angle_diff(float(r["phi_deg"]), tr[2] - phi0[t])
+            da = angle_diff(float(r["phi_deg"]), tr[2] - phi0[t], int(r.get("angle_order") or 1))
             p["sq_px"] += dx * dx
             p["sq_deg"] += da * da
             if dx > FALSE_PX or da > FALSE_DEG:
