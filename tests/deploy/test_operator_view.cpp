@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -15,6 +16,7 @@
 #include "sempose/operator_view/pose_csv.hpp"
 #include "sempose/operator_view/rgb_image.hpp"
 #include "sempose/operator_view/roi_overlay.hpp"
+#include "sempose/operator_view/track_plot.hpp"
 
 namespace fs = std::filesystem;
 using namespace sempose;
@@ -72,6 +74,24 @@ TEST(PoseCsv, ReadsRunAndReplayFiles) {
   std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status,scale,angle_order\n0,0,1,2,3,0.5,TRACKING,1.0,2\n";
   EXPECT_THROW(read_pose_csv(p), std::runtime_error);
   fs::remove(p);
+}
+
+// The φ plot says which target's angle is known modulo 360°/n only: the lamella's line, not the
+// needle's (the .gp file is written whether or not gnuplot is installed).
+TEST(TrackPlot, SymmetricTargetsPhiLineSaysModulo) {
+  PoseRow lamella, needle;
+  lamella.target = "lamella";
+  lamella.angle_order = 2;
+  needle.target = "needle";
+  const std::string stem = temp("track");
+  plot_track({lamella, needle}, stem, "t");
+  std::ostringstream text;
+  text << std::ifstream(stem + ".gp").rdbuf();
+  const std::string gp = text.str();
+  EXPECT_NE(gp.find("title 'target lamella (mod 180)'"), std::string::npos) << gp;
+  EXPECT_EQ(gp.find("target needle (mod"), std::string::npos) << gp;
+  EXPECT_NE(gp.find("title 'target needle'"), std::string::npos) << gp;
+  for (const char* ext : {".gp", ".dat", ".png"}) fs::remove(stem + ext);
 }
 
 TEST(PoseCsv, ErrorsNameFileLineAndCell) {

@@ -9,6 +9,18 @@
 #include <stdexcept>
 
 namespace sempose::operator_view {
+namespace {
+
+// The largest angle order target's poses declare (1: its angle is absolute).
+int order_of(const std::vector<PoseRow>& rows, const std::string& target) {
+  int order = 1;
+  for (const auto& r : rows) {
+    if (r.target == target) order = std::max(order, r.angle_order);
+  }
+  return order;
+}
+
+}  // namespace
 
 std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem, const std::string& title) {
   const auto targets = targets_of(rows);
@@ -38,17 +50,15 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
        << "set output '" << stem << ".png'\n"
        << "set multiplot layout 4,1 title '" << title << "'\n"
        << "set grid\nset key outside right\nset lmargin 10\n";
-    // A symmetric target's angle is known modulo 360°/n only: the axis says so (largest n shown).
-    int order = 1;
-    for (const auto& r : rows) order = std::max(order, r.angle_order);
-    const std::string phi_label = order > 1 ? "phi (deg, mod " + std::to_string(360 / order) + ")" : "phi (deg)";
-    const char* panels[4][2] = {{"3", "x (px)"}, {"4", "y (px)"}, {"5", phi_label.c_str()}, {"6", "score (ZNCC)"}};
+    const char* panels[4][2] = {{"3", "x (px)"}, {"4", "y (px)"}, {"5", "phi (deg)"}, {"6", "score (ZNCC)"}};
     for (int p = 0; p < 4; ++p) {
       gp << "set ylabel '" << panels[p][1] << "'\n";
       gp << (p == 3 ? "set xlabel '" + std::string(timed ? "time (s)" : "frame") + "'\n" : "unset xlabel\n");
       gp << "plot ";
       for (std::size_t k = 0; k < targets.size(); ++k) {
-        const std::string name = targets[k].empty() ? "target 0" : "target " + targets[k];
+        std::string name = targets[k].empty() ? "target 0" : "target " + targets[k];
+        // A symmetric target's angle is known modulo 360°/n only: its phi line says so.
+        if (p == 2 && order_of(rows, targets[k]) > 1) name += " (mod " + std::to_string(360 / order_of(rows, targets[k])) + ")";
         gp << (k ? ", " : "") << "'" << stem << ".dat' index " << k << " using " << xcol << ":" << panels[p][0]
            << " with lines lw 1.2 title '" << name << "'";
         // Poses that were not TRACKING: marked on the line so lost stretches stand out.
