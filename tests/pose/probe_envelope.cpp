@@ -363,6 +363,13 @@ std::vector<Case> cases() {
                  drop_every_4th_line(s);
                  s.detector_tau_ns = 120;
                }});
+  // Nothing told (a replay, real hardware): no τ, the pattern's set without its dwell_ns. The
+  // frames' τ is measured and the pattern's lag read from its own noise (none): the dropped
+  // lines' correlation, if taken for a detector's, is a lag taken out of every pose.
+  v.push_back({"every_4th_line_dropped_nothing_told", [drop_every_4th_line](pt::Scenario& s) {
+                 drop_every_4th_line(s);
+                 s.pattern_dwell_told = false;
+               }});
   return v;
 }
 
