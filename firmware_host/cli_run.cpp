@@ -464,8 +464,12 @@ int sempose::cli::run(int argc, char** argv) {
     // told, whether the frames and the patterns' own noise agreed with it.
     const pose::Tracker::DetectorTauStatus d = run.trackers.trackers[static_cast<std::size_t>(t)]->detector_tau_status();
     if (d.measuring)
-      std::printf("detector %d %s: measured line_rho=%.3f tau_px=%.2f tau_ns=%.0f over %.0f ROI frames (0: a fast detector)\n",
-                  t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), d.rho, d.tau_px, d.tau_ns, d.frames);
+      std::printf("detector %d %s: measured line_rho=%.3f lag2_excess=%+.3f tau_px=%.2f tau_ns=%.0f over %.0f ROI frames "
+                  "(0: a fast detector)%s\n",
+                  t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), d.rho, d.lag2_excess, d.tau_px, d.tau_ns, d.frames,
+                  d.inconsistent ? "; INCONSISTENT: the lines' correlation is not a detector low-pass's (rho2 != rho1^2: "
+                                   "dropped lines?), no lag taken out"
+                                 : "");
     if (d.measuring && d.told_tau_ns > 0)
       std::printf("detector %d %s: told tau_ns=%.0f: frames %s; pattern sets whose own noise overruled their dwell_ns: %d\n", t,
                   run.trackers.names[static_cast<std::size_t>(t)].c_str(), d.told_tau_ns,

@@ -4,8 +4,9 @@
 // second target of the same pattern, beam faults. Closed loop on the simulator (sim_harness.hpp);
 // prints one row per case × target × dose: frames, TRACKING share, false TRACKING poses (> 3 px or
 // > 10° off target 0's truth when the beam passed it, or TRACKING while its centre is outside the field) and the largest
-// error of a TRACKING pose, the angle modulo 360°/n for a pattern the tracker declares of rotational order n (the last
-// column). Not a test: it measures (README, Tests: pose_false_tracking_test).
+// error of a TRACKING pose, the angle modulo 360°/n for a pattern the tracker declares of rotational order n (the
+// order column), and the τ estimate's lag-2 check (rho2 − rho^2, "inconsistent": no lag taken out; line_correlation.hpp).
+// Not a test: it measures (README, Tests: pose_false_tracking_test).
 //   pose_envelope_probe [--case SUBSTRING] [--target NAME] [--dose D] [--frames-list] [--trace] [--measure-tau on|off]
 // --frames-list: every false TRACKING pose; --trace: every frame's state, pose and truth (stderr);
 // --measure-tau: tracker.measure_detector_tau (off: the lag of a detector nobody told is left in).
@@ -393,8 +394,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  std::printf("%-32s %-12s %5s | %6s %6s %6s %5s %8s %8s | %6s %5s %6s | %s\n", "case", "target", "dose", "frames", "trk%", "unc%", "false",
-              "max_px", "max_deg", "dx_px", "tau", "rho", "order");
+  std::printf("%-32s %-12s %5s | %6s %6s %6s %5s %8s %8s | %6s %5s %6s | %s | %s\n", "case", "target", "dose", "frames", "trk%", "unc%", "false",
+              "max_px", "max_deg", "dx_px", "tau", "rho", "order", "rho2-rho^2");
   for (const Case& c : cases()) {
     if (!only_case.empty() && c.name.find(only_case) == std::string::npos) continue;
     for (const std::string& target : c.targets) {
@@ -452,9 +453,10 @@ int main(int argc, char** argv) {
         // The TRACKING poses' mean x error (along the lines) and τ as the tracker measured it.
         const auto tau = h.tracker()->detector_tau_status();
         // The pattern's declared rotational order (the angles above are judged modulo 360°/order).
-        std::printf("%-32s %-12s %5.1f | %6d %6.1f %6.1f %5d %8.2f %8.2f | %+6.2f %5.2f %6.3f | %d\n", c.name.c_str(), target.c_str(), dose, s.frames,
+        std::printf("%-32s %-12s %5.1f | %6d %6.1f %6.1f %5d %8.2f %8.2f | %+6.2f %5.2f %6.3f | %d | %+.3f%s\n", c.name.c_str(), target.c_str(), dose, s.frames,
                     100.0 * tracking / s.frames, 100.0 * uncertain / s.frames, false_n, max_px, max_deg,
-                    tracking ? sum_dx / tracking : 0.0, tau.tau_px, tau.rho, h.tracker()->symmetry(h.tracker()->pattern_set()).order);
+                    tracking ? sum_dx / tracking : 0.0, tau.tau_px, tau.rho, h.tracker()->symmetry(h.tracker()->pattern_set()).order,
+                    tau.lag2_excess, tau.inconsistent ? " inconsistent" : "");
         std::fputs(frames.c_str(), stdout);
         std::fflush(stdout);
       }

@@ -80,14 +80,52 @@ TEST(LineCorrelation, RecoversRhoOnFlatAndRealStructureAtEveryDose) {
   }
 }
 
-// Sums of a given ρ whose noise dominates (the gate open: noise_share() 1).
+// What correlates the line differences along the lines without being a detector's low-pass
+// (the lag-2 check, LineCorrelationSums): every 4th line dropped to the black level (its
+// neighbour's scene, smooth along x, left in z: ρ1 0.12–0.74 read, ρ2 ≈ ρ1), flat and
+// micrograph scenes, 20 to 1 e⁻/px, 8 frames: no lag, no τ. Main (0f5fdd5) read them as a
+// detector's lag of 0.14–3.04 px. A real low-pass: the test above.
+TEST(LineCorrelation, DroppedLinesAreNoDetectorLag) {
+  const hal::Image im = micrograph();
+  ASSERT_GT(im.width, 700);
+  const double maxv = im.bits > 8 ? 65535.0 : 255.0;
+  const int step = line_correlation_row_step(kSide, kSide);
+  for (int scene = 0; scene < 2; ++scene)
+    for (double dose : {20.0, 6.0, 2.5, 1.0}) {
+      std::mt19937_64 rng(static_cast<std::uint64_t>(10 * dose + scene));
+      DetectorTauEstimator est;
+      LineCorrelationSums last;
+      for (int f = 0; f < 8; ++f) {
+        const int ox = 300 + 37 * f, oy = 350 + 53 * f;
+        auto b = [&](int x, int y) { return scene == 0 ? 0.5 : im.pixels[static_cast<std::size_t>(oy + y) * im.width + ox + x] / maxv; };
+        std::vector<std::uint16_t> px = frame(b, dose, 0.0, rng);
+        for (int y = f % 4; y < kSide; y += 4)  // the black level: brightness 0.04
+          std::fill(px.begin() + y * kSide, px.begin() + (y + 1) * kSide, static_cast<std::uint16_t>(40));
+        last = line_correlation_sums(px.data(), kSide, kSide, kSide, step);
+        est.read(last, 250);
+        est.keep();
+      }
+      char what_c[96];
+      std::snprintf(what_c, sizeof what_c, "every 4th line dropped, %s, %.1f e-/px", scene == 0 ? "flat" : "micrograph", dose);
+      const std::string what = what_c;
+      std::printf("%s: line rho %.3f (last frame), lag %.2f px\n", what_c, last.rho(), est.lag_px(250));
+      EXPECT_TRUE(last.noise_dominates(DetectorTauEstimator::kMinNoiseShare)) << what << ": the gate lets it through";
+      EXPECT_GT(last.rho(), 0.1) << what << ": it correlates the lines' differences";
+      EXPECT_EQ(est.lag_px(250), 0.0) << what;
+      EXPECT_EQ(est.tau_ns(), 0.0) << what;
+    }
+}
+
+// Sums of a given ρ whose noise dominates (the gate open: noise_share() 1), a first-order
+// low-pass's (ρ2 = ρ²).
 LineCorrelationSums noisy_sums(double rho) {
   LineCorrelationSums s;
   s.along = rho;
+  s.along2 = rho * rho;
   s.power = 1.0;
   s.pairs = DetectorTauEstimator::kPairBudget;
   s.second_abs = static_cast<double>(s.pairs) * std::sqrt(6.0 * s.power / (M_PI * static_cast<double>(s.pairs)));
-  s.power *= 1e6, s.along *= 1e6, s.second_abs *= 1e3;  // noise of ~7 grey levels: above the floor
+  s.power *= 1e6, s.along *= 1e6, s.along2 *= 1e6, s.second_abs *= 1e3;  // noise of ~7 grey levels: above the floor
   return s;
 }
 
@@ -233,3 +271,4 @@ TEST(LineCorrelation, ToldLagIsOverruledOnlyBeyondTheReadingsError) {
 
 }  // namespace
 }  // namespace sempose::pose
+

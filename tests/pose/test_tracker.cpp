@@ -671,6 +671,45 @@ TEST(Tracker, DetectorLagOfAnUntoldDetectorIsTakenOutByDefault) {
   }
 }
 
+// Every 4th line dropped to the black level (a scan fault), nothing told (no τ, the pattern's
+// set without its dwell_ns, its own noise lag-free): the dropped lines correlate the line
+// differences along the lines (ρ 0.44–0.49 at 6 e⁻/px, 0.67–0.70 at 20), which the τ estimate
+// took for a slow detector's and took its lag out of every pose: on 0f5fdd5 x sat −0.77/−0.92 px
+// (6 e⁻/px) and −1.82/−2.28 px (20) along the line. Their ρ2 ≈ ρ1, not a low-pass's ρ1² (the
+// lag-2 check): no lag is taken out (+0.03…+0.18 px), no τ reported. The same path with a real
+// low-pass of τ 2 px still measures it.
+TEST(Tracker, DroppedLinesAreNotTakenForASlowDetector) {
+  for (const char* target : {"needle_tip", "lamella_post"}) {
+    for (double dose : {20.0, 6.0}) {
+      Scenario s;
+      s.target = target;
+      s.motion = "static";
+      s.dose_e = dose;
+      s.frames = 40;
+      s.pattern_dwell_told = false;
+      s.frame_fault = [](std::uint64_t, const hal::Roi& r, hal::Pixel* p, hal::Pixel m) {
+        for (int y = 0; y < r.h; ++y)
+          if ((r.y + y) % 4 == 0)
+            std::fill(p + static_cast<std::ptrdiff_t>(y) * r.w, p + static_cast<std::ptrdiff_t>(y + 1) * r.w, static_cast<hal::Pixel>(0.04 * m));
+      };
+      SimHarness h(s, config::TrackerConfig{});
+      ASSERT_TRUE(h.status().ok) << h.status().message;
+      h.run();
+      const RunStats r = h.stats();
+      ASSERT_GT(r.err_n, 30) << target;
+      const auto tau = h.tracker()->detector_tau_status();
+      const double dx = r.sum_dx / r.err_n;
+      std::printf("%s, every 4th line dropped, %.0f e-/px, nothing told: mean x error %+.3f px, line rho %.3f, tau %.2f px\n",
+                  target, dose, dx, tau.rho, tau.tau_px);
+      EXPECT_LT(std::fabs(dx), 0.3) << target << " " << dose << " e-/px: a dropped-line lag taken out";
+      EXPECT_EQ(tau.tau_px, 0.0) << target << " " << dose << " e-/px";
+    }
+    const StillMeanError real = still_mean_error(untold_detector(target, 500, true), config::TrackerConfig{});
+    EXPECT_NEAR(real.tau_px, 2.0, 0.2) << target << ": a real low-pass is still measured";
+    EXPECT_LT(std::fabs(real.dx), 0.35) << target;
+  }
+}
+
 // A pattern recorded through the same detector at the tracking dwell (10 still frames, the
 // simulator's low-pass of τ 2 px) and given without its dwell_ns: its own noise shows the
 // frames' lag, so the lags cancel and nothing is taken out. Counted lag-free (main with the

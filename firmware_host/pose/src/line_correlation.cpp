@@ -19,20 +19,37 @@ LineCorrelationSums line_correlation_sums(const std::uint16_t* px, int w, int h,
     const std::uint16_t* a = px + static_cast<std::ptrdiff_t>(j) * stride;
     const std::uint16_t* b = a + stride;
     const std::uint16_t* c = b + stride;
-    float along = 0, across = 0, power = 0, second = 0;
-#pragma omp simd reduction(+ : along, across, power, second)
-    for (int i = i0; i < w - 1; ++i) {
+    float along = 0, across = 0, power = 0, second = 0, along2 = 0, across2 = 0;
+    // The lag-2 products up to the line's last but one pixel, the lag-1 ones on to its last.
+#pragma omp simd reduction(+ : along, across, power, second, along2, across2)
+    for (int i = i0; i < w - 2; ++i) {
       const float z0 = static_cast<float>(b[i]) - static_cast<float>(a[i]);
       const float z1 = static_cast<float>(b[i + 1]) - static_cast<float>(a[i + 1]);
+      const float z2 = static_cast<float>(b[i + 2]) - static_cast<float>(a[i + 2]);
       const float dxa = static_cast<float>(a[i + 1]) - static_cast<float>(a[i]);
       const float dxb = static_cast<float>(b[i + 1]) - static_cast<float>(b[i]);
+      const float dxa2 = static_cast<float>(a[i + 2]) - static_cast<float>(a[i]);
+      const float dxb2 = static_cast<float>(b[i + 2]) - static_cast<float>(b[i]);
       along += z0 * z1;
       across += dxa * dxb;
+      along2 += z0 * z2;
+      across2 += dxa2 * dxb2;
+      power += z0 * z0;
+      second += std::fabs(static_cast<float>(c[i]) - static_cast<float>(b[i]) - z0);
+    }
+    {
+      const int i = w - 2;
+      const float z0 = static_cast<float>(b[i]) - static_cast<float>(a[i]);
+      const float z1 = static_cast<float>(b[i + 1]) - static_cast<float>(a[i + 1]);
+      along += z0 * z1;
+      across += (static_cast<float>(a[i + 1]) - static_cast<float>(a[i])) * (static_cast<float>(b[i + 1]) - static_cast<float>(b[i]));
       power += z0 * z0;
       second += std::fabs(static_cast<float>(c[i]) - static_cast<float>(b[i]) - z0);
     }
     s.along += along;
     s.across += across;
+    s.along2 += along2;
+    s.across2 += across2;
     s.power += power;
     s.second_abs += second;
     s.pairs += w - 1 - i0;
@@ -123,6 +140,8 @@ void DetectorTauEstimator::read(const LineCorrelationSums& s, double dwell_ns) n
   pending_rho_ = mapped(pending_read_, dwell_ns, ref_dwell_ns_);
   pending_dwell_ = dwell_ns;
   pending_weight_ = static_cast<double>(s.pairs);
+  const double rho2 = s.rho2();
+  pending_delta_ = std::isfinite(rho2) ? std::clamp(rho2, -1.0, 1.0) - pending_read_ * pending_read_ : 0.0;
 }
 
 void DetectorTauEstimator::keep() noexcept {
@@ -136,6 +155,7 @@ void DetectorTauEstimator::keep() noexcept {
   }
   rho_ = blended(rho_, pending_rho_);
   rho_read_ = blended(rho_read_, pending_read_);
+  delta_ = blended(delta_, pending_delta_);
   weight_ = std::min(weight_ + pending_weight_, kMemoryFrames * static_cast<double>(kPairBudget));
   pending_weight_ = 0;
 }
@@ -149,11 +169,18 @@ double DetectorTauEstimator::rho_at(double dwell_ns) const noexcept {
   return follows_dwell() ? mapped(blended(rho_, pending_rho_), ref_dwell_ns_, dwell_ns) : blended(rho_read_, pending_read_);
 }
 
+bool DetectorTauEstimator::consistent() const noexcept {
+  const double pairs = weight_ + pending_weight_;
+  if (!(pairs > 0)) return true;
+  return lag2_excess() <= kLag2Bias + kLag2NoiseSigmas * kLag2NoiseSd / std::sqrt(pairs);
+}
+
 double DetectorTauEstimator::lag_px(double dwell_ns) const noexcept {
-  return lag_of_rho(rho_at(dwell_ns));
+  return consistent() ? lag_of_rho(rho_at(dwell_ns)) : 0.0;
 }
 
 double DetectorTauEstimator::tau_px() const noexcept {
+  if (!consistent()) return 0.0;
   const double r = std::min(rho_at(ref_dwell_ns_), kMaxRho);
   return r < kFastRho ? 0.0 : -1.0 / std::log(r);
 }

@@ -709,6 +709,9 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
   }
   if (check_told_tau) return told_checked_lag_shift(set);
   if (!tau_estimate.has_reading()) return 0.0;  // the frames' lag not told yet: nothing to take out
+  // The frames' correlation is not a low-pass's (dropped lines: the lag-2 check): their
+  // lag is not known, and neither is what the pattern's would cancel. No lag taken out.
+  if (!tau_estimate.consistent()) return 0.0;
   const double set_dwell = set < pattern_dwell_ns.size() ? pattern_dwell_ns[set] : 0.0;
   if (!(set_dwell > 0)) {
     const double pattern_rho = set < pattern_measured_rho.size() ? pattern_measured_rho[set] : 0.0;
@@ -747,6 +750,8 @@ void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, 
     measured_tau_px.store(tau_estimate.tau_px(), std::memory_order_relaxed);
     measured_tau_ns.store(tau_estimate.tau_ns(), std::memory_order_relaxed);
     measured_tau_frames.store(tau_estimate.frames_kept(), std::memory_order_relaxed);
+    measured_lag2_excess.store(tau_estimate.lag2_excess(), std::memory_order_relaxed);
+    measured_inconsistent.store(!tau_estimate.consistent(), std::memory_order_relaxed);
   }
   held_frames = 0;
   loss.set_held(false);
@@ -1326,6 +1331,8 @@ Tracker::DetectorTauStatus Tracker::detector_tau_status() const noexcept {
                       t.measured_tau_frames.load(std::memory_order_relaxed)};
   s.told_tau_ns = t.cfg.detector_tau_ns > 0 ? t.cfg.detector_tau_ns : 0.0;
   s.frames_disagree = t.frames_disagree_status.load(std::memory_order_relaxed);
+  s.lag2_excess = t.measured_lag2_excess.load(std::memory_order_relaxed);
+  s.inconsistent = t.measured_inconsistent.load(std::memory_order_relaxed);
   s.patterns_told_overruled = t.patterns_overruled;
   return s;
 }

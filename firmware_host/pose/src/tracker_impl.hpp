@@ -120,6 +120,8 @@ struct Tracker::Impl {
   std::vector<double> pattern_dwell_ns;
   std::vector<double> pattern_measured_rho;
   std::atomic<double> measured_rho{0}, measured_tau_px{0}, measured_tau_ns{0}, measured_tau_frames{0};
+  std::atomic<double> measured_lag2_excess{0};
+  std::atomic<bool> measured_inconsistent{false};
   // The frames' lag told; the set's lag told or, overruled, its own.
   double told_checked_lag_shift(std::uint8_t set) noexcept;
   // This frame's lag against the active set's pattern (px along x), told or measured.

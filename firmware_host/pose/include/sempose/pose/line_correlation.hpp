@@ -29,15 +29,31 @@ namespace sempose::pose {
 // dominate a scene's Σ z²) predicts the noise's part of Σ z², 2v per pair:
 //   noise_share = 2·(π/2)·(mean |w|)²/6 / (Σ z²/pairs),
 // ~1 where the noise dominates, → 0 on noise-free or very high-dose structure.
+//
+// Whether it is a detector's low-pass at all (the lag-2 check): a causal first-order low-pass
+// along the line makes the noise's correlation fall as ρ(k) = ρ^k, so ρ2 = ρ1². What else
+// correlates z along a line breaks that in its own way: a dropped (black) line leaves its
+// neighbour's scene in z, smooth along x, so ρ2 ≈ ρ1 (every 4th line dropped: ρ1 0.65–0.79,
+// ρ2 − ρ1² +0.10…+0.25). ρ2 is read as ρ1 is, with the lag-2 products: z(i)·z(i+2) and across
+// lines Δ2x(j)·Δ2x(j+1), Δ2x(j) = y(i+2, j) − y(i, j). Only that side is checked: the scene's
+// leak pulls ρ2 below ρ1² — what is left of it in the sums is Σ (b(i) − a(i+k))(b(i+k) − a(i)),
+// the product of the two diagonal differences, −g² a pixel on a gradient g along x, about twice
+// as much at lag 2 as at lag 1 — and grows with the dose: the simulator's targets through a real
+// low-pass of τ 1–4 px read −0.11…−0.15 at 20 e⁻/px, as low as a symmetric blur of the noise
+// ([1 2 1]/4: −0.28; a Gaussian's ρ2 = ρ1⁴), so a blur cannot be told from a real detector at
+// high dose this way (a lower bound tried: it left a real τ 4 px lag in, 5 false poses).
 struct LineCorrelationSums {
   double along = 0;   // Σ z(i)·z(i+1)
   double across = 0;  // Σ Δx(j)·Δx(j+1)
+  double along2 = 0;   // Σ z(i)·z(i+2)
+  double across2 = 0;  // Σ Δ2x(j)·Δ2x(j+1)
   double power = 0;   // Σ z(i)²
   double second_abs = 0;  // Σ |w(i)|
   std::int64_t pairs = 0;
   static constexpr int kSkipPx = 8;
   bool valid() const noexcept { return pairs > 0 && power > 0; }
   double rho() const noexcept { return valid() ? (along - across) / power : 0.0; }
+  double rho2() const noexcept { return valid() ? (along2 - across2) / power : 0.0; }
   // The noise variance of one pixel mean |w| predicts, (π/2)(mean |w|)²/6, and its share of Σ z².
   double noise_var() const noexcept;
   double noise_share() const noexcept;
@@ -126,6 +142,16 @@ class DetectorTauEstimator {
   // not kSettledFrames (~128 frames of bands).
   static constexpr double kToldCheckFrames = 1;
   static bool told_disagrees(double told_rho, double measured_rho) noexcept;
+  // The lag-2 check (LineCorrelationSums): the estimate is a detector's low-pass only while its
+  // δ = ρ2 − ρ1² (the readings' mean, weighted as ρ's) is at most kLag2Bias + kLag2NoiseSigmas ·
+  // kLag2NoiseSd / √pairs. A real low-pass of τ 0–4 px (flat and micrograph scenes, 1–20 e⁻/px,
+  // 8 frames of bands, test_line_correlation.cpp) reads δ −0.025…+0.006, in the tracker down to
+  // −0.15 (the scene's leak, below); a band's δ scatters with SD ~0.025 at ~2.2k pairs
+  // (kLag2NoiseSd / √pairs). Every 4th line dropped reads δ +0.10…+0.25 (τ 0) and +0.04…+0.10
+  // (τ 1 px), in the tracker +0.17…+0.19 at 20 e⁻/px.
+  static constexpr double kLag2Bias = 0.04;
+  static constexpr double kLag2NoiseSd = 1.2;
+  static constexpr double kLag2NoiseSigmas = 3;
   // The lag ρ/(1 − ρ) px of a line correlation ρ (0 below kFastRho, capped at kMaxRho).
   static double lag_of_rho(double rho) noexcept;
 
@@ -138,9 +164,10 @@ class DetectorTauEstimator {
 
   // The estimate (with the pending reading) at dwell_ns (≤ 0: as read); 0 before any reading.
   double rho_at(double dwell_ns) const noexcept;
-  // The lag e^(−d/τ)/(1 − e^(−d/τ)) = ρ/(1 − ρ) px at dwell_ns; 0 below kFastRho.
+  // The lag e^(−d/τ)/(1 − e^(−d/τ)) = ρ/(1 − ρ) px at dwell_ns; 0 below kFastRho or where the
+  // readings are not a low-pass's (consistent()).
   double lag_px(double dwell_ns) const noexcept;
-  // τ in px at the reference dwell and in ns (0: fast, or the dwell not known).
+  // τ in px at the reference dwell and in ns (0: fast, not consistent(), or the dwell not known).
   double tau_px() const noexcept;
   double tau_ns() const noexcept;
   double reference_dwell_ns() const noexcept { return ref_dwell_ns_; }
@@ -150,12 +177,17 @@ class DetectorTauEstimator {
   double frames_kept() const noexcept { return weight_ / kPairBudget; }
   // ρ follows the frames' dwell as reported (the readings say so); false: ρ as read.
   bool follows_dwell() const noexcept { return miss_mapped_ < miss_read_; }
+  // The lag-2 check: ρ2 − ρ1² of the readings (with the pending one), and whether it says a
+  // first-order low-pass along the line (true before any reading). Not consistent: lag_px() 0.
+  double lag2_excess() const noexcept { return blended(delta_, pending_delta_); }
+  bool consistent() const noexcept;
 
  private:
   double mapped(double rho, double from_dwell, double to_dwell) const noexcept;
   double blended(double kept, double pending) const noexcept;
   double rho_ = 0, rho_read_ = 0, weight_ = 0;  // kept estimates (at the reference dwell; as read), their weight in pairs
   double pending_rho_ = 0, pending_read_ = 0, pending_dwell_ = 0, pending_weight_ = 0;
+  double delta_ = 0, pending_delta_ = 0;  // ρ2 − ρ1² kept, and this frame's
   double ref_dwell_ns_ = 0;
   // How far each estimate missed the kept readings (squared, ~kMemoryFrames readings' memory).
   double miss_mapped_ = 0, miss_read_ = 0;

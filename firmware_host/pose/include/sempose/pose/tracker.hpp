@@ -153,12 +153,17 @@ class Tracker {
   // it (a detector swapped, a dwell changed without the config, or a scan fault: reported, the
   // told lag kept); patterns_told_overruled: the pattern sets whose own noise disagreed with
   // the lag their dwell_ns implies (a clean crop given a dwell) and whose reading is used.
+  // inconsistent: the readings' lag-2 correlation is not a first-order low-pass's (ρ2 − ρ1²,
+  // lag2_excess, above DetectorTauEstimator's kLag2 bound: dropped lines): no lag is
+  // taken out and tau_px / tau_ns read 0 (rho is the lag-1 reading as it stands).
   struct DetectorTauStatus {
     bool measuring = false;
     double rho = 0, tau_px = 0, tau_ns = 0, frames = 0;
     double told_tau_ns = 0;
     bool frames_disagree = false;
     int patterns_told_overruled = 0;
+    double lag2_excess = 0;
+    bool inconsistent = false;
   };
   DetectorTauStatus detector_tau_status() const noexcept;
   // Bank + spectra + FFT buffers, bytes (printed at start).
