@@ -135,6 +135,32 @@ TEST(Governor, LowMatchQualityLengthensDwellDownToMinPoseRate) {
   EXPECT_EQ(steps[199].dwell_ns, base) << "recovers once the matches are good again";
 }
 
+// A ROI pose the tracker reported LOST buys the next ROIs more dwell, though its score is above
+// low_score (the tracker judges scores against its own levels); good poses give it back.
+TEST(Governor, ALostRoiPoseLengthensTheNextRoiDwell) {
+  config::GovernorConfig c;
+  const auto l = limits();
+  ScanSpeedGovernor gov(c, l, 1);
+  for (int k = 0; k < 40; ++k) {
+    gov.observe(0, 2'000'000, 0.9f, 9.0f, true);
+    (void)gov.next_dwell_ns(0, 128, 128);
+  }
+  const std::uint32_t settled = gov.next_dwell_ns(0, 128, 128);
+  EXPECT_EQ(settled, ideal_dwell(l, c, 2'000'000, 128, 128));
+  std::uint32_t after_losses = settled;
+  for (int k = 0; k < 3; ++k) {
+    gov.observe(0, 2'000'000, 0.6f, 9.0f, false);  // LOST: not tracking, score above low_score
+    gov.lost_on_roi(0);
+    after_losses = gov.next_dwell_ns(0, 128, 128);
+  }
+  EXPECT_GE(after_losses, static_cast<std::uint32_t>(settled * 1.9)) << "three LOST ROI poses: 1.25^3 ≈ 1.95× the dwell";
+  for (int k = 0; k < 200; ++k) {
+    gov.observe(0, 2'000'000, 0.9f, 9.0f, true);
+    (void)gov.next_dwell_ns(0, 128, 128);
+  }
+  EXPECT_EQ(gov.next_dwell_ns(0, 128, 128), settled) << "recovers once the poses are good again";
+}
+
 TEST(Governor, TwoTargetsShareTheRateBudget) {
   config::GovernorConfig c;
   c.min_pose_rate_hz = 50;

@@ -32,6 +32,13 @@ class ScanSpeedGovernor {
   // non-tracking poses (full-field start search) are not representative and are ignored.
   void observe(std::uint8_t target, std::int64_t compute_ns, float score, float psr,
                bool tracking) noexcept;
+  // After a ROI pose of `target` the tracker reported LOST: its score says little (the tracker
+  // judges it against its own levels, not the governor's low_score), the state says the dwell
+  // did not carry the target. The next ROIs get quality_gain more dwell (up to the cap), as a
+  // low-quality pose does. Without it a governor that had reached a 100 ns floor stayed there
+  // through LOST ROI frames (a needle spinning at 30°/s, 3 e-/px: LOST ROI frame, 500 ns start
+  // search, LOST ROI frame at 100 ns again, ... half the frames slow full-field searches).
+  void lost_on_roi(std::uint8_t target) noexcept;
 
   // Dwell for the next w×h ROI of `target` (updates that target's hysteresis state).
   std::uint32_t next_dwell_ns(std::uint8_t target, std::int32_t w, std::int32_t h) noexcept;
