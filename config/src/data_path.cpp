@@ -11,6 +11,9 @@
 #ifndef SEMPOSE_SOURCE_CONFIG_DIR
 #define SEMPOSE_SOURCE_CONFIG_DIR ""
 #endif
+#ifndef SEMPOSE_BUILD_DIR
+#define SEMPOSE_BUILD_DIR ""
+#endif
 
 namespace sempose::config {
 namespace {
@@ -25,6 +28,21 @@ std::string file_problem(const std::string& path) {
   return "";
 }
 
+// Whether this process's executable lies in the build tree it was compiled in. Such a binary
+// belongs to that source tree: its data come from there even when a sempose package is installed
+// (two checkouts' CIs on one machine: one's package test installing and removing
+// /usr/share/sempose while the other's tests read their textures from it).
+bool running_from_build_tree() {
+  if (*SEMPOSE_BUILD_DIR == '\0') return false;
+  std::error_code ec;
+  // Both as the kernel names them: /proc/self/exe is canonical, the build folder may be reached by a link.
+  const std::string build_dir = std::filesystem::weakly_canonical(SEMPOSE_BUILD_DIR, ec).string();
+  if (ec) return false;
+  const std::string exe = std::filesystem::read_symlink("/proc/self/exe", ec).string();
+  return !ec && exe.size() > build_dir.size() && exe.compare(0, build_dir.size(), build_dir) == 0 &&
+         exe[build_dir.size()] == '/';
+}
+
 }  // namespace
 
 std::vector<std::string> data_search_dirs(const std::string& config_path) {
@@ -33,7 +51,11 @@ std::vector<std::string> data_search_dirs(const std::string& config_path) {
     const auto slash = config_path.rfind('/');
     dirs.push_back(slash == std::string::npos ? "." : config_path.substr(0, slash == 0 ? 1 : slash));
   }
-  for (const char* d : {SEMPOSE_INSTALL_DATA_DIR, SEMPOSE_SOURCE_CONFIG_DIR}) {
+  // An installed binary reads the installed data; one run from its build tree its own source
+  // tree's first; the source tree stays the last resort of a binary copied out of the build tree.
+  const bool build_tree = running_from_build_tree();
+  for (const char* d : {build_tree ? SEMPOSE_SOURCE_CONFIG_DIR : SEMPOSE_INSTALL_DATA_DIR,
+                        build_tree ? SEMPOSE_INSTALL_DATA_DIR : SEMPOSE_SOURCE_CONFIG_DIR}) {
     if (*d != '\0') dirs.emplace_back(d);
   }
   return dirs;

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "sempose/config/app_config.hpp"
+#include "sempose/config/data_path.hpp"
 #include "sempose/config/target_name.hpp"
 
 namespace sempose::config {
@@ -362,6 +363,16 @@ TEST(AppConfigData, RelativeConfigPathGivesAbsoluteTexturePath) {
   std::string e;
   ASSERT_TRUE(load_app_config(rel, c, e)) << e;
   EXPECT_EQ(c.sim.targets[0].texture.path, std::string(SEMPOSE_SOURCE_DIR) + "/config/data/sem/needle_contact_eb.pgm");
+}
+
+// A binary run from its build tree (this test) reads its own source tree's data before an
+// installed package's: another checkout's package test installing and removing
+// /usr/share/sempose must not change, or break, what this checkout's tests read.
+TEST(AppConfigData, BuildTreeBinaryPrefersItsSourceTreeOverTheInstalledData) {
+  const auto dirs = sempose::config::data_search_dirs("");
+  ASSERT_EQ(dirs.size(), 2u);
+  EXPECT_EQ(dirs[0], std::string(SEMPOSE_SOURCE_DIR) + "/config");
+  EXPECT_NE(dirs[1].find("share/sempose"), std::string::npos) << dirs[1];
 }
 
 // A config elsewhere (no data/ beside it) falls back to the data folders, not the working directory.

@@ -1,7 +1,8 @@
 // Where data files named in a config (simulator textures and backgrounds) are found.
 // A relative path is looked up, in this order, in the config file's folder, in the installed
 // data folder (<prefix>/share/sempose, where the package puts data/sem/...), and in the source
-// tree's config/ folder (a binary run from its build tree). The built-in default target names
+// tree's config/ folder; a binary run from its own build tree tries its source tree before the
+// installed folder, so that an installed package never stands in for the checkout under test. The built-in default target names
 // data/sem/needle_contact_eb.pgm, so config/default.yaml, /etc/sempose/sempose.yaml and a test's
 // own YAML all find it without a path of their own.
 #pragma once
