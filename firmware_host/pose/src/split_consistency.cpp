@@ -123,6 +123,12 @@ SplitConsistency SplitConsistencyCheck::measure(const PatternBank& bank, int j, 
     if (!(det > 0)) continue;
     const double d2 = (syy * ddx * ddx - 2 * sxy * ddx * ddy + sxx * ddy * ddy) / det;
     const double z = std::sqrt(std::max(0.0, d2));
+    // Along the scan lines alone: the cut whose parts' x displacements differ by the most SDs.
+    if (sxx > 0 && std::fabs(ddx) / std::sqrt(sxx) > r.line_z) {
+      r.line_z = std::fabs(ddx) / std::sqrt(sxx);
+      r.line_apart_px = std::fabs(ddx);
+      r.line_rows_apart = last.ny / last.n - first.ny / first.n;
+    }
     if (!r.valid || z > r.z) {
       r.valid = true;
       r.z = z;

@@ -31,6 +31,10 @@ struct SplitConsistency {
   // was scanned, so how far a moving target's own motion puts the parts apart.
   double rows_apart = 0;
   int cut = 0;  // 1 … kCuts: the cut after cut quarters of the support's rows
+  // The same along the scan lines (x) alone, at the cut where that component is farthest apart
+  // in its SDs: a change of the target's size pulls the parts apart along the slow axis (rows
+  // below the centre show it lower), not along the lines; a tear that moves the lines does.
+  double line_z = 0, line_apart_px = 0, line_rows_apart = 0;
 };
 
 class SplitConsistencyCheck {
