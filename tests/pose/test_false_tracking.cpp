@@ -988,12 +988,12 @@ TEST(NoFalseTracking, ScanGlitchShiftingHalfTheFrameIsNotTracking) {
   EXPECT_GE(tracked, s.frames * 3 / 4) << "tracked outside the glitch";
 }
 
-// The same glitch at 6 e-/px: the tracked scale follows the torn frames' readings (1.00 → 0.97
-// over frames 42-46), which closed the split check's steady-scale gate on the later torn frames
-// and, through the scale's share of the allowance, excused the one before: 3 ROI frames 9-10 px
-// off TRACKING, their parts 1.7-1.9 px apart along the lines at 5-5.6 SD. Along the scan lines
-// a change of size does not pull the parts apart, so that component is judged whatever the
-// scale does (tracker.cpp, torn()).
+// The same glitch at 6 e-/px: the tracked scale follows the torn frames' readings (0.99 → 0.97
+// over frames 42-46); the scale's share of the split check's allowance excused frame 46, whose
+// reading then closed the steady-scale gate on 47-49: 3 ROI frames 9-10 px off TRACKING, their
+// parts 1.7-1.9 px apart along the lines at 5-5.6 SD. A change of size does not pull the parts
+// apart along the scan lines, so that component is judged without the scale's allowance
+// (tracker.cpp, torn()): frame 46 is caught and the gate stays open after it.
 TEST(NoFalseTracking, ScanGlitchAlongTheLinesIsNotTrackingWhileTheScaleFollowsIt) {
   pt::Scenario s = envelope_scene("needle_tip", "smooth", 6, 60);
   s.frame_fault = [](std::uint64_t seq, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel) {

@@ -419,18 +419,21 @@ bool Tracker::Impl::fell_while_still(const PoseEstimate& e) noexcept {
 // bends the parts rather than pulling them apart (rows above and below the centre shift alike).
 // On a search frame (no motion known) the allowance is 0. One pass over the footprint, RT.
 //
-// Along the scan lines the scale gate does not apply. The tracked scale follows a torn frame's
-// reading (the needle tip at 6 e-/px, the 12 px glitch: 1.00 → 0.97 over frames 42-46), so the
-// gate closed on the later torn frames and the scale's term in the allowance (the tracked scale
-// against the loaded one: 0.014 px a row, 0.65 px over the parts' 48 rows) excused the one
-// before: 4 ROI frames 9-10 px off TRACKING with parts 1.7-1.9 px apart in x at 5-5.6 SD. A
-// change of size pulls the parts apart along the slow axis (rows below the centre show the
-// target lower) and not along the lines, so the x component alone, significant at the same
-// χ² (2 dof) bound and beyond kTornApartPx plus the motion's shear (not the scale's), says
-// torn whatever the scale does (`--quick`: 1 frame of 5580 more UNCERTAIN, gripper jaws 20).
-// A tear along y stays the scale's to explain (Known limitations in depth).
+// Along the scan lines the scale's share of the allowance does not apply. A torn frame's scale
+// reading is torn too (the needle tip at 6 e-/px, the 12 px glitch: the tracked scale 0.99 →
+// 0.97 over frames 42-46), and the scale's term (the tracked scale against the loaded one: 0.014
+// px a row, 0.65 px over the parts' 48 rows) excused frame 46, parts 1.9 px apart; its reading
+// then taught the scale's rate, which closed the steady-scale gate on 47-49: 3 ROI frames 9-10 px
+// off TRACKING, parts 1.7-1.9 px apart in x at 5-5.6 SD. A change of size pulls the parts apart
+// along the slow axis (rows below the centre show the target lower), not along the lines, so
+// the x component alone, significant at the same χ² (2 dof) bound and beyond kTornApartPx plus
+// the motion's shear only, is torn too: frame 46 is caught and the gate stays open on 47-49. The
+// gate stays on both (without it on the x component the `gripper` jaws at 20 e-/px kept 11 of 60
+// frames TRACKING where GripperJawsDoNotDragATrackedPose needs 12, and a 3 px hum wave lost 36
+// of 960 probe frames, 23 with it). A tear along y stays the scale's to explain
+// (Known limitations in depth).
 bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double used_scale, double shear_per_row,
-                         double scale_per_row, bool steady_scale) const noexcept {
+                         double scale_per_row) const noexcept {
   if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
   const SplitConsistency s = split.measure(bank, m.j, m.ux, m.uy);
   if (!s.valid) return false;
@@ -438,7 +441,7 @@ bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double u
   // square exceeds the χ² (2 dof) quantile of max_false_probability shared over the cuts.
   const double p = std::clamp(cfg.max_false_probability / SplitConsistencyCheck::kCuts, 1e-12, 0.5);
   const double bound_sq = -2.0 * std::log(p);
-  const bool apart = steady_scale && s.z * s.z >= bound_sq &&
+  const bool apart = s.z * s.z >= bound_sq &&
                      used_scale * (s.apart_px - (shear_per_row + scale_per_row) * std::fabs(s.rows_apart)) >= kTornApartPx;
   const bool apart_along_lines = s.line_z * s.line_z >= bound_sq &&
                                  used_scale * (s.line_apart_px - shear_per_row * std::fabs(s.line_rows_apart)) >= kTornApartPx;
@@ -932,7 +935,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // The field scan saw the target's rows at places the rigid pattern does not join (a torn
       // or glitched scan; a target moving during the long field scan, whose motion is not known
       // here): its pose is not vouched for until an ROI frame confirms it.
-      if (e.state == TrackState::kTracking && loaded.valid && torn(loaded.at, bank, loaded.used_scale, 0, 0, true)) {
+      if (e.state == TrackState::kTracking && loaded.valid && torn(loaded.at, bank, loaded.used_scale, 0, 0)) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;
       }
@@ -1102,8 +1105,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;
       }
-      const bool split_apart =
-          e.state == TrackState::kTracking && torn(m, bank, used_scale, shear_per_row, scale_per_row, steady_scale);
+      const bool split_apart = steady_scale && e.state == TrackState::kTracking && torn(m, bank, used_scale, shear_per_row, scale_per_row);
       if (split_apart) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;

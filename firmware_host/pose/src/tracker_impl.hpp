@@ -379,11 +379,11 @@ struct Tracker::Impl {
   // scanned last put the target at places that differ by more than their noise allows (χ², 2
   // dof, at max_false_probability over the cuts) and by at least kTornApartPx
   // (split_consistency.hpp) beyond what the target's own motion shears them apart
-  // (shear_per_row + scale_per_row) × the rows between them): it moved mid-scan, or the scan
-  // tore. Only while the scale is steady (steady_scale), except along the scan lines, which a
-  // change of size does not pull apart. Followed, reported UNCERTAIN with kReasonUnexplained.
-  bool torn(const Measurement& m, const PatternBank& bank, double used_scale, double shear_per_row, double scale_per_row,
-            bool steady_scale) const noexcept;
+  // (shear_per_row + scale_per_row) × the rows between them; along the scan lines, which a
+  // change of size does not pull apart, shear_per_row alone): it moved mid-scan, or the scan
+  // tore. Followed, reported UNCERTAIN with kReasonUnexplained.
+  bool torn(const Measurement& m, const PatternBank& bank, double used_scale, double shear_per_row,
+            double scale_per_row) const noexcept;
   // The pattern's window at the measured pose reaches the field's edge (tracker.cpp): the match
   // is the best place the pattern still fits, not necessarily the target's. Reported UNCERTAIN
   // with kReasonOutOfField.
