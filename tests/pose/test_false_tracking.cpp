@@ -910,6 +910,23 @@ TEST(NoFalseTracking, TwinCoveringTheTargetIsNotTakenByTheSearchAfter) {
   EXPECT_GE(n.tracked, s.frames / 2) << "tracked before the twin and after it";
 }
 
+// A twin crossing the lamella on post's path at 45° twice as fast (pose_envelope_probe
+// twin_crosses_over_at_45deg_fast, 2.5 e-/px): the target, covered, was lost; two searches found
+// nothing and forgot the line, the third took the twin 94 px off and the poses followed it at
+// 8.5 px a frame where the line had run right at 1 px a frame: TRACKING on the twin, 15 poses up to
+// 260 px off (bc871a1). A search that forgets the line keeps its velocity: the poses after it are
+// vouched for only while they move with it (ContinuityAnchor::forget_keeping_velocity), as a real
+// jump's do (pose_accuracy_bench --quick jump rows).
+TEST(NoFalseTracking, TwinTakenByTheSearchAfterALossIsNotTracked) {
+  const double dose = 2.5;
+  const pt::Scenario s = twin_scene("lamella_post", dose, 270, -600, -600, 535);
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  const FalseCount n = run_and_count(h, "lamella_post with a twin crossing over at 45 deg fast, dose " + std::to_string(dose));
+  EXPECT_EQ(n.false_n, 0) << "TRACKING on the twin the search took (15 before)";
+  EXPECT_GE(n.tracked, s.frames * 3 / 4) << "tracked before the twin and after the target was re-found";
+}
+
 // The same crossing at 2.5 e-/px: under the passing twin the held true pose scored below its own
 // turned look-alike (0.53 against 0.61), and a flip check opened there by the jump took the
 // look-alike: 84 TRACKING poses 15 px and 180° off. A jump opens no flip check while the pose is

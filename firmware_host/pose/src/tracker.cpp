@@ -1188,7 +1188,7 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   // (rival_on_line). Alone, a target whose searches find nothing forgets it as before (one that
   // left the field and came back on another line).
   const bool found = e.state == TrackState::kTracking || e.state == TrackState::kUncertain;
-  if (e.searched && !line_rival && (found || frame.held_by_others.count == 0)) anchor.forget();
+  if (e.searched && !line_rival && (found || frame.held_by_others.count == 0)) anchor.forget_keeping_velocity();
   if (held_frames > 0 || (e.searched && line_rival)) anchor.doubt();
   // A declined jump (check_motion): a second object at the target's level beside it, which may
   // cover it next; the poses after it must keep to the line as after a held frame, and this one
@@ -1196,6 +1196,12 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   if (jump_declined) anchor.contested();
   const bool followed = tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
   if (anchor.open() && followed && !jump_declined && !anchor.confirm(t_s, e.x_px, e.y_px, e.phi_deg) && e.state == TrackState::kTracking) {
+    e.state = TrackState::kUncertain;
+    e.reason_bits |= kReasonUnexplained;
+  }
+  // After a search that forgot the line: vouched for only while the poses keep its velocity
+  // (ContinuityAnchor::forget_keeping_velocity).
+  if (anchor.on_probation() && followed && !anchor.keeps_velocity(t_s, e.x_px, e.y_px) && e.state == TrackState::kTracking) {
     e.state = TrackState::kUncertain;
     e.reason_bits |= kReasonUnexplained;
   }

@@ -109,6 +109,69 @@ class ContinuityAnchor {
     n_ = 0;
     open_ = false;
     agreed_ = 0;
+    probation_ = false;
+  }
+  // A search re-acquired the target off the line (no rival on it) or found nothing, and forgot
+  // the line: the place the search finds is its own, but the velocity is still the line's. A jump
+  // displaces the target, it does not turn its path; a twin the search took moves on its own path
+  // (pose_envelope_probe twin_crosses_over_at_45deg_fast: the lamella on post lost under the twin,
+  // two searches found nothing, the third took the twin 94 px off and the poses followed it at
+  // 8.5 px a frame where the line ran right at 1 px a frame, TRACKING up to 260 px off). While on
+  // probation a followed pose is vouched for only when it moved from the one before it with the
+  // forgotten line's velocity (within kFalsePx): the search frame itself is not (nothing before it
+  // to measure against), and a pose that broke the run is not. kConfirmFrames in a row end the
+  // probation. The memory lasts kProbationFrames of the line's frame interval after its last pose
+  // (a target coming back into the field much later may run on another path). No line (a first
+  // search, a trail not yet full) and no probation running: forgotten as before.
+  static constexpr double kProbationFrames = 100;
+  void forget_keeping_velocity() noexcept {
+    double vx = 0, vy = 0, dt = 0;
+    const bool known = velocity(vx, vy, dt);
+    const double last_t = t_[head_];
+    const bool keep = probation_;
+    forget();
+    if (known) {
+      probation_ = true;
+      probation_vx_ = vx;
+      probation_vy_ = vy;
+      probation_until_t_ = last_t + kProbationFrames * dt;
+    } else {
+      probation_ = keep;
+    }
+  }
+  bool on_probation() const noexcept { return probation_; }
+  // A followed pose while on probation: whether it is vouched for (it kept the velocity from the
+  // pose before it). After the memory lapsed the probation ends and the pose is vouched for.
+  bool keeps_velocity(double t_s, double x_px, double y_px) noexcept {
+    if (t_s > probation_until_t_) {
+      probation_ = false;
+      agreed_ = 0;
+      return true;
+    }
+    const double dt = t_s - first_t_;
+    const bool kept =
+        agreed_ > 0 && std::hypot(x_px - first_x_ - probation_vx_ * dt, y_px - first_y_ - probation_vy_ * dt) <= kFalsePx;
+    agreed_ = kept ? agreed_ + 1 : 1;
+    first_t_ = t_s;
+    first_x_ = x_px;
+    first_y_ = y_px;
+    if (agreed_ >= kConfirmFrames) {
+      probation_ = false;
+      agreed_ = 0;
+    }
+    return kept;
+  }
+  // The trail's velocity (end to end), px/s, and its mean frame interval, s; false while the
+  // trail is not full.
+  bool velocity(double& vx, double& vy, double& frame_s) const noexcept {
+    if (n_ < kTrail) return false;
+    const int tail = (head_ - (n_ - 1) + kTrail) % kTrail;
+    const double span = t_[head_] - t_[tail];
+    if (!(span > 0)) return false;
+    vx = (x_[head_] - x_[tail]) / span;
+    vy = (y_[head_] - y_[tail]) / span;
+    frame_s = span / (n_ - 1);
+    return true;
   }
 
  private:
@@ -116,6 +179,9 @@ class ContinuityAnchor {
   double first_t_ = 0, first_x_ = 0, first_y_ = 0;  // the first of the agreeing poses in a row
   int head_ = 0, n_ = 0, agreed_ = 0;
   bool open_ = false;
+  bool probation_ = false;                      // forget_keeping_velocity()
+  double probation_vx_ = 0, probation_vy_ = 0;  // the forgotten line's velocity, px/s
+  double probation_until_t_ = 0;                // when its memory lapses
 };
 
 }  // namespace sempose::pose
