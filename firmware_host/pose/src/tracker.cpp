@@ -1201,7 +1201,7 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   }
   // After a search that forgot the line: vouched for only while the poses keep its velocity
   // (ContinuityAnchor::forget_keeping_velocity).
-  if (anchor.on_probation() && followed && !anchor.keeps_velocity(t_s, e.x_px, e.y_px) && e.state == TrackState::kTracking) {
+  if (anchor.on_probation() && followed && !anchor.keeps_velocity(t_s, e.x_px, e.y_px, field.field_w, field.field_h) && e.state == TrackState::kTracking) {
     e.state = TrackState::kUncertain;
     e.reason_bits |= kReasonUnexplained;
   }
