@@ -972,6 +972,40 @@ TEST(NoFalseTracking, FrozenFrameBufferIsNotTracked) {
   }
 }
 
+// The needle tip on its smooth path at `dose` with the lower half of every frame 40-49 shifted
+// 12 px right; counts the ROI frames TRACKING and those of them false (> 3 px or > 10° off).
+namespace {
+struct GlitchCount {
+  int frames = 0, tracked = 0, false_n = 0;
+};
+GlitchCount run_half_frame_glitch(double dose) {
+  pt::Scenario s = envelope_scene("needle_tip", "smooth", dose, 60);
+  s.frame_fault = [](std::uint64_t seq, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel) {
+    if (seq < 40 || seq > 49) return;
+    for (int y = r.h / 2; y < r.h; ++y) {
+      sempose::hal::Pixel* row = p + static_cast<std::ptrdiff_t>(y) * r.w;
+      for (int x = r.w - 1; x >= 12; --x) row[x] = row[x - 12];
+    }
+  };
+  pt::SimHarness h(s, default_tracker());
+  EXPECT_TRUE(h.status().ok) << h.status().message;
+  GlitchCount c;
+  c.frames = s.frames;
+  if (!h.status().ok) return c;
+  h.run();
+  for (std::size_t f = 0; f < h.poses().size(); ++f) {
+    const auto& e = h.poses()[f];
+    const auto& t = h.records()[f].truth;
+    if (e.state != TrackState::kTracking || e.searched) continue;
+    ++c.tracked;
+    c.false_n += !(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && pt::declared_angle_error_deg(e, t.phi_deg) <= 10.0);
+  }
+  std::printf("needle_tip, half the frame shifted 12 px on frames 40-49, dose %g: ROI frames TRACKING %d, false %d\n", dose,
+              c.tracked, c.false_n);
+  return c;
+}
+}  // namespace
+
 // A scan glitch (pose_envelope_probe half_shifted_12px_frames_40_49): on frames 40-49 the lower
 // half of every scanned frame is shifted 12 px to the right, on a target moving ~0.7 px a frame.
 // The pose sat between the halves or with the lower one, TRACKING 8-9 px off at a score the
@@ -981,29 +1015,9 @@ TEST(NoFalseTracking, FrozenFrameBufferIsNotTracked) {
 // leads to is not counted: on the field the tear cuts the pattern near its top, where the parts'
 // fits have too little structure to disagree significantly (README Known limitations in depth).
 TEST(NoFalseTracking, ScanGlitchShiftingHalfTheFrameIsNotTracking) {
-  pt::Scenario s = envelope_scene("needle_tip", "smooth", 20, 60);
-  s.frame_fault = [](std::uint64_t seq, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel) {
-    if (seq < 40 || seq > 49) return;
-    for (int y = r.h / 2; y < r.h; ++y) {
-      sempose::hal::Pixel* row = p + static_cast<std::ptrdiff_t>(y) * r.w;
-      for (int x = r.w - 1; x >= 12; --x) row[x] = row[x - 12];
-    }
-  };
-  pt::SimHarness h(s, default_tracker());
-  ASSERT_TRUE(h.status().ok) << h.status().message;
-  h.run();
-  int tracked = 0, false_n = 0;
-  for (std::size_t f = 0; f < h.poses().size(); ++f) {
-    const auto& e = h.poses()[f];
-    const auto& t = h.records()[f].truth;
-    if (e.state != TrackState::kTracking || e.searched) continue;
-    ++tracked;
-    false_n += !(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && pt::declared_angle_error_deg(e, t.phi_deg) <= 10.0);
-  }
-  std::printf("needle_tip, half the frame shifted 12 px on frames 40-49, dose 20: ROI frames TRACKING %d, false %d\n", tracked,
-              false_n);
-  EXPECT_EQ(false_n, 0) << "a torn ROI frame TRACKING (8 before)";
-  EXPECT_GE(tracked, s.frames * 3 / 4) << "tracked outside the glitch";
+  const GlitchCount c = run_half_frame_glitch(20);
+  EXPECT_EQ(c.false_n, 0) << "a torn ROI frame TRACKING (8 before)";
+  EXPECT_GE(c.tracked, c.frames * 3 / 4) << "tracked outside the glitch";
 }
 
 // The same glitch at 6 e-/px: the tracked scale follows the torn frames' readings (0.99 → 0.97
@@ -1013,29 +1027,9 @@ TEST(NoFalseTracking, ScanGlitchShiftingHalfTheFrameIsNotTracking) {
 // apart along the scan lines, so that component is judged without the scale's allowance
 // (tracker.cpp, torn()): frame 46 is caught and the gate stays open after it.
 TEST(NoFalseTracking, ScanGlitchAlongTheLinesIsNotTrackingWhileTheScaleFollowsIt) {
-  pt::Scenario s = envelope_scene("needle_tip", "smooth", 6, 60);
-  s.frame_fault = [](std::uint64_t seq, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel) {
-    if (seq < 40 || seq > 49) return;
-    for (int y = r.h / 2; y < r.h; ++y) {
-      sempose::hal::Pixel* row = p + static_cast<std::ptrdiff_t>(y) * r.w;
-      for (int x = r.w - 1; x >= 12; --x) row[x] = row[x - 12];
-    }
-  };
-  pt::SimHarness h(s, default_tracker());
-  ASSERT_TRUE(h.status().ok) << h.status().message;
-  h.run();
-  int tracked = 0, false_n = 0;
-  for (std::size_t f = 0; f < h.poses().size(); ++f) {
-    const auto& e = h.poses()[f];
-    const auto& t = h.records()[f].truth;
-    if (e.state != TrackState::kTracking || e.searched) continue;
-    ++tracked;
-    false_n += !(std::hypot(e.x_px - t.x_px, e.y_px - t.y_px) <= 3.0 && pt::declared_angle_error_deg(e, t.phi_deg) <= 10.0);
-  }
-  std::printf("needle_tip, half the frame shifted 12 px on frames 40-49, dose 6: ROI frames TRACKING %d, false %d\n", tracked,
-              false_n);
-  EXPECT_EQ(false_n, 0) << "a torn ROI frame TRACKING while the scale followed the tear (3 before)";
-  EXPECT_GE(tracked, s.frames * 3 / 4) << "tracked outside the glitch";
+  const GlitchCount c = run_half_frame_glitch(6);
+  EXPECT_EQ(c.false_n, 0) << "a torn ROI frame TRACKING while the scale followed the tear (3 before)";
+  EXPECT_GE(c.tracked, c.frames * 3 / 4) << "tracked outside the glitch";
 }
 
 // A dark occluder (pose_envelope_probe dark_occluder_x_gt_400): the field right of x = 400 is a
