@@ -256,6 +256,13 @@ std::vector<Case> cases() {
   v.push_back({"twin_crosses_over_at_90deg", [](pt::Scenario& s) { second_target(s, 270, 0, -300, 310); }});
   v.push_back({"twin_crosses_over_at_45deg_fast", [](pt::Scenario& s) { second_target(s, 270, -600, -600, 535); }});
   v.push_back({"twin_crosses_down_at_45deg", [](pt::Scenario& s) { second_target(s, -230, -300, 300, 530); }});
+  // 6b. Another object, not a twin, meeting the target (the tool and the sample touching):
+  // resting 90 px from it (their outlines meet), 60 px (the other drawn over the target's rim),
+  // and the target moving to it.
+  v.push_back({"other_object_comes_to_90px", [](pt::Scenario& s) { pt::meet_other_object(s, 90, false); }});
+  v.push_back({"other_object_comes_to_60px", [](pt::Scenario& s) { pt::meet_other_object(s, 60, false); }});
+  v.push_back({"target_moves_to_other_object_90px", [](pt::Scenario& s) { pt::meet_other_object(s, 90, true); }});
+  v.push_back({"target_moves_to_other_object_60px", [](pt::Scenario& s) { pt::meet_other_object(s, 60, true); }});
   // 7. Beam faults mid-run: saturated frames, a band of saturated lines, the lower half blanked
   // (black level), the lower half shifted 12 px (a scan glitch), a field region gone dark (an occluder).
   v.push_back({"saturated_frames_40_41", [](pt::Scenario& s) {

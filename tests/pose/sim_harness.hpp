@@ -103,6 +103,73 @@ inline const WarpScene& warped_scene() {
 #pragma GCC diagnostic pop
 constexpr double kWarpCx = 563.5, kWarpCy = 527.5;
 
+// Dresses a simulated target as one of the benchmark's targets (Scenario::target): texture,
+// size and brightness; pose and trajectory are left to the caller. The needle tip is the sim's
+// default target (a fresh SimConfig's first); any other name is dressed as it.
+inline void dress_as(const std::string& target, config::SimTargetConfig& t) {
+  const config::SimTargetConfig needle = config::SimConfig{}.targets[0];
+  t.texture = needle.texture;
+  t.width_px = needle.width_px;
+  t.height_px = needle.height_px;
+  t.brightness = needle.brightness;
+  if (target == "lamella_post") {
+    // The lamella's end on its post (real SEM texture): edges in two directions and surface
+    // detail, shown as a 100 px square so the 128 px pattern holds its outline, not a flat interior.
+    t.texture = config::TextureConfig{};
+    t.texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/lamella_on_post_eb.pgm";
+    t.texture.crop_x = 420;
+    t.texture.crop_y = 460;
+    t.texture.crop_w = 180;
+    t.texture.crop_h = 180;
+    t.texture.mask = "full";
+    t.width_px = 100;  // scaled down so its edges lie inside the 128 px pattern circle
+    t.height_px = 100;
+  } else if (target == "lamella") {
+    t.texture = config::TextureConfig{};
+    t.texture.source = "lamella";
+    t.width_px = 100;
+    t.height_px = 64;
+  } else if (target == "gripper") {
+    // The procedural two-jaw gripper (body left, jaws to +x); the pose point is the texture
+    // centre, on the body's side of the jaws' roots.
+    t.texture = config::TextureConfig{};
+    t.texture.source = "gripper";
+    t.width_px = 110;
+    t.height_px = 84;
+    t.brightness = 0.9;
+  } else {
+    t.texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
+  }
+}
+
+// Another object, of another pattern, meeting the target: the tool coming to the sample (a needle
+// to the lamella, the lamella on post to the needle). The target is still at x 260 while the
+// other object comes in from 300 px to its right and slows to rest gap_px from it (a quarter of a
+// sine, reached at 80 % of the run, then the start of its way back), or the target moves to the
+// still object the same way. The other object is drawn over the target where they overlap
+// (pose_envelope_probe other_object_*, pose_false_tracking_test).
+inline void meet_other_object(Scenario& s, double gap_px, bool target_moves) {
+  s.frames = 120;
+  s.start_x_px = 260;
+  s.motion = "static";
+  const std::string other = s.target == "needle_tip" ? "lamella_post" : "needle_tip";
+  const double far_px = 300, reach_s = 0.8 * s.run_s();
+  s.edit_run = [=](config::SimConfig& c) {
+    config::SimTargetConfig b = c.targets[0];
+    dress_as(other, b);
+    b.enabled = true;
+    b.phi_deg = 0;
+    b.x_px = c.targets[0].x_px + far_px;
+    b.trajectory = config::TrajectoryConfig{};
+    config::TrajectoryConfig approach;
+    approach.kind = "sine";
+    approach.amplitude_x_px = (target_moves ? 1 : -1) * (far_px - gap_px);
+    approach.period_s = 4 * reach_s;
+    (target_moves ? c.targets[0].trajectory : b.trajectory) = approach;
+    c.targets[1] = b;
+  };
+}
+
 inline config::SimConfig make_sim_config(const Scenario& s) {
   config::SimConfig c;
   c.seed = s.seed;
@@ -125,34 +192,7 @@ inline config::SimConfig make_sim_config(const Scenario& s) {
     c.beam_lag_px = 0;
   }
   auto& t = c.targets[0];  // the default needle tip
-  if (s.target == "lamella_post") {
-    // The lamella's end on its post (real SEM texture): edges in two directions and surface
-    // detail, shown as a 100 px square so the 128 px pattern holds its outline, not a flat interior.
-    t.texture = config::TextureConfig{};
-    t.texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/lamella_on_post_eb.pgm";
-    t.texture.crop_x = 420;
-    t.texture.crop_y = 460;
-    t.texture.crop_w = 180;
-    t.texture.crop_h = 180;
-    t.texture.mask = "full";
-    t.width_px = 100;  // scaled down so its edges lie inside the 128 px pattern circle
-    t.height_px = 100;
-  } else if (s.target == "lamella") {
-    t.texture = config::TextureConfig{};
-    t.texture.source = "lamella";
-    t.width_px = 100;
-    t.height_px = 64;
-  } else if (s.target == "gripper") {
-    // The procedural two-jaw gripper (body left, jaws to +x); the pose point is the texture
-    // centre, on the body's side of the jaws' roots.
-    t.texture = config::TextureConfig{};
-    t.texture.source = "gripper";
-    t.width_px = 110;
-    t.height_px = 84;
-    t.brightness = 0.9;
-  } else {
-    t.texture.path = std::string(SEMPOSE_TEST_DATA) + "/sem/needle_contact_eb.pgm";
-  }
+  dress_as(s.target, t);
   if (s.target_brightness > 0) t.brightness = s.target_brightness;
   t.x_px = s.start_x_px;
   t.y_px = s.start_y_px;
