@@ -372,6 +372,20 @@ struct Tracker::Impl {
   bool line_rival = false;
   bool rival_on_line(const PatternBank& bank, const std::uint16_t* px, const Roi& field_roi, int bits, const PoseEstimate& e,
                      const AnglePrior& last, double t_s) noexcept;
+  // The loss came through held frames: the target was at its place (held_*_px) but did not match
+  // (another object over its rim, jaws open) — covered or changed, not gone. Set by go_lost,
+  // cleared by the search that finds something. A search's pose farther from that place than
+  // the pattern's radius opens away_from_held: the poses followed are UNCERTAIN until one is back
+  // at the place or their fit, over kAwaySettleFrames frames, is at the target's own level
+  // (judge_away_from_held, tracker.cpp says why).
+  bool lost_after_hold = false;
+  double held_x_px = 0, held_y_px = 0, held_scale = 1;  // the radius: the pattern's at held_scale
+  bool away_from_held = false;
+  int away_frames = 0;
+  double away_excess_sum = 0;
+  static constexpr int kAwaySettleFrames = 8;
+  bool off_held_place(const PoseEstimate& e) const noexcept;
+  void judge_away_from_held(PoseEstimate& e) noexcept;
   // A re-acquisition off the line, turned from it and below the line's level (tracker.cpp): the
   // line is kept as for a rival.
   bool turned_off_line(const Measurement& m, const PoseEstimate& e, double t_s) const noexcept;

@@ -41,9 +41,14 @@ class FitLevel {
   // (variance π/2 · sd²/n).
   bool significantly_above(double chi2, double z, double floor_sd) const noexcept {
     if (!known() || !(chi2 > 0) || !std::isfinite(chi2)) return false;
-    const auto [median, mad_sd] = median_and_sd();
-    const double spread = std::max(mad_sd, floor_sd) * std::sqrt(1.0 + 1.5708 / count_);
-    return std::log(chi2) > median + z * spread;
+    return excess(chi2) > z * spread(floor_sd);
+  }
+
+  // log χ² over the level's (known() first), and the SD one frame's log χ² has about it (the
+  // larger of the robust spread and floor_sd, with the median's own error).
+  double excess(double chi2) const noexcept { return std::log(chi2) - median_and_sd().first; }
+  double spread(double floor_sd) const noexcept {
+    return std::max(median_and_sd().second, floor_sd) * std::sqrt(1.0 + 1.5708 / std::max(1, count_));
   }
 
  private:
