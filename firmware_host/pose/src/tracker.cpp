@@ -1285,11 +1285,13 @@ bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* 
 // it, TRACKING 60-105 px off on 55 frames; target_moves_to_other_object_60px, the needle at
 // 20 e⁻/px, 88 px away at 0.67 (level 0.91), TRACKING once the edge scored like a pose 3 px off,
 // 12 poses up to 140 px off. No single frame tells them from the target: the poses after such a
-// search are UNCERTAIN (kReasonUnexplained) until the mean of their log χ² over at least
-// kAwaySettleFrames frames is within its noise of the target's fit level (fit_level.hpp, kept
-// through the loss): the edge fits worse than the needle did (20 e⁻/px: χ² 9-16 against 4.3; at
-// 2.5 e⁻/px 1.7-2.4 against 1.54, a mean log excess of 0.31 over 8 frames where its noise allows
-// 0.06). Not its place: the edge stopped 60 px from the needle's, within the pattern's radius.
+// search are UNCERTAIN (kReasonUnexplained) until the mean of their last kAwaySettleFrames log χ²
+// is within its noise and kAwayOffsetSpreads of one frame's spread of the target's fit level
+// (fit_level.hpp, kept through the loss): the edge fits worse than the needle did (20 e⁻/px: χ²
+// 9-16 against 4.3; at 2.5 e⁻/px 1.7-2.4 against 1.54, a mean log excess of 0.31 where one frame's
+// spread is 0.07). Not its place: the edge stopped 60 px from the needle's, within the pattern's
+// radius. The cost: a true target re-found away from where it was held (back from a corner of
+// the field, out from under a twin) waits those 8 frames UNCERTAIN.
 bool Tracker::Impl::off_held_place(const PoseEstimate& e) const noexcept {
   if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
   return std::hypot(e.x_px - held_x_px, e.y_px - held_y_px) > 0.5 * sizes.pattern_px * held_scale;
@@ -1300,10 +1302,17 @@ void Tracker::Impl::judge_away_from_held(PoseEstimate& e) noexcept {
   if (fit_level.known() && e.chi2 > 0) {
     const double s = std::clamp(static_cast<double>(e.score), 0.0, 1.0);
     const double floor_sd = 2.0 * std::sqrt(2.0) * s / std::sqrt(std::max(1.0, score_samples));
+    // The last kAwaySettleFrames frames' excesses (a ring): a re-found target's level there may sit
+    // a little off the old one for good, which a mean over every frame since would hold against it
+    // ever more tightly.
+    const double x = fit_level.excess(e.chi2);
+    const int slot = away_frames % kAwaySettleFrames;
+    away_excess_sum += x - (away_frames >= kAwaySettleFrames ? away_excess[slot] : 0.0);
+    away_excess[slot] = x;
     ++away_frames;
-    away_excess_sum += fit_level.excess(e.chi2);
-    if (away_frames >= kAwaySettleFrames &&
-        away_excess_sum / away_frames <= significance_z() * fit_level.spread(floor_sd) / std::sqrt(static_cast<double>(away_frames))) {
+    const double spread = fit_level.spread(floor_sd);
+    const double allowed = kAwayOffsetSpreads * spread + significance_z() * spread / std::sqrt(static_cast<double>(kAwaySettleFrames));
+    if (away_frames >= kAwaySettleFrames && away_excess_sum / kAwaySettleFrames <= allowed) {
       away_from_held = false;
       return;
     }

@@ -384,6 +384,13 @@ struct Tracker::Impl {
   int away_frames = 0;
   double away_excess_sum = 0;
   static constexpr int kAwaySettleFrames = 8;
+  std::array<double, kAwaySettleFrames> away_excess{};
+  // How far (in one frame's spreads) a re-found target's fit may sit above its old level for good,
+  // beyond the noise of the window's mean: on other background its residual differs (a needle tip
+  // back from a corner, 20 e⁻/px: log excess 0.10-0.15 where one frame's spread is 0.09); the
+  // other object's edge sat 4-8 spreads above (2.5 / 20 e⁻/px). 2 let the edge at 2.5 e⁻/px
+  // through on 40 frames (pose_envelope_probe other_object_comes_to_60px); 1 kept it out.
+  static constexpr double kAwayOffsetSpreads = 1.0;
   bool off_held_place(const PoseEstimate& e) const noexcept;
   void judge_away_from_held(PoseEstimate& e) noexcept;
   // A re-acquisition off the line, turned from it and below the line's level (tracker.cpp): the
