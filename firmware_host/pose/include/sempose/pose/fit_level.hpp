@@ -40,10 +40,14 @@ class FitLevel {
   // floor_sd, the detector noise's share alone — widened for the median's own error
   // (variance π/2 · sd²/n).
   bool significantly_above(double chi2, double z, double floor_sd) const noexcept {
-    if (!known() || !(chi2 > 0) || !std::isfinite(chi2)) return false;
+    return excess_sds(chi2, floor_sd) > z;
+  }
+  // How many of those SDs the value's log lies above the level's (−∞: not known, or no value).
+  double excess_sds(double value, double floor_sd) const noexcept {
+    if (!known() || !(value > 0) || !std::isfinite(value)) return -HUGE_VAL;
     const auto [median, mad_sd] = median_and_sd();
     const double spread = std::max(mad_sd, floor_sd) * std::sqrt(1.0 + 1.5708 / count_);
-    return std::log(chi2) > median + z * spread;
+    return spread > 0 ? (std::log(value) - median) / spread : (std::log(value) > median ? HUGE_VAL : -HUGE_VAL);
   }
 
  private:
