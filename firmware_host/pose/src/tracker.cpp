@@ -223,7 +223,8 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
 // pose_envelope_probe --case defocus_ (3 and 5 px PSF stepped in at 25 % of the run, 18 rows at
 // 20 / 6 / 2.5 e-/px): the sharpness reads 0.54-0.85 of the copy's on the sharp frames,
 // 0.13-0.54 on the blurred ones; the blurred frames' RMS(error/σ) 1.15-3.21 (0.59-0.99 on the
-// sharp frames), 0.58-1.77 with σ × level / sharpness. Widened only when the frame is blurrier
+// sharp frames), 0.58-1.77 with σ × level / sharpness on every blurred frame (the level: the sharp
+// frames' median). Widened only when the frame is blurrier
 // than the level by more than the level's spread allows (significance_z() SDs of a frame's log,
 // at least the detector noise's share, sharpness_sd), then by the whole ratio: a sharp frame
 // keeps its σ. Or when the run of frames since the last loss is (the exponentially weighted mean
