@@ -661,7 +661,13 @@ TEST(NoFalseTracking, TornFrameOfAStepIsNotTracking) {
 // last two poses turned 2.3° and the tracked scale stepped 0.27 %, both the stream's noise at
 // this dose on a needle that stood still. With the gate judged against the stream's own pose
 // noise in angle and the scale's running rate, the torn frame is UNCERTAIN and the whole frames
-// of the same scene at the same dose stay TRACKING (no more than 3 lost, as at 20 e-/px).
+// of the same scene at the same dose stay TRACKING (no more than 3 lost, as at 20 e-/px, before
+// the blur rule; no more than 8 since). The blur rule (Tracker::Impl::widen_for_blur) widens σ
+// at the needle's second place: there the recorded clutter is not under it, the fit is flatter
+// (sharpness 1/2.4-1/3.2 against 1/1.15 at the first place, score 0.74 against 0.92) and the
+// poses are 0.1-2.6 px off with σ 0.25-0.45 px (RMS(error/σ) ~2 per axis; ~0.8 widened): 4 more
+// whole frames there (36, 49, 50, 53; 0.2-0.8 px off) are UNCERTAIN on the widened σ (49 → 45
+// of 52 TRACKING; frames 1, 18, 19 were UNCERTAIN by other rules before).
 TEST(NoFalseTracking, TornFrameOfAStepAtSixElectronsIsNotTracking) {
   // Started at 0°, as pose_accuracy_bench --clutter's rows are.
   const pt::Scenario s = torn_step_scene(0.3, 6, 0);
@@ -673,7 +679,7 @@ TEST(NoFalseTracking, TornFrameOfAStepAtSixElectronsIsNotTracking) {
   EXPECT_EQ(t.torn_off_tracking, 0) << "a torn frame TRACKING off the needle at 6 e-/px (frame 39 before the noise-aware still gate)";
   EXPECT_EQ(t.whole_false, 0);
   EXPECT_EQ(t.whole_split, 0) << "a whole frame turned UNCERTAIN by the split check";
-  EXPECT_GE(t.whole_tracking, t.whole_n - 3) << "whole frames of the same scene at the same dose must stay TRACKING";
+  EXPECT_GE(t.whole_tracking, t.whole_n - 8) << "whole frames of the same scene at the same dose must stay TRACKING";
 }
 
 // A magnification change without SELECT (issue 13 item 2; pose_envelope_probe scale_step_*):
