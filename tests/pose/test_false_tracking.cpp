@@ -661,7 +661,13 @@ TEST(NoFalseTracking, TornFrameOfAStepIsNotTracking) {
 // last two poses turned 2.3° and the tracked scale stepped 0.27 %, both the stream's noise at
 // this dose on a needle that stood still. With the gate judged against the stream's own pose
 // noise in angle and the scale's running rate, the torn frame is UNCERTAIN and the whole frames
-// of the same scene at the same dose stay TRACKING (no more than 3 lost, as at 20 e-/px).
+// of the same scene at the same dose stay TRACKING (no more than 3 lost, as at 20 e-/px, before
+// the blur rule; no more than 8 since). The blur rule (Tracker::Impl::widen_for_blur) widens σ
+// at the needle's second place: there the recorded clutter is not under it, the fit is flatter
+// (sharpness 1/2.4-1/3.2 against 1/1.15 at the first place, score 0.74 against 0.92) and the
+// poses are 0.1-2.6 px off with σ 0.25-0.45 px (RMS(error/σ) ~2 per axis; ~0.8 widened): 4 more
+// whole frames there (36, 49, 50, 53; 0.2-0.8 px off) are UNCERTAIN on the widened σ (49 → 45
+// of 52 TRACKING; frames 1, 18, 19 were UNCERTAIN by other rules before).
 TEST(NoFalseTracking, TornFrameOfAStepAtSixElectronsIsNotTracking) {
   // Started at 0°, as pose_accuracy_bench --clutter's rows are.
   const pt::Scenario s = torn_step_scene(0.3, 6, 0);
@@ -673,7 +679,7 @@ TEST(NoFalseTracking, TornFrameOfAStepAtSixElectronsIsNotTracking) {
   EXPECT_EQ(t.torn_off_tracking, 0) << "a torn frame TRACKING off the needle at 6 e-/px (frame 39 before the noise-aware still gate)";
   EXPECT_EQ(t.whole_false, 0);
   EXPECT_EQ(t.whole_split, 0) << "a whole frame turned UNCERTAIN by the split check";
-  EXPECT_GE(t.whole_tracking, t.whole_n - 3) << "whole frames of the same scene at the same dose must stay TRACKING";
+  EXPECT_GE(t.whole_tracking, t.whole_n - 8) << "whole frames of the same scene at the same dose must stay TRACKING";
 }
 
 // A magnification change without SELECT (issue 13 item 2; pose_envelope_probe scale_step_*):
@@ -1178,4 +1184,39 @@ TEST(NoFalseTracking, DroppedLinesDoNotOverruleAToldDetectorTau) {
   const LagRun r = run_lagged(s, "lamella_post, every 4th line dropped, tau 120 ns told, dose 20");
   EXPECT_EQ(r.n.false_n, 0) << "TRACKING > 3 px off (the frames' reading used: 71)";
   EXPECT_LT(std::fabs(r.mean_dx), 0.5) << "mean x error";
+}
+
+// pose_envelope_probe's defocus_3px / defocus_5px: the beam's PSF steps from sharp to σ 3 / 5 px
+// at 25 % of the run. The blurred frames' poses score at the target's level with χ² at its level,
+// but the fit's curvature on them is a fraction of the pattern's (Σ ∂T·∂f / gain against Σ (∂T)²:
+// 0.13-0.54 of it where the sharp frames read 0.54-0.85), so the pose's σ, taken from the
+// pattern's curvature, was 1.2-3.2x too small (RMS(error/σ) on the blurred frames) and poses 3-4
+// px off were TRACKING: 4 on the procedural lamella at 6 e-/px (5 px), 3 at 2.5 e-/px (3 px),
+// 1 on the needle tip at 6 e-/px (5 px). σ is widened by the frame's blur against the target's
+// own (Tracker::Impl::widen_for_blur) and a blurred pose is not narrowed by a prediction made
+// from poses as blurred. The sharp part of the run stays TRACKING.
+TEST(NoFalseTracking, DefocusedFramesAreNotTrustedOnThePatternsCurvature) {
+  struct Case {
+    const char* target;
+    double defocus_px, dose;
+  };
+  for (const Case& c : {Case{"lamella", 5, 6}, Case{"lamella", 3, 2.5}, Case{"needle_tip", 5, 6}}) {
+    pt::Scenario s = envelope_scene(c.target, "smooth", c.dose, 80);
+    const double psf = c.defocus_px;
+    s.edit_run = [psf](sempose::config::SimConfig& sc) {
+      sc.defocus_px.from = 0;
+      sc.defocus_px.to = psf;
+      sc.defocus_px.start_s = 0.25;
+    };
+    pt::SimHarness h(s, default_tracker());
+    ASSERT_TRUE(h.status().ok) << h.status().message;
+    char label[96];
+    std::snprintf(label, sizeof label, "%s, defocus to %g px at 25 %%, dose %g", c.target, c.defocus_px, c.dose);
+    const FalseCount n = run_and_count(h, label);
+    int sharp_tracked = 0;  // TRACKING among frames 5-17, before the PSF steps in (frame ~20)
+    for (std::size_t f = 5; f < 18 && f < h.poses().size(); ++f) sharp_tracked += h.poses()[f].state == TrackState::kTracking;
+    std::printf("  TRACKING on the sharp frames 5-17: %d of 13\n", sharp_tracked);
+    EXPECT_EQ(n.false_n, 0) << label << ": TRACKING > 3 px or > 10 deg off (4 / 3 / 1 before)";
+    EXPECT_GE(sharp_tracked, 10) << label << ": the sharp frames stay TRACKING";
+  }
 }

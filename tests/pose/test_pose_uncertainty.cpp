@@ -270,3 +270,53 @@ TEST(PoseUncertainty, NoisierPatternGivesLargerSigmaAndStaysCalibrated) {
   EXPECT_GT(noisy.ratio_phi(), 0.75);
   EXPECT_LT(noisy.ratio_phi(), 1.3);
 }
+
+// The frame's sharpness against the copy (PoseSigma::sharpness, README: Uncertainty,
+// *Sharpness*): ~1 on a frame that is the pattern plus noise, lower on the same frame blurred by
+// a Gaussian PSF (the fit's curvature falls by that ratio); its noise SD small against the fall.
+TEST(PoseUncertainty, SharpnessFallsOnABlurredFrame) {
+  Stages st;
+  std::mt19937 rng(9);
+  auto blurred = [](const std::vector<std::uint16_t>& in, double psf_px) {
+    const int r = static_cast<int>(std::ceil(3 * psf_px));
+    std::vector<double> k(2 * r + 1);
+    double sum = 0;
+    for (int i = -r; i <= r; ++i) sum += k[i + r] = std::exp(-0.5 * i * i / (psf_px * psf_px));
+    for (double& v : k) v /= sum;
+    std::vector<double> tmp(in.size());
+    std::vector<std::uint16_t> out(in.size());
+    for (int y = 0; y < kRoi; ++y)
+      for (int x = 0; x < kRoi; ++x) {
+        double v = 0;
+        for (int i = -r; i <= r; ++i) v += k[i + r] * in[static_cast<std::size_t>(y) * kRoi + std::clamp(x + i, 0, kRoi - 1)];
+        tmp[static_cast<std::size_t>(y) * kRoi + x] = v;
+      }
+    for (int y = 0; y < kRoi; ++y)
+      for (int x = 0; x < kRoi; ++x) {
+        double v = 0;
+        for (int i = -r; i <= r; ++i) v += k[i + r] * tmp[static_cast<std::size_t>(std::clamp(y + i, 0, kRoi - 1)) * kRoi + x];
+        out[static_cast<std::size_t>(y) * kRoi + x] = static_cast<std::uint16_t>(std::lround(v));
+      }
+    return out;
+  };
+  const auto sharp = render(40.3, 39.6, 12.4, 0.0, 0.0, rng);
+  double last = 2.0;
+  for (const double psf : {0.0, 3.0, 6.0}) {
+    auto roi = psf > 0 ? blurred(sharp, psf) : sharp;
+    std::normal_distribution<double> noise(0.0, 30.0);
+    for (auto& v : roi) v = static_cast<std::uint16_t>(std::lround(std::clamp(v + noise(rng), 0.0, 65535.0)));
+    ASSERT_TRUE(st.loader->load(roi.data(), kRoi, kRoi, kRoi, 16));
+    const Measurement m = st.measure(12.4);
+    ASSERT_TRUE(m.valid);
+    const PoseSigma s = st.sigma->estimate(*st.bank, m, 1.0);
+    ASSERT_TRUE(s.valid);
+    std::printf("PSF %.1f px: sharpness %.3f (noise SD %.3f), sigma_x %.3f px\n", psf, s.sharpness, s.sharpness_sd, s.x_px);
+    if (psf == 0) {
+      EXPECT_NEAR(s.sharpness, 1.0, 0.15) << "the frame is the pattern plus noise";
+    }
+    EXPECT_LT(s.sharpness, last - 3 * s.sharpness_sd) << "blurrier: lower by more than its noise";
+    EXPECT_GT(s.sharpness_sd, 0.0);
+    last = s.sharpness;
+  }
+  EXPECT_LT(last, 0.6) << "a 6 px PSF (the texture is smooth: 0.87 at 3 px)";
+}

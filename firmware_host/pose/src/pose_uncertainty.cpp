@@ -76,6 +76,39 @@ SEMPOSE_CLONES void row_terms_cached(const RowInputs& in, float* gx, float* col)
   row_terms<false>(in, gx, col, nullptr);
 }
 
+// The frame's sharpness against the copy (PoseSigma::sharpness): Σ ∂T·∂f and Σ (∂T)² over x and
+// y (central differences), at support pixels whose four neighbours are in the support too (a
+// difference across the rim would be the rim's step). f: the ROI at the pattern's origin, stride w.
+struct SharpnessSums {
+  double cross = 0, self = 0;
+};
+SharpnessSums sharpness_sums(const float* T, const float* f, std::ptrdiff_t w, int P, const MaskBand* bands,
+                             int n_bands) noexcept {
+  SharpnessSums out;
+  for (int b = 0; b < n_bands; ++b) {
+    const MaskBand& band = bands[b];
+    const int v0 = std::max(1, band.y0), v1 = std::min(P - 2, band.y1);
+    const int u0 = std::max(1, band.x0), u1 = std::min(P - 2, band.x1);
+    for (int v = v0; v <= v1; ++v) {
+      const float* t = T + static_cast<std::size_t>(v) * P;
+      const float* fr = f + v * w;
+      float cross = 0, self = 0;
+#pragma omp simd reduction(+ : cross, self)
+      for (int u = u0; u <= u1; ++u) {
+        const bool in = (t[u - 1] != 0.0f) & (t[u + 1] != 0.0f) & (t[u - P] != 0.0f) & (t[u + P] != 0.0f);
+        const float ax = in ? 0.5f * (t[u + 1] - t[u - 1]) : 0.0f;
+        const float ay = in ? 0.5f * (t[u + P] - t[u - P]) : 0.0f;
+        const float fx = 0.5f * (fr[u + 1] - fr[u - 1]), fy = 0.5f * (fr[u + w] - fr[u - w]);
+        cross += ax * fx + ay * fy;
+        self += ax * ax + ay * ay;
+      }
+      out.cross += cross;
+      out.self += self;
+    }
+  }
+  return out;
+}
+
 // In-place inverse of a symmetric positive-definite 6×6 matrix by Gauss–Jordan with partial
 // pivoting; false when singular (relative pivot below 1e-12).
 bool invert6(double a[kParams][kParams]) noexcept {
@@ -328,6 +361,13 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
   out.y_px = std::hypot(std::sqrt(var[1]), floor_px_);
   out.phi_deg = std::hypot(angle_factor_ * std::sqrt(var[2]), floor_deg_);
   out.scale = std::sqrt(var[3]);
+  // The cross term's noise is Σ ∂T·∂n: variance ≈ s²/2 · Σ (∂T)² for white noise (a central
+  // difference of white noise has half its variance).
+  const SharpnessSums sh = sharpness_sums(T, roi + static_cast<std::size_t>(m.uy) * w + m.ux, w, P, bands, n_bands);
+  if (sh.self > 0) {
+    out.sharpness = sh.cross / (gain * sh.self);
+    out.sharpness_sd = std::sqrt(0.5 * s2 * sh.self) / (std::fabs(gain) * sh.self);
+  }
   out.valid = true;
   return out;
 }

@@ -58,6 +58,7 @@ void Tracker::Impl::forget_everything() noexcept {
   search_n = 0;
   loss.forget_target();
   fit_level.forget();
+  blur_level.forget();
   scale = expected_scale.load(std::memory_order_relaxed);
   motion = MotionModel(cfg.predict_velocity, cfg.predict_rate_poses);  // also the last angle a search's tie-break uses
 }
@@ -213,6 +214,57 @@ void Tracker::Impl::set_sigma(const PoseSigma& s, double used_scale, PoseEstimat
   e.sigma_scale = s.scale * used_scale;
 }
 
+// A frame blurrier than the target's frames (defocus) flattens the fit: the least-squares
+// curvature is Σ ∂T·∂f / gain, not the copy's Σ (∂T)² that σ's bread is, while the noise's pull
+// on the pose, Σ ∂T·n, is not blurred — so the pose's error grows by the curvature's ratio (and
+// the clutter around the target smeared into the support moves it further). The score and χ²
+// stay at the target's level: no fit level sees it. PoseSigma::sharpness is that ratio against
+// the copy; against the target's own level (blur_level: a copy holding noise or detail the
+// target's frames do not reads below 1 on every frame) it is the factor σ is too small by.
+// pose_envelope_probe --case defocus_ (3 and 5 px PSF stepped in at 25 % of the run, 18 rows at
+// 20 / 6 / 2.5 e-/px): the sharpness reads 0.54-0.85 of the copy's on the sharp frames,
+// 0.13-0.54 on the blurred ones; the blurred frames' RMS(error/σ) 1.15-3.21 (0.59-0.99 on the
+// sharp frames), 0.58-1.77 with σ × level / sharpness on every blurred frame (the level: the sharp
+// frames' median). Widened only when the frame is blurrier
+// than the level by more than the level's spread allows (significance_z() SDs of a frame's log,
+// at least the detector noise's share, sharpness_sd), then by the whole ratio: a sharp frame
+// keeps its σ. Or when the run of frames since the last loss is (the exponentially weighted mean
+// of the log, kBlurRunGain, against the same spread narrowed by the mean's variance share): focus
+// changes slowly against the frame rate, and at 2.5 e-/px one frame's reading scatters by ~20 %,
+// which let a blurred frame through alone (the procedural lamella's first frame at 3 px, 3.9 px
+// off) and let blurred frames into the level (which then crept up with the blur). Not while
+// calibrating (the noise trials have no target).
+void Tracker::Impl::widen_for_blur(const PoseSigma& s, PoseEstimate& e) noexcept {
+  blur_widened = false;
+  frame_blur = 0;
+  if (!s.valid || !(s.sharpness_sd > 0)) return;
+  // A frame whose cross term is within noise of 0 says only that it is no sharper than its noise.
+  const double sharpness = std::max(s.sharpness, s.sharpness_sd);
+  frame_blur = 1.0 / sharpness;
+  const double floor_sd = s.sharpness_sd / sharpness;
+  // The run's blur: the mean of the log over the frames since the last loss, exponentially
+  // weighted (kBlurRunGain); its variance share of one frame's, blur_run_var.
+  if (!blur_run_known) {
+    blur_run = std::log(frame_blur);
+    blur_run_var = 1.0;
+    blur_run_known = true;
+  } else {
+    blur_run += kBlurRunGain * (std::log(frame_blur) - blur_run);
+    blur_run_var = (1.0 - kBlurRunGain) * (1.0 - kBlurRunGain) * blur_run_var + kBlurRunGain * kBlurRunGain;
+  }
+  if (loss.calibrating() || !blur_level.known()) return;
+  const double z = significance_z(), level = blur_level.chi2();
+  double f = 1.0;
+  if (blur_level.excess_sds(frame_blur, floor_sd) > z) f = frame_blur / level;
+  if (blur_level.excess_sds(std::exp(blur_run), floor_sd) > z * std::sqrt(blur_run_var)) f = std::max(f, std::exp(blur_run) / level);
+  if (!(f > 1.0)) return;
+  e.sigma_x_px *= f;
+  e.sigma_y_px *= f;
+  e.sigma_phi_deg *= f;
+  e.sigma_scale *= f;
+  blur_widened = true;
+}
+
 // σ with every pose (issue 13 item 5), a search frame's too: it was reported as 0 ("not
 // measured"), so a pose re-acquired after a loss, TRACKING on its search frame, came with no
 // uncertainty at all, and above the explained check's bound it was trusted on σ = 0. The ROI
@@ -260,7 +312,9 @@ Tracker::Impl::Loaded Tracker::Impl::search_sigma(const PatternBank& bank, const
   at.uy = static_cast<int>(std::floor(ly));
   at.dx = lx - at.ux;
   at.dy = ly - at.uy;
-  set_sigma(uncertainty.estimate(bank, at, e.scale / used_scale), used_scale, e);
+  const PoseSigma sigma = uncertainty.estimate(bank, at, e.scale / used_scale);
+  set_sigma(sigma, used_scale, e);
+  widen_for_blur(sigma, e);
   return {true, at, used_scale};
 }
 
@@ -296,6 +350,12 @@ Tracker::Impl::Loaded Tracker::Impl::search_sigma(const PatternBank& bank, const
 // given that is centred 1 px or more away from 0. At 1 e-/px those first frames of a wander
 // were the last false poses (lamella on post, fast: 4.2 and 3.3 px off at the target's score,
 // σ 0.4-0.6 px, the stream's noise 0.9 px: 0.4 % by σ alone, 3-6 % given the innovation).
+// Not on a frame whose σ was widened for blur (widen_for_blur): the fusion takes the
+// prediction's error as independent of the pose's, but the poses it was made from were as
+// blurred and their errors run together (the needle tip at 20 e-/px under a 5 px PSF: 1.3-1.9 px
+// off on every frame), so a pose landing near it is not vouched for. Such a pose must pass on
+// its own σ too (the procedural lamella at 6 e-/px, 5 px: 3.8 px off with σ 1.04 px, TRACKING
+// given its 1 px innovation).
 bool Tracker::Impl::trusted_pose(const PoseEstimate& e, const Innovation& innov) const noexcept {
   double s_px = std::max(e.sigma_x_px, e.sigma_y_px), s_deg = e.sigma_phi_deg;
   if (e.score < loss.explained_bound() && !motion.pose_noise_known() && !loss.calibrating()) return false;
@@ -305,6 +365,8 @@ bool Tracker::Impl::trusted_pose(const PoseEstimate& e, const Innovation& innov)
     s_deg = std::max(s_deg, k * motion.pose_noise_deg());
     if (innov.known) {
       const MotionModel::ErrorGivenInnovation g = motion.error_given_innovation(innov.d_px, innov.d_deg, s_px, s_deg);
+      // A blurred pose's error is shared by the poses the prediction was made from (above).
+      if (blur_widened && !loss.trusted(s_px, s_deg)) return false;
       return loss.trusted_offset(g.offset_px, g.sd_px, g.offset_deg, g.sd_deg);
     }
   }
@@ -690,6 +752,7 @@ void Tracker::Impl::go_lost() noexcept {
   motion.reset();
   last_known = false;
   still_doubt = false;
+  blur_run_known = false;
 }
 
 void Tracker::Impl::scan_velocity(const PoseFrame& frame) noexcept {
@@ -856,6 +919,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     loss.forget_target();
     fit_level.forget();
     lost_after_hold = away_from_held = false;
+    blur_level.forget();
     if (commanded_search) motion.forget_noise();
     scale = expected_scale.load(std::memory_order_relaxed);
     scale_tracked = false;
@@ -1045,7 +1109,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   // The flip check before the scale probe and σ, which read the hypothesis kept.
   const bool flipped = flip_open && settle_flip(bank, m, e, place);
   const ScaleReading reading = scale_probe.read(bank, m);
-  set_sigma(uncertainty.estimate(bank, m, reading.valid ? reading.factor : 1.0), used_scale, e);
+  const PoseSigma sigma = uncertainty.estimate(bank, m, reading.valid ? reading.factor : 1.0);
+  set_sigma(sigma, used_scale, e);
+  widen_for_blur(sigma, e);
   e.scale = reading.valid ? used_scale * reading.factor : scale;
   // The attainable score is ≤ 1, so a score at or above the explained check's upper bound
   // passes whatever it is, and one at or above the off-pose share is never below the target's
@@ -1135,6 +1201,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       }
       // Learnt from frames tracked well only: a pose the rules doubt would teach the level its lie.
       if (fit_sample && e.state == TrackState::kTracking && e.reason_bits == 0) fit_level.learn(e.chi2);
+      if (e.state == TrackState::kTracking && e.reason_bits == 0 && !blur_widened) blur_level.learn(frame_blur);
       if (e.state == TrackState::kTracking)
         tracking_speed_px = std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px());
       if (!split_apart) {

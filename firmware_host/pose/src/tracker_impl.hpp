@@ -350,6 +350,19 @@ struct Tracker::Impl {
   // (a 90°-turned hypothesis of the lamella on post half under a dark occluder, χ² 16-40 where
   // the target's frames read ~2); forgotten with the target (REACQUIRE, SELECT, a new size).
   FitLevel fit_level;
+  // The target's blur on frames it tracked well: 1 / PoseSigma::sharpness (the copy's curvature
+  // over the fit's on the frame), in a FitLevel (median and spread of its log, the last 32 frames
+  // TRACKING with no reason and not themselves widened). A frame significantly blurrier than that
+  // (defocus) flattens the fit by the ratio, which the pose's σ — the copy's curvature — does not
+  // see: widen_for_blur multiplies σ by it (README: Uncertainty, *Sharpness*). Kept across a loss,
+  // forgotten with the target, as fit_level.
+  FitLevel blur_level;
+  double frame_blur = 0;  // this frame's 1 / sharpness (0: not measured)
+  bool blur_widened = false;  // this frame's σ was widened: not learnt
+  double blur_run = 0, blur_run_var = 1;  // the run's log blur and its variance in frames'
+  bool blur_run_known = false;
+  static constexpr double kBlurRunGain = 0.5;
+  void widen_for_blur(const PoseSigma& s, PoseEstimate& e) noexcept;
   // The fit is worse than the target's level, significantly and by more than a pose off by the
   // false-pose radius would be (off_share, off_pose_score.hpp): UNCERTAIN, kReasonUnexplained.
   void judge_fit(PoseEstimate& e, double off) const noexcept;

@@ -40,13 +40,18 @@ class FitLevel {
   // floor_sd, the detector noise's share alone — widened for the median's own error
   // (variance π/2 · sd²/n).
   bool significantly_above(double chi2, double z, double floor_sd) const noexcept {
-    if (!known() || !(chi2 > 0) || !std::isfinite(chi2)) return false;
-    return excess(chi2) > z * spread(floor_sd);
+    return excess_sds(chi2, floor_sd) > z;
+  }
+  // How many of those SDs the value's log lies above the level's (−∞: not known, or no value).
+  double excess_sds(double value, double floor_sd) const noexcept {
+    if (!known() || !(value > 0) || !std::isfinite(value)) return -HUGE_VAL;
+    const double sd = spread(floor_sd);
+    return sd > 0 ? excess(value) / sd : (excess(value) > 0 ? HUGE_VAL : -HUGE_VAL);
   }
 
-  // log χ² over the level's (known() first), and the SD one frame's log χ² has about it (the
-  // larger of the robust spread and floor_sd, with the median's own error).
-  double excess(double chi2) const noexcept { return std::log(chi2) - median_and_sd().first; }
+  // log value over the level's (known() first), and the SD one frame's log has about it (the
+  // larger of the robust spread and floor_sd, widened for the median's own error).
+  double excess(double value) const noexcept { return std::log(value) - median_and_sd().first; }
   double spread(double floor_sd) const noexcept {
     return std::max(median_and_sd().second, floor_sd) * std::sqrt(1.0 + 1.5708 / std::max(1, count_));
   }

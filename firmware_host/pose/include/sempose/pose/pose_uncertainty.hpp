@@ -22,8 +22,14 @@
 // noise × noise term). So the stage's bread is H_c⁻¹ = (JᵀJ − N)⁻¹ and the white-noise part
 // s²·H_c⁻¹ (H_c + N) H_c⁻¹: σ rises with a noisy pattern (low dose) and stays for a clean one. The factors (set at setup) were fitted on part
 // of the benchmark's targets; README: Uncertainty says how and what they give on the others.
+// The frame's sharpness against the pattern (PoseSigma::sharpness): the bread above is the
+// pattern copy's own curvature, JᵀJ, which is the fit's curvature only when the frame looks like
+// the pattern. A frame blurrier than the pattern (defocus) flattens the fit: its curvature is
+// the cross term Σ ∂T·∂f / gain (the copy's gradients against the frame's), smaller than Σ (∂T)²
+// by the blur, and the pose's error grows by the same factor (README: Uncertainty, *Sharpness*).
+// The stage measures that ratio; the tracker compares it with the target's own (sharpness_level.hpp).
 // RT: noexcept, no allocation (buffers and the per-angle JᵀJ cache are sized at setup), one
-// pass over the support.
+// pass over the support (and one more for the sharpness).
 #pragma once
 
 #include <cstdint>
@@ -39,6 +45,13 @@ namespace sempose::pose {
 struct PoseSigma {
   bool valid = false;  // false: the window left the ROI, the fit is singular or the ROI flat
   double x_px = 0, y_px = 0, phi_deg = 0, scale = 0;
+  // Σ ∂T·∂f / (gain · Σ (∂T)²) over x and y, at the support's inner pixels (all four neighbours in
+  // it): 1 for a frame that is the copy times a gain plus noise, lower for a blurrier frame (a
+  // constant below 1 for a pattern whose copy holds noise or detail the target's frames do not:
+  // only its ratio to the target's own level means something). 0: not measured.
+  double sharpness = 0;
+  // The detector noise's SD of that ratio (white-noise approximation, the residual's variance).
+  double sharpness_sd = 0;
 };
 
 class PoseUncertainty {
