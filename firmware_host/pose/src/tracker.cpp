@@ -1256,7 +1256,7 @@ void Tracker::Impl::judge_fit(PoseEstimate& e, double off) const noexcept {
     return;
   const double s = std::clamp(static_cast<double>(e.score), 0.0, 1.0);
   if (!(e.chi2 > 0) || s >= 1) return;
-  const double floor_sd = 2.0 * std::sqrt(2.0) * s / std::sqrt(std::max(1.0, score_samples));
+  const double floor_sd = fit_floor_sd(s);
   if (!fit_level.significantly_above(e.chi2, significance_z(), floor_sd)) return;
   const double target_sq = 1.0 - fit_level.chi2() * (1.0 - s * s) / e.chi2;  // s_t²
   if (!(target_sq > 0) || s * s >= target_sq * off * off) return;
@@ -1368,7 +1368,7 @@ void Tracker::Impl::judge_away_from_held(PoseEstimate& e) noexcept {
   if (e.state != TrackState::kTracking && e.state != TrackState::kUncertain) return;
   if (fit_level.known() && e.chi2 > 0) {
     const double s = std::clamp(static_cast<double>(e.score), 0.0, 1.0);
-    const double floor_sd = 2.0 * std::sqrt(2.0) * s / std::sqrt(std::max(1.0, score_samples));
+    const double floor_sd = fit_floor_sd(s);
     // The last kAwaySettleFrames frames' excesses (a ring): a re-found target's level there may sit
     // a little off the old one for good, which a mean over every frame since would hold against it
     // ever more tightly.

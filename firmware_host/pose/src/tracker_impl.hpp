@@ -366,6 +366,9 @@ struct Tracker::Impl {
   // The fit is worse than the target's level, significantly and by more than a pose off by the
   // false-pose radius would be (off_share, off_pose_score.hpp): UNCERTAIN, kReasonUnexplained.
   void judge_fit(PoseEstimate& e, double off) const noexcept;
+  // The detector noise's share of one frame's log χ² SD at score s (FitLevel's floor_sd):
+  // log(1 − s²) moves by 2s/√N_eff, and log(1 − a²) as much again.
+  double fit_floor_sd(double s) const noexcept { return 2.0 * std::sqrt(2.0) * s / std::sqrt(std::max(1.0, score_samples)); }
   std::vector<double> off_share;  // each set's off_pose_score; setup
   // Each set's rotational self-similarity (pattern_symmetry.hpp); setup. angle_order: the active
   // set's declared order, set at each update(): its hypotheses 360°/order apart are one look, so
