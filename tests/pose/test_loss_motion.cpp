@@ -487,6 +487,48 @@ TEST(ContinuityAnchor, ClosesOnTheLineNotOnAMotionThatTurnedBack) {
   EXPECT_FALSE(turned.open());
 }
 
+// A search after a covered target's loss forgets the line but keeps its velocity (1 px a frame
+// along x). The search frame starts the run; a pose off it breaks the run, and then only a run of
+// kRunAfterBreak poses on the kept velocity (or at rest) vouches again: a twin moving 3 px a frame
+// up (twin_crosses_over_at_90deg) never does, though each of its steps keeps within the step
+// test's 2 x kFalsePx. After a loss that was not covered the step test alone judges, as before.
+TEST(ContinuityAnchor, AfterACoveredLossOnlyALongRunOnTheKeptVelocityVouches) {
+  using sempose::pose::ContinuityAnchor;
+  const double dt = 0.01, w = 640, h = 480;
+  auto probation = [&](bool covered) {
+    ContinuityAnchor a;
+    for (int i = 0; i < ContinuityAnchor::kTrail; ++i) a.trusted(i * dt, 100.0 + i, 240.0, 0.0, 0.9);
+    a.forget_keeping_velocity(covered);
+    EXPECT_TRUE(a.on_probation());
+    // The search frame 20 frames on, 12 px below the line (the merged image), then the next
+    // frame's pose breaks the run (11 px up).
+    EXPECT_TRUE(a.keeps_velocity(27 * dt, 127.0, 252.0, w, h)) << "the search frame is the search's to judge";
+    EXPECT_FALSE(a.keeps_velocity(28 * dt, 128.0, 241.0, w, h)) << "off the kept velocity by 11 px";
+    return a;
+  };
+  // The twin: 3 px a frame up from there.
+  ContinuityAnchor twin = probation(true);
+  int vouched = 0;
+  for (int k = 1; k <= 40; ++k) vouched += twin.keeps_velocity((28 + k) * dt, 128.0, 241.0 - 3.0 * k, w, h);
+  EXPECT_EQ(vouched, 0) << "a twin moving 3 px a frame off the kept velocity";
+  EXPECT_TRUE(twin.on_probation());
+  // Not covered: the step test vouches for the twin's second step on (its steps are within 6 px).
+  ContinuityAnchor vanished = probation(false);
+  EXPECT_TRUE(vanished.keeps_velocity(29 * dt, 128.0, 238.0, w, h));
+  // The target on the kept velocity from the pose that broke the run (the run's first): the
+  // run's fifth pose vouches and ends the probation.
+  ContinuityAnchor target = probation(true);
+  const int last = ContinuityAnchor::kRunAfterBreak - 1;
+  for (int k = 1; k < last; ++k) EXPECT_FALSE(target.keeps_velocity((28 + k) * dt, 128.0 + k, 241.0, w, h)) << "run pose " << k;
+  EXPECT_TRUE(target.keeps_velocity((28 + last) * dt, 128.0 + last, 241.0, w, h));
+  EXPECT_FALSE(target.on_probation());
+  // A target that stopped where it met the covering object.
+  ContinuityAnchor stopped = probation(true);
+  bool released = false;
+  for (int k = 1; k <= ContinuityAnchor::kRunAfterBreak && !released; ++k) released = stopped.keeps_velocity((28 + k) * dt, 128.2, 241.1, w, h);
+  EXPECT_TRUE(released) << "five poses at rest";
+}
+
 // The target's χ² level (fit_level.hpp): nothing judged before kMinFrames learnt frames; a value
 // far above the median by the frames' own robust spread is significant, one within it is not;
 // a few wild frames among the learnt ones move neither the median nor the spread (median/MAD);

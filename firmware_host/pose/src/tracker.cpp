@@ -867,6 +867,7 @@ void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, 
 PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   PoseEstimate e;
   jump_declined = false;
+  fit_in_excess = false;
   const std::uint8_t set = active.load(std::memory_order_relaxed);
   e.pattern_set = set;
   if (set < symmetry.size()) angle_order = symmetry[set].order;
@@ -1025,8 +1026,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // (keep_continuity then holds it UNCERTAIN until the poses keep to the line.)
     line_rival = (e.state == TrackState::kTracking || e.state == TrackState::kUncertain) && tracking &&
                  (turned || rival_on_line(bank, px, roi, frame.bits, e, angle_before, t_mid_s));
+    found_after_hold = false;
     if (e.state == TrackState::kTracking || e.state == TrackState::kUncertain) {
       away_from_held = lost_after_hold && off_held_place(e);
+      found_after_hold = lost_after_hold;
       lost_after_hold = false;
       away_frames = 0;
       away_excess_sum = 0;
@@ -1251,13 +1254,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
 //   it the rule flagged true poses whose χ² rose 8-40 % on a fast target's scan (38 frames of
 //   `pose_accuracy_bench --quick`): significant against a steady stream's narrow spread, but
 //   nowhere near what a pose 3 px off leaves unexplained.
-void Tracker::Impl::judge_fit(PoseEstimate& e, double off) const noexcept {
+void Tracker::Impl::judge_fit(PoseEstimate& e, double off) noexcept {
   if (e.state != TrackState::kTracking || !(cfg.max_false_probability > 0) || loss.calibrating() || !fit_level.known())
     return;
   const double s = std::clamp(static_cast<double>(e.score), 0.0, 1.0);
   if (!(e.chi2 > 0) || s >= 1) return;
   const double floor_sd = fit_floor_sd(s);
   if (!fit_level.significantly_above(e.chi2, significance_z(), floor_sd)) return;
+  fit_in_excess = true;
   const double target_sq = 1.0 - fit_level.chi2() * (1.0 - s * s) / e.chi2;  // s_t²
   if (!(target_sq > 0) || s * s >= target_sq * off * off) return;
   e.state = TrackState::kUncertain;
@@ -1277,7 +1281,7 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   // (rival_on_line). Alone, a target whose searches find nothing forgets it as before (one that
   // left the field and came back on another line).
   const bool found = e.state == TrackState::kTracking || e.state == TrackState::kUncertain;
-  if (e.searched && !line_rival && (found || frame.held_by_others.count == 0)) anchor.forget_keeping_velocity();
+  if (e.searched && !line_rival && (found || frame.held_by_others.count == 0)) anchor.forget_keeping_velocity(found_after_hold);
   if (held_frames > 0 || (e.searched && line_rival)) anchor.doubt();
   // A declined jump (check_motion): a second object at the target's level beside it, which may
   // cover it next; the poses after it must keep to the line as after a held frame, and this one
@@ -1294,7 +1298,18 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
     e.state = TrackState::kUncertain;
     e.reason_bits |= kReasonUnexplained;
   }
-  if (e.state == TrackState::kTracking) anchor.trusted(t_s, e.x_px, e.y_px, e.phi_deg, e.score);
+  // The line is drawn through poses the pattern explains: a TRACKING pose whose fit is
+  // significantly worse than the target's level (not by enough for judge_fit to doubt it) may be
+  // dragged by another object in its window. A twin crossing the lamella on post at 90°
+  // (pose_envelope_probe twin_crosses_over_at_90deg, 6 e-/px) pulled its last TRACKING poses up
+  // 1-5 px a frame at χ² 3.7 where the target reads ~2.1: the line's velocity, which a search
+  // keeps (forget_keeping_velocity), turned from (1.06, -0.15) to (0.24, -1.30) px a frame, as
+  // near the twin's (0, -3) as the target's own, and the needle tip crossed the same way kept a
+  // line the drag had bent and stayed UNCERTAIN to the end after the twin left (35 % TRACKING at
+  // 20 and 6 e-/px; now 73 %). Cost: a line gone stale on a target slowing down beside another
+  // object, whose fit is in excess there, holds it UNCERTAIN longer after a hold
+  // (target_moves_to_other_object_90px, the procedural lamella at 6 e-/px, 90 -> 70 %).
+  if (e.state == TrackState::kTracking && !fit_in_excess) anchor.trusted(t_s, e.x_px, e.y_px, e.phi_deg, e.score);
 }
 
 // A twin of the pattern passing over the target covers it, the target is lost, and the search

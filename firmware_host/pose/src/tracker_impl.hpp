@@ -365,7 +365,11 @@ struct Tracker::Impl {
   void widen_for_blur(const PoseSigma& s, PoseEstimate& e) noexcept;
   // The fit is worse than the target's level, significantly and by more than a pose off by the
   // false-pose radius would be (off_share, off_pose_score.hpp): UNCERTAIN, kReasonUnexplained.
-  void judge_fit(PoseEstimate& e, double off) const noexcept;
+  void judge_fit(PoseEstimate& e, double off) noexcept;
+  // This frame's χ² lay significantly above the target's level (judge_fit's first test, whether
+  // or not its second made the pose UNCERTAIN): the pose is not one the continuity line is drawn
+  // through (keep_continuity says why).
+  bool fit_in_excess = false;
   // The detector noise's share of one frame's log χ² SD at score s (FitLevel's floor_sd):
   // log(1 − s²) moves by 2s/√N_eff, and log(1 − a²) as much again.
   double fit_floor_sd(double s) const noexcept { return 2.0 * std::sqrt(2.0) * s / std::sqrt(std::max(1.0, score_samples)); }
@@ -395,6 +399,9 @@ struct Tracker::Impl {
   // at the place or their fit, over kAwaySettleFrames frames, is at the target's own level
   // (judge_away_from_held, tracker.cpp says why).
   bool lost_after_hold = false;
+  // This frame's search found something after such a loss (the target covered: another object
+  // may be what it found; ContinuityAnchor::forget_keeping_velocity's `covered`).
+  bool found_after_hold = false;
   double held_x_px = 0, held_y_px = 0, held_scale = 1;  // the radius: the pattern's at held_scale
   bool away_from_held = false;
   int away_frames = 0;
