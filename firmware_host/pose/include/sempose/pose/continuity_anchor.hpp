@@ -182,10 +182,7 @@ class ContinuityAnchor {
       return true;
     }
     if (broken_ && search_frame) {  // left to the search's own checks; the next runs start here
-      agreed_ = rested_ = 1;
-      first_t_ = t_s;
-      first_x_ = rest_x_ = x_px;
-      first_y_ = rest_y_ = y_px;
+      start_runs_after_break(t_s, x_px, y_px);
       return true;
     }
     if (broken_) return keeps_velocity_after_break(t_s, x_px, y_px);
@@ -194,10 +191,7 @@ class ContinuityAnchor {
         agreed_ > 0 && std::hypot(x_px - first_x_ - probation_vx_ * dt, y_px - first_y_ - probation_vy_ * dt) <= 2 * kFalsePx;
     if (!kept && !search_frame && strict_) {
       broken_ = true;
-      agreed_ = rested_ = 1;
-      first_t_ = t_s;
-      first_x_ = rest_x_ = x_px;
-      first_y_ = rest_y_ = y_px;
+      start_runs_after_break(t_s, x_px, y_px);
       return false;
     }
     agreed_ = kept ? agreed_ + 1 : 1;
@@ -234,6 +228,13 @@ class ContinuityAnchor {
   // pose_accuracy_bench --quick: the gripper's jaws at 6 e-/px, held while the jaws move and
   // whose poses jump with them, 18 -> 12 TRACKING frames of 60.
   static constexpr int kRunAfterBreak = 5;
+  // Both runs (on the kept velocity, at rest) start afresh at this pose.
+  void start_runs_after_break(double t_s, double x_px, double y_px) noexcept {
+    agreed_ = rested_ = 1;
+    first_t_ = t_s;
+    first_x_ = rest_x_ = x_px;
+    first_y_ = rest_y_ = y_px;
+  }
   bool keeps_velocity_after_break(double t_s, double x_px, double y_px) noexcept {
     const double dt = t_s - first_t_;
     if (std::hypot(x_px - first_x_ - probation_vx_ * dt, y_px - first_y_ - probation_vy_ * dt) <= kFalsePx) {
