@@ -493,13 +493,15 @@ bool Tracker::Impl::fell_while_still(const PoseEstimate& e) noexcept {
 // the motion's shear only, is torn too: frame 46 is caught and the gate stays open on 47-49. The
 // gate stays on both (without it on the x component the `gripper` jaws at 20 e-/px kept 11 of 60
 // frames TRACKING where GripperJawsDoNotDragATrackedPose needs 12, and a 3 px hum wave lost 36
-// of 960 probe frames, 23 with it). A tear along y stays the scale's to explain
-// (Known limitations in depth).
+// of 960 probe frames, 23 with it). A tear along y, which the scale reading takes for a change
+// of size, is kept from the tracked scale by the hold at the scale's update.
 bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double used_scale, double shear_per_row,
-                         double scale_per_row) const noexcept {
+                         double scale_per_row, bool* together) const noexcept {
+  if (together) *together = false;  // not known until measured
   if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
   const SplitConsistency s = split.measure(bank, m.j, m.ux, m.uy);
   if (!s.valid) return false;
+  if (together) *together = s.z < kTogetherZ && s.line_z < kTogetherZ;
   // The parts' distance is a 2-D Mahalanobis one, the largest of kCuts: significant when its
   // square exceeds the χ² (2 dof) quantile of max_false_probability shared over the cuts.
   const double p = std::clamp(cfg.max_false_probability / SplitConsistencyCheck::kCuts, 1e-12, 0.5);
@@ -994,6 +996,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       accept(e, frame, true, cfg.attainable_pattern_noise && attainable > 0 ? attainable : 1.0);
       scale = e.scale;  // tracking starts at the scale the search found
       untorn_scale = scale;
+      scale_held = scale_vouched = false;
+      scale_held_frames = 0;
       scale_tracked = true;
       const bool at_edge = at_field_edge(e, e.scale);
       turned = turned_off_line(m, e, t_mid_s);
@@ -1174,7 +1178,25 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // frames after it.
       const bool steady_scale = std::fabs(scale_rate) <= kStillScale * scale && std::fabs(scale_step) <= kStillScaleStep * scale;
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
-      if (reading.valid) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
+      // A torn frame's scale reading is torn too, and it is not only the rate that must not learn
+      // it: a tear across the lines through the target's middle reads as a change of size (the
+      // lamella on its post, the lower half 8 px down: parts 2 px apart at 6.3 SD on the first
+      // torn frame, whose reading still moved the scale 1.00 → 1.02; the next step closed the
+      // steady-scale gate, and at 1.06 the stretched pattern fitted both halves, TRACKING
+      // 3.7-3.9 px off on 7 frames, pose_envelope_probe half_shifted_y_8px). So a frame found
+      // torn, followed TRACKING or UNCERTAIN, holds the tracked scale, and the hold lasts until the
+      // parts lie clearly together again (every cut within kTogetherZ SDs: at 6 e-/px the second
+      // torn frame's parts were 2.8 SD apart, below the torn bound, and its reading restarted
+      // the drift): the gate stays open and each torn frame is judged at the untorn size. Only a
+      // scale some frame's parts vouched for is held (a search on a torn frame took 1.026 and
+      // held it, every frame after apart at it), and for at most kMaxScaleHold frames (a real
+      // step in size keeps the parts apart too; then the scale follows it as before).
+      bool together = false;
+      const bool split_apart = steady_scale && torn(m, bank, used_scale, shear_per_row, scale_per_row, &together);
+      scale_held = scale_vouched && (split_apart || (scale_held && !together)) && scale_held_frames < kMaxScaleHold;
+      scale_held_frames = scale_held ? scale_held_frames + 1 : 0;
+      if (steady_scale && together) scale_vouched = true;
+      if (reading.valid && !scale_held) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
       if (flip_open || rival_within_noise || jump_declined || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
@@ -1192,8 +1214,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;
       }
-      const bool split_apart = steady_scale && e.state == TrackState::kTracking && torn(m, bank, used_scale, shear_per_row, scale_per_row);
-      if (split_apart) {
+      if (split_apart && e.state == TrackState::kTracking) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;
       }
@@ -1288,9 +1309,29 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   // (UNCERTAIN) does not count as keeping to it.
   if (jump_declined) anchor.contested();
   const bool followed = tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
-  if (anchor.open() && followed && !jump_declined && !anchor.confirm(t_s, e.x_px, e.y_px, e.phi_deg) && e.state == TrackState::kTracking) {
-    e.state = TrackState::kUncertain;
-    e.reason_bits |= kReasonUnexplained;
+  bool off_line = false;
+  ContinuityAnchor::Line line;
+  if (anchor.open() && followed && !jump_declined && !anchor.confirm(t_s, e.x_px, e.y_px, e.phi_deg)) {
+    if (e.state == TrackState::kTracking) {
+      e.state = TrackState::kUncertain;
+      e.reason_bits |= kReasonUnexplained;
+    }
+    off_line = anchor.line_at(t_s, line) && std::hypot(e.x_px - line.x_px, e.y_px - line.y_px) > line.tol_px + ContinuityAnchor::kFalsePx &&
+               line.x_px >= 0 && line.y_px >= 0 && line.x_px <= field.field_w - 1 && line.y_px <= field.field_h - 1;
+  }
+  // Followed clearly off the line (beyond its tolerance by kFalsePx) for kBackToLineFrames in a
+  // row while its check is open: the followed pose is another object that took the window (a
+  // twin that covered the target and moved on), never vouched for, while the line's place is
+  // where the target is. The next ROI goes back there (a fresh start of the motion at the line's
+  // place); the check stays open, so the target's poses there are TRACKING only once
+  // kConfirmFrames of them keep to the line. Before, the needle tip crossed by a twin at 90° at
+  // 6 e-/px (pose_envelope_probe twin_crosses_over_at_90deg), held, then taken 37 px off by the
+  // walk onto the twin, was followed UNCERTAIN for 50 frames until the twin left the field; the
+  // probe's twin rows: the lamella on post passing twins 59 -> 79 % TRACKING.
+  off_line_frames = off_line ? off_line_frames + 1 : 0;
+  if (off_line_frames >= kBackToLineFrames) {
+    motion.accept(line.x_px, line.y_px, line.phi_deg, true);
+    off_line_frames = 0;
   }
   // After a search that forgot the line: vouched for only while the poses keep its velocity
   // (ContinuityAnchor::forget_keeping_velocity).

@@ -426,14 +426,29 @@ struct Tracker::Impl {
   // (shear_per_row + scale_per_row) × the rows between them; along the scan lines, which a
   // change of size does not pull apart, shear_per_row alone): it moved mid-scan, or the scan
   // tore. Followed, reported UNCERTAIN with kReasonUnexplained.
+  // together (optional): the parts lie clearly together (every cut within kTogetherZ SDs; false
+  // when not measured).
   bool torn(const Measurement& m, const PatternBank& bank, double used_scale, double shear_per_row,
-            double scale_per_row) const noexcept;
+            double scale_per_row, bool* together = nullptr) const noexcept;
   // The pattern's window at the measured pose reaches the field's edge (tracker.cpp): the match
   // is the best place the pattern still fits, not necessarily the target's. Reported UNCERTAIN
   // with kReasonOutOfField.
   bool at_field_edge(const PoseEstimate& e, double load_scale) const noexcept;
   static constexpr double kTornApartPx = 0.75, kStillPx = 1.0, kStillScale = 0.0025, kStillScaleStep = 0.005;
   double untorn_scale = 1.0;  // the tracked scale after the last accepted frame not found torn (or search)
+  // A torn frame holds the tracked scale until the parts lie clearly together again (tracker.cpp,
+  // the scale's update): a tear reads as a change of size.
+  // Only a scale a frame has vouched for (parts together at it since the search) is held, and
+  // for at most kMaxScaleHold frames: a scale from a search on a torn frame, or a real step in
+  // size, would otherwise keep every frame after it apart.
+  bool scale_held = false, scale_vouched = false;
+  int scale_held_frames = 0;
+  static constexpr double kTogetherZ = 2.5;
+  static constexpr int kMaxScaleHold = 10;
+  // Followed poses in a row clearly off the continuity line while its check is open
+  // (keep_continuity); at kBackToLineFrames the ROI goes back to the line's place.
+  int off_line_frames = 0;
+  static constexpr int kBackToLineFrames = 5;
   double scale_step = 0;      // the tracked scale's change from one such frame to the next
   // Its running mean over those frames (gain kScaleRateGain: ~2 frames' memory): the
   // scale's rate with one step's noise halved (a still target's single step reaches 0.27 % at
