@@ -268,6 +268,14 @@ class SemEmulDevice : public ::testing::Test {
 // (c + 0.5) · 65536 / n, i.e. these volts on ±10 V.
 double centre_volts(int pixel, int n) { return -10.0 + 20.0 * ((pixel + 0.5) * 65536.0 / n) / 65535.0; }
 
+// One of sem_emul's module parameters ("" when it cannot be read).
+std::string sem_param(const char* name) {
+  std::ifstream f(std::string("/sys/module/sem_emul/parameters/") + name);
+  std::string v;
+  f >> v;
+  return v;
+}
+
 TEST_F(SemEmulDevice, TheNoiseFreeDetectorGivesBackTheSceneAtEveryRoi) {
   const Image scene = read_pgm(scene_path_);
   ScanLimits l;
@@ -304,17 +312,70 @@ TEST_F(SemEmulDevice, TheNoiseFreeDetectorGivesBackTheSceneAtEveryRoi) {
       }
     }
     if (off > 0) {
-      auto param = [](const char* n) {
-        std::ifstream f(std::string("/sys/module/sem_emul/parameters/") + n);
-        std::string v;
-        f >> v;
-        return v;
-      };
       ADD_FAILURE() << off << " pixels off in ROI (" << roi.x << ", " << roi.y << ", " << roi.w << "x" << roi.h
-                    << "), " << src.scans_for(roi) << " scans; sem_emul: ai " << param("last_ai_scans") << ", ao "
-                    << param("last_ao_scans") << ", stale " << param("last_stale_scans");
+                    << "), " << src.scans_for(roi) << " scans; sem_emul: ai " << sem_param("last_ai_scans") << ", ao "
+                    << sem_param("last_ao_scans") << ", stale " << sem_param("last_stale_scans");
     }
   }
+}
+
+// A real detector integrates the beam current over the dwell, and the tracker expects so (its
+// score levels are carried across the governor's dwell changes as r² = S / (S + N), N ∝ 1/dwell):
+// sem_emul's noisy channel must hold electrons_white · dwell / ref_dwell_ns electrons at white,
+// i.e. a pixel of grey g (white 255) has variance 255 · g / that.
+TEST_F(SemEmulDevice, TheNoisyDetectorsDoseFollowsTheDwell) {
+  const Image scene = read_pgm(scene_path_);
+  const double ew = std::atof(sem_param("electrons_white").c_str());
+  const double ref_ns = std::atof(sem_param("ref_dwell_ns").c_str());
+  ASSERT_GT(ew, 0) << "sem_emul's electrons_white unreadable";
+  ASSERT_GT(ref_ns, 0) << "sem_emul's ref_dwell_ns unreadable";
+  ScanLimits l;
+  l.field_w = scene.width;
+  l.field_h = scene.height;
+  l.max_roi_w = 128;
+  l.max_roi_h = 128;
+  l.min_dwell_ns = 1000;
+  l.dwell_step_ns = 1000;
+  l.max_dwell_ns = 100'000;
+  l.bits = 8;
+  config::ComediConfig c;
+  c.device = dev_;
+  c.detector_channels = {0};
+  c.detector_volts = {0.0, 5.0};  // white at 5 V
+  c.x_volts = {centre_volts(0, l.field_w), centre_volts(l.field_w - 1, l.field_w)};
+  c.y_volts = {centre_volts(0, l.field_h), centre_volts(l.field_h - 1, l.field_h)};
+  c.trigger = "ai_start";
+  c.timeout_ms = 5000;
+  ComediScanSource src(l, c);
+  FramePool pool(1, static_cast<std::size_t>(l.field_w) * l.field_h);
+  const Roi roi{123, 77, 96, 96};
+  double per_grey[2] = {0, 0};
+  const std::uint32_t dwells[2] = {16'000, 64'000};  // enough electrons that 0 and 255 rarely clip
+  for (int k = 0; k < 2; ++k) {
+    ASSERT_EQ(src.start(ScanRequest{roi, dwells[k], 0}, pool[0]), StartResult::kStarted);
+    ASSERT_EQ(wait_done(src, 30'000'000'000), PollResult::kDone);
+    double sq = 0, grey = 0;
+    int n = 0;
+    for (int r = 0; r < roi.h; ++r) {
+      for (int x = 0; x < roi.w; ++x) {
+        const int want = scene.pixels[static_cast<std::size_t>((roi.y + r) * scene.width + roi.x + x)];
+        if (want < 40 || want > 160) continue;  // mid-greys: the clipped tails stay below 1 %
+        const double d = pool[0].pixels[r * roi.w + x] - want;
+        sq += d * d;
+        grey += want;
+        ++n;
+      }
+    }
+    ASSERT_GT(n, 1000) << "too few mid-grey pixels in the ROI";
+    per_grey[k] = sq / grey;
+    const double expected = 255.0 / (ew * dwells[k] / ref_ns);
+    EXPECT_NEAR(per_grey[k] / expected, 1.0, 0.2)
+        << "dwell " << dwells[k] << " ns: variance per grey level " << per_grey[k] << ", expected " << expected
+        << " (" << ew << " e- at white at " << ref_ns << " ns)";
+  }
+  std::printf("sem_emul: variance per grey level %.3f at %lld ns, %.3f at %lld ns (ratio %.2f, 4 expected)\n",
+              per_grey[0], static_cast<long long>(dwells[0]), per_grey[1], static_cast<long long>(dwells[1]),
+              per_grey[0] / per_grey[1]);
 }
 
 // sem_emul's fault injection (module parameters, writable as root).

@@ -11,7 +11,8 @@ OUT_DIR:
                        noise variance grows linearly with the grey level (Poisson electrons x a
                        Gamma gain, no offset): var = a*g, i.e. g/a effective electrons at grey g;
                        sem_emul gives electrons_white*g/255 Poisson electrons, so
-                       electrons_white = 255/a.
+                       electrons_white = 255/a. prepare_config.sh adds SEM_REF_DWELL_NS: the
+                       dwell at which sem_emul gives that dose (it scales it with the dwell).
 """
 import csv
 import glob

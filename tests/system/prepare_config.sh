@@ -53,11 +53,16 @@ REF_DWELL_NS=250
 "$SEMPOSE" sim --out "$W/ref" --frames 40 --dwell $REF_DWELL_NS --config "$HERE/scene_sim.yaml" > "$W/ref.log" 2>&1 ||
   { cat "$W/ref.log"; echo "prepare_config: sempose sim (reference) failed"; exit 1; }
 /usr/bin/python3 "$HERE/make_sem_scene.py" "$W/scene" "$W/ref" "$DEST" || { echo "prepare_config: make_sem_scene.py failed"; exit 1; }
+# That dose at the run's first dwell (the governor's initial_dwell_ns); sem_emul scales it with
+# the dwell the governor sets, as a real detector does, and the tracker expects.
+initial_dwell=$(sed -n 's/.*initial_dwell_ns: *\([0-9]*\).*/\1/p' "$HERE/system_comedi.yaml")
+[ -n "$initial_dwell" ] || { echo "prepare_config: no governor initial_dwell_ns in system_comedi.yaml"; exit 1; }
+echo "SEM_REF_DWELL_NS=$initial_dwell" >> "$DEST/sem_electrons.env"
 sed -e "s|@OUT@|$W|g" -e 's|@CAN_IF@||g' -e 's|@COMEDI_SEM@|/dev/comedi-none|g' "$HERE/system_comedi.yaml" > "$W/comedi.yaml"
 "$SEMPOSE" replay --frames "$W/ref" --config "$W/comedi.yaml" --truth "$W/ref/ground_truth.csv" \
   --out "$W/ref_poses.csv" > "$W/ref_replay.log" 2>&1 || { cat "$W/ref_replay.log"; echo "prepare_config: replay of the reference failed"; exit 1; }
 truth_line=$(grep '^truth:' "$W/ref_replay.log") || { cat "$W/ref_replay.log"; echo "prepare_config: no truth line from replay"; exit 1; }
-echo "$truth_line dwell_ns=$REF_DWELL_NS $(cat "$DEST/sem_electrons.env")" > "$DEST/sim_reference.txt"
+echo "$truth_line dwell_ns=$REF_DWELL_NS $(tr "\n" " " < "$DEST/sem_electrons.env")" > "$DEST/sim_reference.txt"
 echo "[prepare_config] simulator reference at the emulated SEM's dose: $(cat "$DEST/sim_reference.txt")"
 # Preflight of the comedi config: valid, and failing only where the device is missing.
 rc=0; "$SEMPOSE" run --config "$W/comedi.yaml" --duration 0.1 > "$W/comedi_run.log" 2>&1 || rc=$?

@@ -5,12 +5,15 @@
  * Two analog outputs deflect a virtual beam over a scene image (a P5 PGM handed over at
  * load time through the firmware loader, module parameter `scene`, default sem_scene.pgm);
  * two analog inputs return the detector signal at the beam: channel 0 with shot noise
- * (`electrons_white` detected electrons per sample at white, Poisson approximated by a
- * Gaussian of the same mean and variance), channel 1 noise-free (lets a test check the geometry).
+ * (`electrons_white` detected electrons per sample at white when the AI scan period is
+ * `ref_dwell_ns`, in proportion to the period otherwise, as a detector integrating the beam
+ * current over the dwell; Poisson approximated by a Gaussian of the same mean and variance),
+ * channel 1 noise-free (lets a test check the geometry).
  *
  * Geometry: the AO span (±10 V, codes 0..65535) covers the scene; the beam is on scene pixel
  * floor(code * width / 65536) (rows likewise, code 0 at the top row).
- * Detector: 0..10 V; white (255) at 5 V mean, black at 0 V.
+ * Detector: 0..10 V; white (255) at 5 V mean, black at 0 V, at every dwell (the mean follows the
+ * beam current, the noise shrinks as the dwell grows).
  *
  * Commands, paced by one high-resolution timer (`tick_us`) that produces, at each tick, every
  * AI scan whose time has passed, and for each AI scan first takes one AO scan (X, Y) while the
@@ -39,7 +42,10 @@ module_param(scene, charp, 0444);
 MODULE_PARM_DESC(scene, "scene image (P5 PGM, 8 bit) under /lib/firmware");
 static unsigned int electrons_white = 20;
 module_param(electrons_white, uint, 0444);
-MODULE_PARM_DESC(electrons_white, "mean detected electrons per AI sample at white (channel 0)");
+MODULE_PARM_DESC(electrons_white, "mean detected electrons per AI sample at white (channel 0) at ref_dwell_ns");
+static unsigned int ref_dwell_ns = 2000;
+module_param(ref_dwell_ns, uint, 0444);
+MODULE_PARM_DESC(ref_dwell_ns, "AI scan period (ns) at which a sample at white holds electrons_white electrons");
 static unsigned int tick_us = 250;
 module_param(tick_us, uint, 0444);
 MODULE_PARM_DESC(tick_us, "pacing timer period in microseconds");
@@ -74,7 +80,7 @@ struct sem_priv {
 	u64 period_ns;
 	u64 scans_done;
 	struct rnd_state rnd;
-	unsigned int ew;		/* electrons_white at attach */
+	s64 white_q12;			/* detected electrons per sample at white at this dwell, Q12 */
 	s64 mean_q12[256];		/* detected electrons per grey level, Q12 */
 	u32 sigma_q12[256];		/* their shot-noise sigma, Q12 */
 	s32 gauss_q12[4096];		/* N(0, 1) deviates, Q12 */
@@ -107,20 +113,31 @@ static unsigned short sem_sample(struct sem_priv *p, unsigned int chan)
 	if (chan == 1)
 		return (unsigned short)(s * 32767 / 255);
 	e_q12 = p->mean_q12[s] + (s64)p->sigma_q12[s] * p->gauss_q12[prandom_u32_state(&p->rnd) >> 20] / 4096;
-	/* white mean at mid scale: code = electrons * 32767 / electrons_white */
-	code = e_q12 * 32767 / ((s64)p->ew * 4096);
+	/* white mean at mid scale: code = electrons * 32767 / electrons at white */
+	code = e_q12 * 32767 / p->white_q12;
 	return (unsigned short)clamp_val(code, 0, 65535);
+}
+
+/* The dose of an AI scan period: electrons_white at ref_dwell_ns, in proportion otherwise. */
+static void sem_set_dose(struct sem_priv *p, u64 period_ns)
+{
+	u64 ew = electrons_white ? electrons_white : 1;
+	u64 ref = ref_dwell_ns ? ref_dwell_ns : 1;
+	unsigned int g;
+
+	period_ns = clamp_val(period_ns, SEM_MIN_PERIOD_NS, 1000000000ULL);
+	p->white_q12 = max_t(s64, 1, div64_u64(ew * period_ns * 4096, ref));
+	for (g = 0; g < 256; g++) {
+		p->mean_q12[g] = p->white_q12 * g / 255;
+		p->sigma_q12[g] = int_sqrt64((u64)p->mean_q12[g] * 4096);
+	}
 }
 
 static void sem_make_tables(struct sem_priv *p)
 {
-	unsigned int g, i, k;
+	unsigned int i, k;
 
-	p->ew = electrons_white ? electrons_white : 1;
-	for (g = 0; g < 256; g++) {
-		p->mean_q12[g] = (s64)g * p->ew * 4096 / 255;
-		p->sigma_q12[g] = int_sqrt64((u64)p->mean_q12[g] * 4096);
-	}
+	sem_set_dose(p, ref_dwell_ns);
 	for (i = 0; i < 4096; i++) {
 		int sum = 0;
 
@@ -275,8 +292,12 @@ static int sem_ai_inttrig(struct comedi_device *dev, struct comedi_subdevice *s,
 static int sem_ai_cmd(struct comedi_device *dev, struct comedi_subdevice *s)
 {
 	struct sem_priv *p = dev->private;
+	unsigned long flags;
 
+	spin_lock_irqsave(&p->lock, flags);
 	p->period_ns = s->async->cmd.scan_begin_arg;
+	sem_set_dose(p, p->period_ns);
+	spin_unlock_irqrestore(&p->lock, flags);
 	if (s->async->cmd.start_src == TRIG_INT)
 		s->async->inttrig = sem_ai_inttrig;
 	else
@@ -479,8 +500,8 @@ static int sem_auto_attach(struct comedi_device *dev, unsigned long context)
 	s->do_cmd = sem_ao_cmd;
 	s->cancel = sem_ao_cancel;
 
-	dev_info(dev->class_dev, "sem_emul: scene %s %ux%u, %u e-/sample at white, tick %u us\n",
-		 scene, p->w, p->h, electrons_white, tick_us);
+	dev_info(dev->class_dev, "sem_emul: scene %s %ux%u, %u e-/sample at white at %u ns dwell, tick %u us\n",
+		 scene, p->w, p->h, electrons_white, ref_dwell_ns, tick_us);
 	return 0;
 }
 
