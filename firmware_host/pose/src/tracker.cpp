@@ -1034,7 +1034,12 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     if (e.state == TrackState::kTracking || e.state == TrackState::kUncertain) {
       away_from_held = lost_after_hold && off_held_place(e);
       found_after_hold = lost_after_hold;
-      lost_after_hold = false;
+      // A rival keeps the line, and with it where the target was held: the ROI sent back to the
+      // line's place (keep_continuity) may lose the covered target again without holding it, and
+      // the search after that must still judge its winner against the held place (the needle tip
+      // under the lamella on post at 2.5 e-/px: the lamella's edge taken TRACKING 100-170 px off
+      // on the fourth such search, once the line had aged out).
+      lost_after_hold = lost_after_hold && line_rival;
       away_frames = 0;
       away_excess_sum = 0;
       if (away_from_held) {
@@ -1363,10 +1368,20 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
 // with the winner (not below it by significance_z() SDs of a difference of two scores), or one the
 // search itself would take as found (LossPolicy::found: a second object there, however the other
 // one's body in its window lowers its score: the needle tips of keep_continuity, its own needle at
-// 0.540 where the other one scored 0.626; its attainable score is not measured there), makes the winner a rival: UNCERTAIN, and the line stays to judge
-// the poses after it. Not a veto: a line
-// whose place holds nothing of the target's score (it left, jumped, turned) lets the winner be
-// judged as before. RT: one ROI load, one binned FFT and a walk, on such search frames only.
+// 0.540 where the other one scored 0.626; its attainable score is not measured there), or one
+// above the score noise reaches anywhere in the field (LossPolicy::field_floor), makes the winner
+// a rival: UNCERTAIN, and the line stays to judge the poses after it. The floor: a twin's shaft
+// over the needle tip's window lost it, and the search took the twin's clean tip 20-50 px off,
+// TRACKING, while the line's place held the target's own maximum at 0.46-0.54 (winner 0.68-0.78,
+// field floor 0.30-0.34; pose_envelope_probe twin_crosses_down_at_45deg at 2.5 / 6 e-/px); noise
+// does not reach that, a background with a look-alike part the search would have weighed. And
+// where the walk from the line's place climbs to a winner within the pattern's radius (the two
+// merged: twin_passes_over at 6 e-/px, the winner 20 px off, the line's place on its slope at
+// 0.56 binned), the same floor on the binned peak there: no maximum of its own, but more of the
+// target's score than noise leaves. Not a veto: a line whose place holds nothing of the target's
+// score (it left, jumped, turned) lets the winner be judged as before; every re-acquisition of
+// the probe that came back true had either landed on the line or left nothing above the floor
+// there. RT: one ROI load, one binned FFT and a walk, on such search frames only.
 bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* px, const Roi& field_roi, int bits,
                                   const PoseEstimate& e, const AnglePrior& last, double t_s) noexcept {
   ContinuityAnchor::Line line;
@@ -1389,12 +1404,15 @@ bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* 
                          static_cast<int>(std::ceil(ux / 2.0 + r_b)), static_cast<int>(std::ceil(uy / 2.0 + r_b))};
   const int j = angles.index_of(last.phi_deg);
   half.correlate(bank.spectrum(j), maps.work());
-  const Measurement r = walk.measure(bank, j, find_peak(maps.work(), half.valid_w(), half.valid_h(), win), cfg.max_angle_steps_per_frame);
+  const Peak on_line = find_peak(maps.work(), half.valid_w(), half.valid_h(), win);
+  const Measurement r = walk.measure(bank, j, on_line, cfg.max_angle_steps_per_frame);
   if (!r.valid) return false;
+  const bool above_noise = loss.field_floor() > 0 && on_line.score > loss.field_floor();
   // Still on the line after the walk (it may climb to the winner's own maximum).
   const double rx = cut.frame_x(r.ux + r.dx + c) - fx, ry = cut.frame_y(r.uy + r.dy + c) - fy;
-  if (std::hypot(rx, ry) > tol) return false;
-  return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score) || loss.found(r, 0.0);
+  if (std::hypot(rx, ry) > tol) return above_noise && std::hypot(e.x_px - lx, e.y_px - ly) < 0.5 * pattern_px * e.scale;
+  return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score) || loss.found(r, 0.0) ||
+         (loss.field_floor() > 0 && r.score > loss.field_floor());
 }
 
 // A re-acquisition after a loss that came through held frames. Held, the target was at its

@@ -53,6 +53,8 @@ class LossPolicy {
   bool found(const Measurement& m, double attainable) const noexcept;
 
   // Setup: the active pattern set's noise floors (-1: none, e.g. while measuring them).
+  // The score pure noise reaches anywhere in a full field (-1: not measured).
+  float field_floor() const noexcept { return field_floor_; }
   void set_noise_floors(float roi, float field) noexcept {
     roi_floor_ = roi;
     field_floor_ = field;
