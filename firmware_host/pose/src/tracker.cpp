@@ -1368,9 +1368,10 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
 // with the winner (not below it by significance_z() SDs of a difference of two scores), or one the
 // search itself would take as found (LossPolicy::found: a second object there, however the other
 // one's body in its window lowers its score: the needle tips of keep_continuity, its own needle at
-// 0.540 where the other one scored 0.626; its attainable score is not measured there), or one
-// above the score noise reaches anywhere in the field (LossPolicy::field_floor), makes the winner
-// a rival: UNCERTAIN, and the line stays to judge the poses after it. The floor: a twin's shaft
+// 0.540 where the other one scored 0.626; its attainable score is not measured there), or, for a
+// target covered before the loss (held, then lost), one above the score noise reaches anywhere in
+// the field (LossPolicy::field_floor), makes the winner a rival: UNCERTAIN, and the line stays to
+// judge the poses after it. The floor: a twin's shaft
 // over the needle tip's window lost it, and the search took the twin's clean tip 20-50 px off,
 // TRACKING, while the line's place held the target's own maximum at 0.46-0.54 (winner 0.68-0.78,
 // field floor 0.30-0.34; pose_envelope_probe twin_crosses_down_at_45deg at 2.5 / 6 e-/px); noise
@@ -1379,9 +1380,8 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
 // merged: twin_passes_over at 6 e-/px, the winner 20 px off, the line's place on its slope at
 // 0.56 binned), the same floor on the binned peak there: no maximum of its own, but more of the
 // target's score than noise leaves. Not a veto: a line whose place holds nothing of the target's
-// score (it left, jumped, turned) lets the winner be judged as before; every re-acquisition of
-// the probe that came back true had either landed on the line or left nothing above the floor
-// there. RT: one ROI load, one binned FFT and a walk, on such search frames only.
+// score (it left, jumped, turned) lets the winner be judged as before. RT: one ROI load, one
+// binned FFT and a walk, on such search frames only.
 bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* px, const Roi& field_roi, int bits,
                                   const PoseEstimate& e, const AnglePrior& last, double t_s) noexcept {
   ContinuityAnchor::Line line;
@@ -1407,12 +1407,15 @@ bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* 
   const Peak on_line = find_peak(maps.work(), half.valid_w(), half.valid_h(), win);
   const Measurement r = walk.measure(bank, j, on_line, cfg.max_angle_steps_per_frame);
   if (!r.valid) return false;
-  const bool above_noise = loss.field_floor() > 0 && on_line.score > loss.field_floor();
+  // Only for a target covered before the loss (held, then lost): a glitched or jumping frame
+  // loses it at once, and its line, kept, would hold the poses after it UNCERTAIN on a path that
+  // has curved away from the line (half_shifted_20px, the needle tip at 20 e-/px: 87 -> 49 %).
+  const bool above_noise = lost_after_hold && loss.field_floor() > 0 && on_line.score > loss.field_floor();
   // Still on the line after the walk (it may climb to the winner's own maximum).
   const double rx = cut.frame_x(r.ux + r.dx + c) - fx, ry = cut.frame_y(r.uy + r.dy + c) - fy;
   if (std::hypot(rx, ry) > tol) return above_noise && std::hypot(e.x_px - lx, e.y_px - ly) < 0.5 * pattern_px * e.scale;
   return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score) || loss.found(r, 0.0) ||
-         (loss.field_floor() > 0 && r.score > loss.field_floor());
+         (lost_after_hold && loss.field_floor() > 0 && r.score > loss.field_floor());
 }
 
 // A re-acquisition after a loss that came through held frames. Held, the target was at its
