@@ -260,6 +260,21 @@ class SemEmulDevice : public ::testing::Test {
       GTEST_SKIP() << "SEMPOSE_COMEDI_SEM_DEVICE / SEMPOSE_COMEDI_SEM_SCENE not set (the emulated SEM)";
     }
   }
+  // The whole scene as the field, 8-bit pixels.
+  static ScanLimits scene_limits(const Image& scene) {
+    ScanLimits l;
+    l.field_w = scene.width;
+    l.field_h = scene.height;
+    l.max_roi_w = 128;
+    l.max_roi_h = 128;
+    l.min_dwell_ns = 1000;
+    l.dwell_step_ns = 1000;
+    l.max_dwell_ns = 100'000;
+    l.bits = 8;
+    return l;
+  }
+  // One detector channel, white (5 V) at full scale, field pixel centres on the scene's.
+  config::ComediConfig scene_config(const ScanLimits& l, int channel, int timeout_ms) const;
   const char* dev_ = nullptr;
   const char* scene_path_ = nullptr;
 };
@@ -267,6 +282,18 @@ class SemEmulDevice : public ::testing::Test {
 // sem_emul's beam is on scene pixel floor(code · n / 65536): field pixel c's centre code is
 // (c + 0.5) · 65536 / n, i.e. these volts on ±10 V.
 double centre_volts(int pixel, int n) { return -10.0 + 20.0 * ((pixel + 0.5) * 65536.0 / n) / 65535.0; }
+
+config::ComediConfig SemEmulDevice::scene_config(const ScanLimits& l, int channel, int timeout_ms) const {
+  config::ComediConfig c;
+  c.device = dev_;
+  c.detector_channels = {channel};
+  c.detector_volts = {0.0, 5.0};
+  c.x_volts = {centre_volts(0, l.field_w), centre_volts(l.field_w - 1, l.field_w)};
+  c.y_volts = {centre_volts(0, l.field_h), centre_volts(l.field_h - 1, l.field_h)};
+  c.trigger = "ai_start";
+  c.timeout_ms = timeout_ms;
+  return c;
+}
 
 // One of sem_emul's module parameters ("" when it cannot be read).
 std::string sem_param(const char* name) {
@@ -278,23 +305,8 @@ std::string sem_param(const char* name) {
 
 TEST_F(SemEmulDevice, TheNoiseFreeDetectorGivesBackTheSceneAtEveryRoi) {
   const Image scene = read_pgm(scene_path_);
-  ScanLimits l;
-  l.field_w = scene.width;
-  l.field_h = scene.height;
-  l.max_roi_w = 128;
-  l.max_roi_h = 128;
-  l.min_dwell_ns = 1000;
-  l.dwell_step_ns = 1000;
-  l.max_dwell_ns = 100'000;
-  l.bits = 8;
-  config::ComediConfig c;
-  c.device = dev_;
-  c.detector_channels = {1};  // noise-free
-  c.detector_volts = {0.0, 5.0};  // white at 5 V
-  c.x_volts = {centre_volts(0, l.field_w), centre_volts(l.field_w - 1, l.field_w)};
-  c.y_volts = {centre_volts(0, l.field_h), centre_volts(l.field_h - 1, l.field_h)};
-  c.trigger = "ai_start";
-  c.timeout_ms = 2000;
+  const ScanLimits l = scene_limits(scene);
+  const config::ComediConfig c = scene_config(l, 1, 2000);  // the noise-free channel
   ComediScanSource src(l, c);
   FramePool pool(1, static_cast<std::size_t>(l.field_w) * l.field_h);
   for (const Roi roi : {Roi{0, 0, 96, 80}, Roi{l.field_w - 64, l.field_h - 48, 64, 48}, Roi{123, 77, 128, 128}}) {
@@ -329,23 +341,8 @@ TEST_F(SemEmulDevice, TheNoisyDetectorsDoseFollowsTheDwell) {
   const double ref_ns = std::atof(sem_param("ref_dwell_ns").c_str());
   ASSERT_GT(ew, 0) << "sem_emul's electrons_white unreadable";
   ASSERT_GT(ref_ns, 0) << "sem_emul's ref_dwell_ns unreadable";
-  ScanLimits l;
-  l.field_w = scene.width;
-  l.field_h = scene.height;
-  l.max_roi_w = 128;
-  l.max_roi_h = 128;
-  l.min_dwell_ns = 1000;
-  l.dwell_step_ns = 1000;
-  l.max_dwell_ns = 100'000;
-  l.bits = 8;
-  config::ComediConfig c;
-  c.device = dev_;
-  c.detector_channels = {0};
-  c.detector_volts = {0.0, 5.0};  // white at 5 V
-  c.x_volts = {centre_volts(0, l.field_w), centre_volts(l.field_w - 1, l.field_w)};
-  c.y_volts = {centre_volts(0, l.field_h), centre_volts(l.field_h - 1, l.field_h)};
-  c.trigger = "ai_start";
-  c.timeout_ms = 5000;
+  const ScanLimits l = scene_limits(scene);
+  const config::ComediConfig c = scene_config(l, 0, 5000);  // the noisy channel
   ComediScanSource src(l, c);
   FramePool pool(1, static_cast<std::size_t>(l.field_w) * l.field_h);
   const Roi roi{123, 77, 96, 96};

@@ -1410,12 +1410,11 @@ bool Tracker::Impl::rival_on_line(const PatternBank& bank, const std::uint16_t* 
   // Only for a target covered before the loss (held, then lost): a glitched or jumping frame
   // loses it at once, and its line, kept, would hold the poses after it UNCERTAIN on a path that
   // has curved away from the line (half_shifted_20px, the needle tip at 20 e-/px: 87 -> 49 %).
-  const bool above_noise = lost_after_hold && loss.field_floor() > 0 && on_line.score > loss.field_floor();
+  const auto above_noise = [&](double score) { return lost_after_hold && loss.field_floor() > 0 && score > loss.field_floor(); };
   // Still on the line after the walk (it may climb to the winner's own maximum).
   const double rx = cut.frame_x(r.ux + r.dx + c) - fx, ry = cut.frame_y(r.uy + r.dy + c) - fy;
-  if (std::hypot(rx, ry) > tol) return above_noise && std::hypot(e.x_px - lx, e.y_px - ly) < 0.5 * pattern_px * e.scale;
-  return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score) || loss.found(r, 0.0) ||
-         (lost_after_hold && loss.field_floor() > 0 && r.score > loss.field_floor());
+  if (std::hypot(rx, ry) > tol) return above_noise(on_line.score) && std::hypot(e.x_px - lx, e.y_px - ly) < 0.5 * pattern_px * e.scale;
+  return static_cast<double>(r.score) >= e.score - significance_z() * flip_sd(e.score) || loss.found(r, 0.0) || above_noise(r.score);
 }
 
 // A re-acquisition after a loss that came through held frames. Held, the target was at its
