@@ -689,14 +689,18 @@ TEST(NoFalseTracking, TornFrameOfAStepAtSixElectronsIsNotTracking) {
 // it kept: the needle tip 10-11 px off, the lamella on post 24-28 px and 87° off, TRACKING at
 // 0.66-0.70 (s/a ~0.7, the explained check's bound; its level forgotten with the loss) on 21 and
 // 34 of 80 frames at 6 e-/px. Searched over the scale levels around the last tracked scale, it is
-// re-found at its new size in one search.
+// re-found at its new size in one search. And the size the search found is the continuity line's
+// from then on (ContinuityAnchor::resized): the procedural lamella stepped down at 20 e-/px, lost
+// through held frames and re-found on the line at 0.83, was held UNCERTAIN to the end by the line's
+// size check (90 -> 37.5 % TRACKING) without it.
 TEST(NoFalseTracking, MagnificationStepWithoutSelectIsFoundAtTheNewSize) {
   struct Case {
     const char* target;
-    double to;
+    double to, dose;
   };
-  for (const Case& c : {Case{"needle_tip", 1.2}, Case{"lamella_post", 1.2}, Case{"needle_tip", 1.0 / 1.2}}) {
-    pt::Scenario s = envelope_scene(c.target, "smooth", 6, 80);
+  for (const Case& c : {Case{"needle_tip", 1.2, 6}, Case{"lamella_post", 1.2, 6}, Case{"needle_tip", 1.0 / 1.2, 6},
+                        Case{"lamella", 1.0 / 1.2, 20}}) {
+    pt::Scenario s = envelope_scene(c.target, "smooth", c.dose, 80);
     const double to = c.to;
     s.edit_run = [to](sempose::config::SimConfig& sc) {
       sc.targets[0].scale.from = 1.0;
@@ -705,7 +709,7 @@ TEST(NoFalseTracking, MagnificationStepWithoutSelectIsFoundAtTheNewSize) {
     };
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
-    const FalseCount n = run_and_count(h, std::string(c.target) + " scale step to " + std::to_string(c.to) + " dose 6");
+    const FalseCount n = run_and_count(h, std::string(c.target) + " scale step to " + std::to_string(c.to) + " dose " + std::to_string(c.dose));
     EXPECT_EQ(n.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (21 / 34 / 11 before)";
     EXPECT_GE(n.tracked, s.frames - 8) << "re-found at its new size and tracked again";
   }
@@ -974,8 +978,10 @@ TEST(NoFalseTracking, TwinCoveringTheTargetIsNotTakenByTheSearchAfter) {
 // noise reaching 0.30-0.34 anywhere in the field): below the winner and below "found", so not a
 // rival, and the line was forgotten (3c79094: 50.0 / 42.2 px at 2.5 / 6 e-/px from above, 24.2 /
 // 20.2 px passing over). A hypothesis on the line above the field's noise floor is the target's
-// (Tracker::rival_on_line). What is left are the poses the merged image drags 3-5 px along the
-// needle's axis, its scale reading 5-9 % up (README, Known limitations), hence the bound here.
+// (Tracker::rival_on_line). Then the merged image dragged the poses 3-5 px along the needle's
+// axis, TRACKING on 11-12 frames a row at 2.5 e-/px (3c6591f), its fit within the noise but its
+// scale reading 4-10 % up: the continuity check closes only on poses of the trail's size
+// (ContinuityAnchor::confirm). The worst left: 3.5 px, the last of the drag.
 TEST(NoFalseTracking, TwinFoundWhileTheTargetStillScoresOnTheLineIsNotTracked) {
   struct Row {
     double dose, dy, vx, vy, x0, before_px;
@@ -988,7 +994,8 @@ TEST(NoFalseTracking, TwinFoundWhileTheTargetStillScoresOnTheLineIsNotTracked) {
     char what[96];
     std::snprintf(what, sizeof what, "needle_tip with a twin %s, dose %.1f", r.dy == 0 ? "passing over" : "crossing from above",
                   r.dose);
-    run_and_count(h, what);
+    const FalseCount n = run_and_count(h, what);
+    EXPECT_LE(n.false_n, 2) << what << ": TRACKING > 3 px off on the merged image (11-12 a row at 2.5 e-/px before)";
     double worst_px = 0;
     for (std::size_t f = 0; f < h.poses().size(); ++f) {
       const auto& e = h.poses()[f];

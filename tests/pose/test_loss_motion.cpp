@@ -469,22 +469,63 @@ TEST(ContinuityAnchor, ClosesOnTheLineNotOnAMotionThatTurnedBack) {
   using sempose::pose::ContinuityAnchor;
   const double dt = 0.01;  // 1 px a frame along x
   ContinuityAnchor along;
-  for (int i = 0; i < ContinuityAnchor::kTrail; ++i) along.trusted(i * dt, 100.0 + i, 50.0, 0.0, 0.9);
+  for (int i = 0; i < ContinuityAnchor::kTrail; ++i) along.trusted(i * dt, 100.0 + i, 50.0, 0.0, 0.9, 1.0, 0.005);
   along.doubt();
   ASSERT_TRUE(along.open());
   bool closed = false;
-  for (int i = ContinuityAnchor::kTrail; i < ContinuityAnchor::kTrail + 5 && !closed; ++i) closed = along.confirm(i * dt, 100.0 + i, 50.0, 0.0);
+  for (int i = ContinuityAnchor::kTrail; i < ContinuityAnchor::kTrail + 5 && !closed; ++i) closed = along.confirm(i * dt, 100.0 + i, 50.0, 0.0, 1.0, 0.005);
   EXPECT_TRUE(closed) << "poses on the line close the check";
   EXPECT_FALSE(along.open());
 
   ContinuityAnchor turned;
-  for (int i = 0; i < ContinuityAnchor::kTrail; ++i) turned.trusted(i * dt, 100.0 + i, 50.0, 0.0, 0.9);
+  for (int i = 0; i < ContinuityAnchor::kTrail; ++i) turned.trusted(i * dt, 100.0 + i, 50.0, 0.0, 0.9, 1.0, 0.005);
   turned.doubt();
   for (int i = ContinuityAnchor::kTrail; i < ContinuityAnchor::kTrail + 50; ++i)
-    EXPECT_FALSE(turned.confirm(i * dt, 100.0 + 2 * (ContinuityAnchor::kTrail - 1) - i, 50.0, 0.0)) << "frame " << i;
+    EXPECT_FALSE(turned.confirm(i * dt, 100.0 + 2 * (ContinuityAnchor::kTrail - 1) - i, 50.0, 0.0, 1.0, 0.005)) << "frame " << i;
   EXPECT_TRUE(turned.open());
   turned.forget();
   EXPECT_FALSE(turned.open());
+}
+
+// The check closes only on poses of the trail's size: a twin merged with the covered target drags
+// the pose along its line with a scale reading 4-10 % up (pose_envelope_probe
+// twin_crosses_down_at_45deg, the needle tip at 2.5 e-/px: σ_scale ~0.012). A search that found
+// the target on the line at a new size (a magnification step) resizes the trail, and a trail whose
+// size runs on (a magnification ramp) is carried on.
+TEST(ContinuityAnchor, ClosesOnlyOnPosesOfTheTrailsSize) {
+  using sempose::pose::ContinuityAnchor;
+  const double dt = 0.01, sd = 0.012;
+  auto held_after = [&](auto scale_at) {
+    ContinuityAnchor a;
+    for (int i = 0; i < ContinuityAnchor::kTrail; ++i) a.trusted(i * dt, 100.0 + i, 50.0, 0.0, 0.9, scale_at(i), sd);
+    a.doubt();
+    return a;
+  };
+  const auto flat = [](int i) { return 1.0 + (i % 2 ? 0.006 : -0.006); };  // its noise, ±σ/2
+  ContinuityAnchor merged = held_after(flat);
+  ASSERT_TRUE(merged.open());
+  for (int i = ContinuityAnchor::kTrail + 10; i < ContinuityAnchor::kTrail + 40; ++i)
+    EXPECT_FALSE(merged.confirm(i * dt, 100.0 + i, 50.0, 0.0, 1.07, sd)) << "on the line at 1.07x, frame " << i;
+  EXPECT_TRUE(merged.open());
+  // The same size within the pose's noise closes it; so does the new size once a search found it.
+  ContinuityAnchor same = held_after(flat);
+  bool closed = false;
+  for (int i = ContinuityAnchor::kTrail + 10; i < ContinuityAnchor::kTrail + 15 && !closed; ++i)
+    closed = same.confirm(i * dt, 100.0 + i, 50.0, 0.0, i % 2 ? 1.015 : 0.985, sd);
+  EXPECT_TRUE(closed) << "poses of the trail's size within 1.25 sigma";
+  ContinuityAnchor stepped = held_after(flat);
+  stepped.resized(1.0 / 1.2);
+  closed = false;
+  for (int i = ContinuityAnchor::kTrail + 10; i < ContinuityAnchor::kTrail + 15 && !closed; ++i)
+    closed = stepped.confirm(i * dt, 100.0 + i, 50.0, 0.0, 1.0 / 1.2 + (i % 2 ? 0.004 : -0.004), 0.004);
+  EXPECT_TRUE(closed) << "the size a search found on the line";
+  // A ramp of 0.5 % a frame (25 % over 50 frames), noise 0.1 %: 20 frames on it is 10 % up.
+  const auto ramp = [](int i) { return std::exp(0.005 * i) * (i % 2 ? 1.001 : 0.999); };
+  ContinuityAnchor ramping = held_after(ramp);
+  closed = false;
+  for (int i = ContinuityAnchor::kTrail + 20; i < ContinuityAnchor::kTrail + 25 && !closed; ++i)
+    closed = ramping.confirm(i * dt, 100.0 + i, 50.0, 0.0, ramp(i), 0.002);
+  EXPECT_TRUE(closed) << "poses on the trail's ramp";
 }
 
 // A search after a covered target's loss forgets the line but keeps its velocity (1 px a frame
@@ -497,7 +538,7 @@ TEST(ContinuityAnchor, AfterACoveredLossOnlyALongRunOnTheKeptVelocityVouches) {
   const double dt = 0.01, w = 640, h = 480;
   auto probation = [&](bool covered) {
     ContinuityAnchor a;
-    for (int i = 0; i < ContinuityAnchor::kTrail; ++i) a.trusted(i * dt, 100.0 + i, 240.0, 0.0, 0.9);
+    for (int i = 0; i < ContinuityAnchor::kTrail; ++i) a.trusted(i * dt, 100.0 + i, 240.0, 0.0, 0.9, 1.0, 0.005);
     a.forget_keeping_velocity(covered);
     EXPECT_TRUE(a.on_probation());
     // The search frame 20 frames on, 12 px below the line (the merged image), then the next

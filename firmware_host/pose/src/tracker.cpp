@@ -1313,10 +1313,14 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   // cover it next; the poses after it must keep to the line as after a held frame, and this one
   // (UNCERTAIN) does not count as keeping to it.
   if (jump_declined) anchor.contested();
+  // A search that found the target on the line's place measured its size (it covers the scale
+  // levels around the last): the line's size is that one (ContinuityAnchor::resized).
+  ContinuityAnchor::Line line;
+  if (e.searched && found && anchor.line_at(t_s, line) && std::hypot(e.x_px - line.x_px, e.y_px - line.y_px) <= line.tol_px)
+    anchor.resized(e.scale);
   const bool followed = tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
   bool off_line = false;
-  ContinuityAnchor::Line line;
-  if (anchor.open() && followed && !jump_declined && !anchor.confirm(t_s, e.x_px, e.y_px, e.phi_deg)) {
+  if (anchor.open() && followed && !jump_declined && !anchor.confirm(t_s, e.x_px, e.y_px, e.phi_deg, e.scale, e.sigma_scale)) {
     if (e.state == TrackState::kTracking) {
       e.state = TrackState::kUncertain;
       e.reason_bits |= kReasonUnexplained;
@@ -1355,7 +1359,7 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   // 20 and 6 e-/px; now 73 %). Cost: a line gone stale on a target slowing down beside another
   // object, whose fit is in excess there, holds it UNCERTAIN longer after a hold
   // (target_moves_to_other_object_90px, the procedural lamella at 6 e-/px, 90 -> 70 %).
-  if (e.state == TrackState::kTracking && !fit_in_excess) anchor.trusted(t_s, e.x_px, e.y_px, e.phi_deg, e.score);
+  if (e.state == TrackState::kTracking && !fit_in_excess) anchor.trusted(t_s, e.x_px, e.y_px, e.phi_deg, e.score, e.scale, e.sigma_scale);
 }
 
 // A twin of the pattern passing over the target covers it, the target is lost, and the search
