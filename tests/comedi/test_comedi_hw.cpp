@@ -63,18 +63,21 @@ config::ComediConfig sawtooth_config(const char* dev) {
   return c;
 }
 
-ScanLimits sawtooth_limits() {
+// A field, its largest ROI and pixel depth; dwell 1-100 µs in 1 µs steps.
+ScanLimits limits(int field_w, int field_h, int max_roi_w, int max_roi_h, int bits) {
   ScanLimits l;
-  l.field_w = 64;
-  l.field_h = 48;
-  l.max_roi_w = 64;
-  l.max_roi_h = 48;
+  l.field_w = field_w;
+  l.field_h = field_h;
+  l.max_roi_w = max_roi_w;
+  l.max_roi_h = max_roi_h;
   l.min_dwell_ns = 1000;
   l.max_dwell_ns = 100'000;
   l.dwell_step_ns = 1000;
-  l.bits = 16;
+  l.bits = bits;
   return l;
 }
+
+ScanLimits sawtooth_limits() { return limits(64, 48, 64, 48, 16); }
 
 class ComediTestDevice : public ::testing::Test {
  protected:
@@ -261,18 +264,7 @@ class SemEmulDevice : public ::testing::Test {
     }
   }
   // The whole scene as the field, 8-bit pixels.
-  static ScanLimits scene_limits(const Image& scene) {
-    ScanLimits l;
-    l.field_w = scene.width;
-    l.field_h = scene.height;
-    l.max_roi_w = 128;
-    l.max_roi_h = 128;
-    l.min_dwell_ns = 1000;
-    l.dwell_step_ns = 1000;
-    l.max_dwell_ns = 100'000;
-    l.bits = 8;
-    return l;
-  }
+  static ScanLimits scene_limits(const Image& scene) { return limits(scene.width, scene.height, 128, 128, 8); }
   // One detector channel, white (5 V) at full scale, field pixel centres on the scene's.
   config::ComediConfig scene_config(const ScanLimits& l, int channel, int timeout_ms) const;
   const char* dev_ = nullptr;

@@ -70,13 +70,7 @@ class ContinuityAnchor {
   bool confirm(double t_s, double x_px, double y_px, double phi_deg, double scale, double sigma_scale) noexcept {
     Line l;
     if (!line_at(t_s, l)) return false;
-    const double sd = l.log_scale_sd > 0 ? std::min(sigma_scale / scale, kScaleSdOverTrail * l.log_scale_sd) : sigma_scale / scale;
-    const auto near = [&](double log_s, double sd_factor) {
-      return std::fabs(std::log(scale) - log_s) <= kScaleZ * sd * sd_factor + l.scale_tol;
-    };
-    const bool sized = !(scale > 0 && sigma_scale > 0) || near(l.log_scale, std::sqrt(1.0 + 1.0 / n_)) ||
-                       (l.ramp && near(l.log_scale_ramp, l.ramp_sd_factor));
-    const bool on = std::hypot(x_px - l.x_px, y_px - l.y_px) <= l.tol_px && !turned(phi_deg, l) && sized;
+    const bool on = std::hypot(x_px - l.x_px, y_px - l.y_px) <= l.tol_px && !turned(phi_deg, l) && sized(l, scale, sigma_scale);
     agreed_ = on ? agreed_ + 1 : 0;
     if (agreed_ == 1) {
       first_t_ = t_s;
@@ -119,6 +113,16 @@ class ContinuityAnchor {
   static constexpr double kScaleZ = 2.0;
   static constexpr double kScaleSdOverTrail = 1.5;
   static constexpr double kScaleDriftPerFrame = 0.001;
+  // Whether a pose of this scale and σ has the line's size (confirm(); no σ: not judged).
+  bool sized(const Line& l, double scale, double sigma_scale) const noexcept {
+    if (!(scale > 0 && sigma_scale > 0)) return true;
+    const double log_s = std::log(scale), sd_pose = sigma_scale / scale;
+    const double sd = l.log_scale_sd > 0 ? std::min(sd_pose, kScaleSdOverTrail * l.log_scale_sd) : sd_pose;
+    const auto near = [&](double line_log_s, double sd_factor) {
+      return std::fabs(log_s - line_log_s) <= kScaleZ * sd * sd_factor + l.scale_tol;
+    };
+    return near(l.log_scale, std::sqrt(1.0 + 1.0 / n_)) || (l.ramp && near(l.log_scale_ramp, l.ramp_sd_factor));
+  }
   // Turned by more than this from the line: a 180° look-alike, not the target turning on.
   static constexpr double kTurnedDeg = 90.0;
   static bool turned(double phi_deg, const Line& l) noexcept { return std::fabs(std::remainder(phi_deg - l.phi_deg, 360.0)) > kTurnedDeg; }
