@@ -52,7 +52,7 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
 
 void Tracker::Impl::forget_everything() noexcept {
   go_lost();
-  lost_after_hold = away_from_held = false;
+  lost_after_hold = away_from_held = lost_on_tear = false;
   anchor.forget();
   flip_open = false;
   search_n = 0;
@@ -921,7 +921,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // than waiting, as a first start's does, for an ROI frame to confirm it.
     loss.forget_target();
     fit_level.forget();
-    lost_after_hold = away_from_held = false;
+    lost_after_hold = away_from_held = lost_on_tear = false;
     blur_level.forget();
     if (commanded_search) motion.forget_noise();
     scale = expected_scale.load(std::memory_order_relaxed);
@@ -1017,6 +1017,13 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.reason_bits |= kReasonUnexplained;
       }
       judge_fit(e, set < off_share.size() ? off_share[set] : 1.0);
+      // The scan tore the frame that lost the target (lost_on_tear): the field scan after it may
+      // be torn where no cut of the window can show it, so its pose waits for an ROI frame.
+      if (lost_on_tear && e.state == TrackState::kTracking) {
+        e.state = TrackState::kUncertain;
+        e.reason_bits |= kReasonUnexplained;
+      }
+      lost_on_tear = false;
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable
@@ -1139,6 +1146,40 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   }
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
   if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
+  // How far the target's own motion puts the split check's parts apart per row between them
+  // (torn()): its velocity per frame times the share of the frame period one row's scan
+  // takes (without timestamps, one of the ROI's rows), plus the tracked scale against the
+  // scale the ROI was loaded at (rows below the centre show a larger target lower). The
+  // velocity is the motion model's; without one (the first ROI frame after a search) this
+  // pose's move from the last one over the time since it, and the smaller of the two until
+  // the motion since the search is known (the first velocity spans the long field scan).
+  // Loaded-ROI px per loaded row: a rescaled ROI's rows and pixels are both 1/used_scale of
+  // the scanned ones.
+  const double row_share = frame_period_s > 0 && frame.t_scan_end_ns > frame.t_scan_start_ns
+                               ? 1e-9 * static_cast<double>(frame.t_scan_end_ns - frame.t_scan_start_ns) / roi.h / frame_period_s
+                               : 1.0 / roi.h;
+  // A torn frame's followed pose teaches the motion model a false velocity (the pose jumps
+  // with the part it sits on), which would excuse the torn frames after it: the speed is at
+  // most the one the last TRACKING frame left (until a search).
+  const double this_move_px = std::hypot(e.x_px - motion.x_px(), e.y_px - motion.y_px());
+  const double velocity_px = std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px());
+  double moved_px = !motion.has_velocity()   ? this_move_px
+                    : motion.motion_known() ? velocity_px
+                                            : std::min(velocity_px, this_move_px);
+  if (tracking_speed_px >= 0) moved_px = std::min(moved_px, tracking_speed_px);
+  // A still target's move from two noisy poses reads up to ~1 px a frame at 6 e-/px
+  // (kStillPx, the check's old gate): that much is noise, not motion during the scan.
+  const double shear_per_row = std::max(0.0, moved_px - kStillPx) * row_share;
+  const double scale_per_row = std::fabs(scale / used_scale - 1.0);
+  // And only while the tracked scale is steady (its running rate, ~2 frames' memory, at most
+  // kStillScale of it and its last step at most kStillScaleStep), as before: a target whose
+  // size changes during the scan (a scale ramp, a gripper's jaws moving, which the scale
+  // readings follow) pulls the parts apart in its own way, which the motion's allowance does
+  // not hold (without this gate 24 jaws and 10 scale-ramp frames of `--quick` turned
+  // UNCERTAIN). Learnt from the frames the check did not find torn: a torn frame's scale
+  // reading is torn too (0.97 where the target is at 1.00) and closed the gate on the torn
+  // frames after it.
+  const bool steady_scale = std::fabs(scale_rate) <= kStillScale * scale && std::fabs(scale_step) <= kStillScaleStep * scale;
   switch (loss.judge(m)) {
     case FrameVerdict::kAccept: {
       // Where the pose landed against a prediction made from two ROI poses (before the motion
@@ -1148,40 +1189,6 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         innov = {true, motion.innovation_px(e.x_px, e.y_px), motion.innovation_deg(e.phi_deg)};
       const bool fell = fell_below_search_level(m.score);  // against the level before this frame
       const bool fell_still = fell_while_still(e);          // against the last accepted pose
-      // How far the target's own motion puts the split check's parts apart per row between them
-      // (torn()): its velocity per frame times the share of the frame period one row's scan
-      // takes (without timestamps, one of the ROI's rows), plus the tracked scale against the
-      // scale the ROI was loaded at (rows below the centre show a larger target lower). The
-      // velocity is the motion model's; without one (the first ROI frame after a search) this
-      // pose's move from the last one over the time since it, and the smaller of the two until
-      // the motion since the search is known (the first velocity spans the long field scan).
-      // Loaded-ROI px per loaded row: a rescaled ROI's rows and pixels are both 1/used_scale of
-      // the scanned ones.
-      const double row_share = frame_period_s > 0 && frame.t_scan_end_ns > frame.t_scan_start_ns
-                                   ? 1e-9 * static_cast<double>(frame.t_scan_end_ns - frame.t_scan_start_ns) / roi.h / frame_period_s
-                                   : 1.0 / roi.h;
-      // A torn frame's followed pose teaches the motion model a false velocity (the pose jumps
-      // with the part it sits on), which would excuse the torn frames after it: the speed is at
-      // most the one the last TRACKING frame left (until a search).
-      const double this_move_px = std::hypot(e.x_px - motion.x_px(), e.y_px - motion.y_px());
-      const double velocity_px = std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px());
-      double moved_px = !motion.has_velocity()   ? this_move_px
-                        : motion.motion_known() ? velocity_px
-                                                : std::min(velocity_px, this_move_px);
-      if (tracking_speed_px >= 0) moved_px = std::min(moved_px, tracking_speed_px);
-      // A still target's move from two noisy poses reads up to ~1 px a frame at 6 e-/px
-      // (kStillPx, the check's old gate): that much is noise, not motion during the scan.
-      const double shear_per_row = std::max(0.0, moved_px - kStillPx) * row_share;
-      const double scale_per_row = std::fabs(scale / used_scale - 1.0);
-      // And only while the tracked scale is steady (its running rate, ~2 frames' memory, at most
-      // kStillScale of it and its last step at most kStillScaleStep), as before: a target whose
-      // size changes during the scan (a scale ramp, a gripper's jaws moving, which the scale
-      // readings follow) pulls the parts apart in its own way, which the motion's allowance does
-      // not hold (without this gate 24 jaws and 10 scale-ramp frames of `--quick` turned
-      // UNCERTAIN). Learnt from the frames the check did not find torn: a torn frame's scale
-      // reading is torn too (0.97 where the target is at 1.00) and closed the gate on the torn
-      // frames after it.
-      const bool steady_scale = std::fabs(scale_rate) <= kStillScale * scale && std::fabs(scale_step) <= kStillScaleStep * scale;
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
       // A torn frame's scale reading is torn too, and it is not only the rate that must not learn
       // it: a tear across the lines through the target's middle reads as a change of size (the
@@ -1231,8 +1238,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // Learnt from frames tracked well only: a pose the rules doubt would teach the level its lie.
       if (fit_sample && e.state == TrackState::kTracking && e.reason_bits == 0) fit_level.learn(e.chi2);
       if (e.state == TrackState::kTracking && e.reason_bits == 0 && !blur_widened) blur_level.learn(frame_blur);
-      if (e.state == TrackState::kTracking)
+      if (e.state == TrackState::kTracking) {
         tracking_speed_px = std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px());
+        lost_on_tear = false;  // held through the tear and followed again: no search to doubt
+      }
       if (!split_apart) {
         scale_step = scale - untorn_scale;
         scale_rate += kScaleRateGain * (scale_step - scale_rate);
@@ -1250,6 +1259,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     case FrameVerdict::kLost:
       e.reason_bits |= loss.weak_reasons(m);
       e.state = TrackState::kLost;
+      // A tear whose parts the split check cannot pair (the lower half 20 px over: the pose on
+      // one part, the other beyond the cuts' reach) shows as a jump the score does not vouch for.
+      if (m.valid && ((steady_scale && torn(m, bank, used_scale, shear_per_row, scale_per_row)) ||
+                      (m.implausible && e.reason_bits == kReasonUnexplained)))
+        lost_on_tear = true;
       if (loss.only_unexplained(m) && held_frames < kMaxHeldFrames) hold();
       else go_lost();
       break;
