@@ -415,12 +415,14 @@ struct Tracker::Impl {
   // through on 40 frames (pose_envelope_probe other_object_comes_to_60px); 1 kept it out.
   static constexpr double kAwayOffsetSpreads = 1.0;
   // The target was lost on a frame the split check found torn (a scan glitch: the lower half of
-  // the frame shifted). The field scan after it is torn too while the glitch lasts, with the target
-  // wholly in the shifted part (no cut of the window straddles the tear): pose_envelope_probe
+  // the frame shifted), or whose pose jumped where its score did not vouch for it (the other part
+  // beyond the cuts' reach). The field scan after it is torn too while the glitch lasts, with the
+  // target wholly in the shifted part (no cut of the window straddles the tear): pose_envelope_probe
   // half_shifted_*_frames_40_49, the search on frame 41 took it 5-20 px off, TRACKING on 11 rows
   // at >= 2.5 e-/px. Nothing in that frame tells it from a jump, so the search's pose is
-  // UNCERTAIN until an ROI frame confirms it. Set on the lost frame, cleared by the search that
-  // finds the target. A jump's loss is not torn (the target leaves the window whole).
+  // UNCERTAIN until an ROI frame confirms it. Set on the lost frame; cleared by the search that
+  // finds the target or a TRACKING pose in the held ROI. A real jump's loss is neither: the target
+  // scores at its level and leaves the window whole.
   bool lost_on_tear = false;
   bool off_held_place(const PoseEstimate& e) const noexcept;
   void judge_away_from_held(PoseEstimate& e) noexcept;
