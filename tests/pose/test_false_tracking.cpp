@@ -1151,7 +1151,7 @@ TEST(NoFalseTracking, ScanGlitchShiftingHalfTheFrameIsNotTracking) {
 // straddles the tear and nothing in that frame tells it from a jump; the frame that lost the
 // target does (torn, or a jump its score does not vouch for: a 20 px shift puts the second part
 // beyond the cuts' reach). So the search after such a loss is UNCERTAIN until an ROI frame
-// confirms it: frames 40-49 are not TRACKING at all here, search frame included.
+// confirms it: no pose is TRACKING off the target, the search frame counted too.
 TEST(NoFalseTracking, SearchAfterALossToATornFrameWaitsForAnRoiFrame) {
   for (const int dx : {12, 20}) {
     const GlitchCount c = run_half_frame_glitch("needle_tip", 20, dx, 0, true);

@@ -458,6 +458,46 @@ bool Tracker::Impl::fell_while_still(const PoseEstimate& e) noexcept {
   return still_doubt;
 }
 
+Tracker::Impl::SplitAllowance Tracker::Impl::split_allowance(const PoseFrame& frame, const PoseEstimate& e, int roi_h,
+                                                            double used_scale) const noexcept {
+  // How far the target's own motion puts the split check's parts apart per row between them
+  // (torn()): its velocity per frame times the share of the frame period one row's scan
+  // takes (without timestamps, one of the ROI's rows), plus the tracked scale against the
+  // scale the ROI was loaded at (rows below the centre show a larger target lower). The
+  // velocity is the motion model's; without one (the first ROI frame after a search) this
+  // pose's move from the last one over the time since it, and the smaller of the two until
+  // the motion since the search is known (the first velocity spans the long field scan).
+  // Loaded-ROI px per loaded row: a rescaled ROI's rows and pixels are both 1/used_scale of
+  // the scanned ones.
+  const double row_share = frame_period_s > 0 && frame.t_scan_end_ns > frame.t_scan_start_ns
+                               ? 1e-9 * static_cast<double>(frame.t_scan_end_ns - frame.t_scan_start_ns) / roi_h / frame_period_s
+                               : 1.0 / roi_h;
+  // A torn frame's followed pose teaches the motion model a false velocity (the pose jumps
+  // with the part it sits on), which would excuse the torn frames after it: the speed is at
+  // most the one the last TRACKING frame left (until a search).
+  const double this_move_px = std::hypot(e.x_px - motion.x_px(), e.y_px - motion.y_px());
+  const double velocity_px = std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px());
+  double moved_px = !motion.has_velocity()   ? this_move_px
+                    : motion.motion_known() ? velocity_px
+                                            : std::min(velocity_px, this_move_px);
+  if (tracking_speed_px >= 0) moved_px = std::min(moved_px, tracking_speed_px);
+  // A still target's move from two noisy poses reads up to ~1 px a frame at 6 e-/px
+  // (kStillPx, the check's old gate): that much is noise, not motion during the scan.
+  SplitAllowance a;
+  a.shear_per_row = std::max(0.0, moved_px - kStillPx) * row_share;
+  a.scale_per_row = std::fabs(scale / used_scale - 1.0);
+  // And only while the tracked scale is steady (its running rate, ~2 frames' memory, at most
+  // kStillScale of it and its last step at most kStillScaleStep), as before: a target whose
+  // size changes during the scan (a scale ramp, a gripper's jaws moving, which the scale
+  // readings follow) pulls the parts apart in its own way, which the motion's allowance does
+  // not hold (without this gate 24 jaws and 10 scale-ramp frames of `--quick` turned
+  // UNCERTAIN). Learnt from the frames the check did not find torn: a torn frame's scale
+  // reading is torn too (0.97 where the target is at 1.00) and closed the gate on the torn
+  // frames after it.
+  a.steady_scale = std::fabs(scale_rate) <= kStillScale * scale && std::fabs(scale_step) <= kStillScaleStep * scale;
+  return a;
+}
+
 // A torn frame (issue 13 item 6): the target jumped while its ROI was scanned, or a scan glitch
 // moved part of the frame, so the lines scanned before show it at one place and those after at
 // another, and the pose sits with one part or between them. Its score can stay at the level of
@@ -1146,40 +1186,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   }
   if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
   if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
-  // How far the target's own motion puts the split check's parts apart per row between them
-  // (torn()): its velocity per frame times the share of the frame period one row's scan
-  // takes (without timestamps, one of the ROI's rows), plus the tracked scale against the
-  // scale the ROI was loaded at (rows below the centre show a larger target lower). The
-  // velocity is the motion model's; without one (the first ROI frame after a search) this
-  // pose's move from the last one over the time since it, and the smaller of the two until
-  // the motion since the search is known (the first velocity spans the long field scan).
-  // Loaded-ROI px per loaded row: a rescaled ROI's rows and pixels are both 1/used_scale of
-  // the scanned ones.
-  const double row_share = frame_period_s > 0 && frame.t_scan_end_ns > frame.t_scan_start_ns
-                               ? 1e-9 * static_cast<double>(frame.t_scan_end_ns - frame.t_scan_start_ns) / roi.h / frame_period_s
-                               : 1.0 / roi.h;
-  // A torn frame's followed pose teaches the motion model a false velocity (the pose jumps
-  // with the part it sits on), which would excuse the torn frames after it: the speed is at
-  // most the one the last TRACKING frame left (until a search).
-  const double this_move_px = std::hypot(e.x_px - motion.x_px(), e.y_px - motion.y_px());
-  const double velocity_px = std::hypot(motion.predicted_x_px() - motion.x_px(), motion.predicted_y_px() - motion.y_px());
-  double moved_px = !motion.has_velocity()   ? this_move_px
-                    : motion.motion_known() ? velocity_px
-                                            : std::min(velocity_px, this_move_px);
-  if (tracking_speed_px >= 0) moved_px = std::min(moved_px, tracking_speed_px);
-  // A still target's move from two noisy poses reads up to ~1 px a frame at 6 e-/px
-  // (kStillPx, the check's old gate): that much is noise, not motion during the scan.
-  const double shear_per_row = std::max(0.0, moved_px - kStillPx) * row_share;
-  const double scale_per_row = std::fabs(scale / used_scale - 1.0);
-  // And only while the tracked scale is steady (its running rate, ~2 frames' memory, at most
-  // kStillScale of it and its last step at most kStillScaleStep), as before: a target whose
-  // size changes during the scan (a scale ramp, a gripper's jaws moving, which the scale
-  // readings follow) pulls the parts apart in its own way, which the motion's allowance does
-  // not hold (without this gate 24 jaws and 10 scale-ramp frames of `--quick` turned
-  // UNCERTAIN). Learnt from the frames the check did not find torn: a torn frame's scale
-  // reading is torn too (0.97 where the target is at 1.00) and closed the gate on the torn
-  // frames after it.
-  const bool steady_scale = std::fabs(scale_rate) <= kStillScale * scale && std::fabs(scale_step) <= kStillScaleStep * scale;
+  // The split check's allowance for the target's own motion and size (before accept() moves the
+  // motion model on): the accepted frame's check and the lost frame's (lost_on_tear) use it.
+  const SplitAllowance allow = split_allowance(frame, e, roi.h, used_scale);
   switch (loss.judge(m)) {
     case FrameVerdict::kAccept: {
       // Where the pose landed against a prediction made from two ROI poses (before the motion
@@ -1204,10 +1213,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // held it, every frame after apart at it), and for at most kMaxScaleHold frames (a real
       // step in size keeps the parts apart too; then the scale follows it as before).
       bool together = false;
-      const bool split_apart = steady_scale && torn(m, bank, used_scale, shear_per_row, scale_per_row, &together);
+      const bool split_apart = allow.steady_scale && torn(m, bank, used_scale, allow.shear_per_row, allow.scale_per_row, &together);
       scale_held = scale_vouched && (split_apart || (scale_held && !together)) && scale_held_frames < kMaxScaleHold;
       scale_held_frames = scale_held ? scale_held_frames + 1 : 0;
-      if (steady_scale && together) scale_vouched = true;
+      if (allow.steady_scale && together) scale_vouched = true;
       if (reading.valid && !scale_held) scale = std::clamp(scale + kScaleGain * (e.scale - scale), kScaleMin, kScaleMax);
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
@@ -1261,7 +1270,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       e.state = TrackState::kLost;
       // A tear whose parts the split check cannot pair (the lower half 20 px over: the pose on
       // one part, the other beyond the cuts' reach) shows as a jump the score does not vouch for.
-      if (m.valid && ((steady_scale && torn(m, bank, used_scale, shear_per_row, scale_per_row)) ||
+      if (m.valid && ((allow.steady_scale && torn(m, bank, used_scale, allow.shear_per_row, allow.scale_per_row)) ||
                       (m.implausible && e.reason_bits == kReasonUnexplained)))
         lost_on_tear = true;
       if (loss.only_unexplained(m) && held_frames < kMaxHeldFrames) hold();

@@ -440,6 +440,13 @@ struct Tracker::Impl {
   // when not measured).
   bool torn(const Measurement& m, const PatternBank& bank, double used_scale, double shear_per_row,
             double scale_per_row, bool* together = nullptr) const noexcept;
+  // How far apart the target's own motion during the scan puts the parts per row, how much the
+  // tracked scale against the loaded one adds, and whether the scale is steady enough to judge.
+  struct SplitAllowance {
+    double shear_per_row = 0, scale_per_row = 0;
+    bool steady_scale = false;
+  };
+  SplitAllowance split_allowance(const PoseFrame& frame, const PoseEstimate& e, int roi_h, double used_scale) const noexcept;
   // The pattern's window at the measured pose reaches the field's edge (tracker.cpp): the match
   // is the best place the pattern still fits, not necessarily the target's. Reported UNCERTAIN
   // with kReasonOutOfField.
