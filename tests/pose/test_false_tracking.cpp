@@ -1160,6 +1160,18 @@ TEST(NoFalseTracking, SearchAfterALossToATornFrameWaitsForAnRoiFrame) {
   }
 }
 
+// The glitch 20 px over on the lamella on its post at 2.5 e-/px: the search after the torn loss
+// found the target's shifted part turned 91° and 13 px off, UNCERTAIN, but the ROI frames after it
+// were torn the same way and followed it, TRACKING (4 poses, keeping the target's own velocity):
+// an ROI frame alone cannot confirm a search while the glitch lasts. The target had scored
+// 0.73 ± 0.013 before the loss, those poses 0.64-0.67, so a pose followed after a loss on a tear
+// is TRACKING only once it scores at the level kept before the loss (Tracker::Impl::tear_level).
+TEST(NoFalseTracking, PoseAfterALossOnATearScoresAtTheTargetsLevelBeforeTracking) {
+  const GlitchCount c = run_half_frame_glitch("lamella_post", 2.5, 20, 0, true);
+  EXPECT_EQ(c.false_n, 0) << "the ROI frames after the search on the torn field TRACKING the shifted part";
+  EXPECT_GE(c.tracked, c.frames / 2) << "tracked outside the glitch";
+}
+
 // The same glitch at 6 e-/px: the tracked scale follows the torn frames' readings (0.99 → 0.97
 // over frames 42-46); the scale's share of the split check's allowance excused frame 46, whose
 // reading then closed the steady-scale gate on 47-49: 3 ROI frames 9-10 px off TRACKING, their

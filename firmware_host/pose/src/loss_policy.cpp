@@ -54,10 +54,13 @@ FrameVerdict LossPolicy::judge(const Measurement& m) noexcept {
   return ++weak_frames_ >= cfg_.lost_after_frames ? FrameVerdict::kLost : FrameVerdict::kCoast;
 }
 
+double LossPolicy::confirm_margin() const noexcept {
+  if (!have_score_mean_) return 0.0;
+  return std::max(kConfirmSigmas * std::sqrt(score_var_), kConfirmShare * (1.0 - score_mean_ * score_mean_));
+}
+
 bool LossPolicy::confirmed(float score) const noexcept {
-  if (!have_score_mean_) return false;
-  const double margin = std::max(kConfirmSigmas * std::sqrt(score_var_), kConfirmShare * (1.0 - score_mean_ * score_mean_));
-  return score >= score_mean_ - margin;
+  return have_score_mean_ && score >= score_mean_ - confirm_margin();
 }
 
 double LossPolicy::false_probability(double sigma_px, double sigma_deg) noexcept {

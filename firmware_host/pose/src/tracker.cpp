@@ -53,6 +53,7 @@ double Tracker::Impl::attainable_score(const std::uint16_t* px, int w, int h, do
 void Tracker::Impl::forget_everything() noexcept {
   go_lost();
   lost_after_hold = away_from_held = lost_on_tear = false;
+  tear_level = 0;
   anchor.forget();
   flip_open = false;
   search_n = 0;
@@ -962,6 +963,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     loss.forget_target();
     fit_level.forget();
     lost_after_hold = away_from_held = lost_on_tear = false;
+    tear_level = 0;
     blur_level.forget();
     if (commanded_search) motion.forget_noise();
     scale = expected_scale.load(std::memory_order_relaxed);
@@ -1064,6 +1066,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.reason_bits |= kReasonUnexplained;
       }
       lost_on_tear = false;
+      check_tear_level(m, e);
     } else {
       e.state = TrackState::kAcquiring;
       // Not found is a low score too when it is only below the field's floor, the attainable
@@ -1244,6 +1247,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         if (!(e.chi2 > 0)) e.chi2 = normalised_chi2(e.score, attainable_score(frame.pixels, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y, m.j));
         judge_away_from_held(e);
       }
+      check_tear_level(m, e);
       // Learnt from frames tracked well only: a pose the rules doubt would teach the level its lie.
       if (fit_sample && e.state == TrackState::kTracking && e.reason_bits == 0) fit_level.learn(e.chi2);
       if (e.state == TrackState::kTracking && e.reason_bits == 0 && !blur_widened) blur_level.learn(frame_blur);
@@ -1271,8 +1275,15 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // A tear whose parts the split check cannot pair (the lower half 20 px over: the pose on
       // one part, the other beyond the cuts' reach) shows as a jump the score does not vouch for.
       if (m.valid && ((allow.steady_scale && torn(m, bank, used_scale, allow.shear_per_row, allow.scale_per_row)) ||
-                      (m.implausible && e.reason_bits == kReasonUnexplained)))
+                      (m.implausible && e.reason_bits == kReasonUnexplained))) {
         lost_on_tear = true;
+        // A second loss while the glitch lasts finds the level already forgotten: the first kept.
+        if (loss.recent_level() > 0) {
+          tear_level = loss.recent_level();
+          tear_margin = std::max(loss.confirm_margin(), significance_z() * flip_sd(tear_level));
+          tear_below_frames = 0;
+        }
+      }
       if (loss.only_unexplained(m) && held_frames < kMaxHeldFrames) hold();
       else go_lost();
       break;
@@ -1313,6 +1324,17 @@ void Tracker::Impl::judge_fit(PoseEstimate& e, double off) noexcept {
   fit_in_excess = true;
   const double target_sq = 1.0 - fit_level.chi2() * (1.0 - s * s) / e.chi2;  // s_t²
   if (!(target_sq > 0) || s * s >= target_sq * off * off) return;
+  e.state = TrackState::kUncertain;
+  e.reason_bits |= kReasonUnexplained;
+}
+
+// After a loss on a tear (tear_level): TRACKING only at the level the target kept before it.
+void Tracker::Impl::check_tear_level(const Measurement& m, PoseEstimate& e) noexcept {
+  if (!(tear_level > 0) || e.state != TrackState::kTracking || !(cfg.max_false_probability > 0)) return;
+  if (m.score >= tear_level - tear_margin || ++tear_below_frames >= kTearLapseFrames) {
+    tear_level = 0;
+    return;
+  }
   e.state = TrackState::kUncertain;
   e.reason_bits |= kReasonUnexplained;
 }

@@ -424,6 +424,21 @@ struct Tracker::Impl {
   // finds the target or a TRACKING pose in the held ROI. A real jump's loss is neither: the target
   // scores at its level and leaves the window whole.
   bool lost_on_tear = false;
+  // The score level the target kept before that loss (LossPolicy::recent_level()) and how far
+  // below it a score still confirms it (the confirmed margin, at least significance_z() SDs of a
+  // difference of two scores); 0: none. A torn field scan finds the target's shifted part, or a
+  // look-alike, and the ROI frames after it are torn the same way while the glitch lasts, so an
+  // ROI frame alone does not confirm the search: a pose followed after a loss on a tear is TRACKING
+  // only once it scores at that level again (pose_envelope_probe half_shifted_20px_frames_40_49,
+  // the lamella on post at 2.5 e-/px: found 13 px off and turned 91° at 0.62, followed TRACKING at
+  // 0.64-0.67 on frames 43-47 where the target had scored 0.73 +- 0.013; the needle tip at 20 e-/px
+  // 0.77 against 0.91). Kept across further losses until a pose scores there, or kTearLapseFrames
+  // followed poses in a row did not (the target's level changed while it was lost: it does not
+  // stay UNCERTAIN for ever), or the target is forgotten.
+  double tear_level = 0, tear_margin = 0;
+  int tear_below_frames = 0;
+  static constexpr int kTearLapseFrames = 2 * ContinuityAnchor::kTrail;
+  void check_tear_level(const Measurement& m, PoseEstimate& e) noexcept;
   bool off_held_place(const PoseEstimate& e) const noexcept;
   void judge_away_from_held(PoseEstimate& e) noexcept;
   // A re-acquisition off the line, turned from it and below the line's level (tracker.cpp): the

@@ -76,6 +76,8 @@ class LossPolicy {
   // it is still the target. A neighbouring local maximum (the walk started from a stale angle,
   // a look-alike) scores visibly below the target's level. No level yet: not confirmed.
   bool confirmed(float score) const noexcept;
+  // How far below recent_level() a score is still confirmed (the margin above; 0: no level).
+  double confirm_margin() const noexcept;
   // The running mean of the target's recent accepted scores (−1: none yet).
   double recent_level() const noexcept { return have_score_mean_ ? score_mean_ : -1.0; }
   static constexpr double kConfirmSigmas = 3.0;
