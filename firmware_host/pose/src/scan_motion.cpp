@@ -1,16 +1,21 @@
 #include "sempose/pose/scan_motion.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
 #include "sempose/pose/pattern_bank.hpp"
 
 namespace sempose::pose {
+namespace {
 
-ScanMotionResponse::ScanMotionResponse(const PatternBank& bank) {
-  const int n = bank.size_px();
-  const float* p = bank.pattern(0);  // zero outside its support
+// The response changes with the copy's support and interpolation, slowly with angle: sampled
+// every 5° (72 angles, ~50 ms a pattern at setup; every 1° took 0.25 s for no measurable change).
+constexpr double kAngleStrideDeg = 5.0;
+
+// One copy's response, false when its support is too small or the fit's normal matrix singular.
+bool response_of(const float* p, int n, std::array<std::array<double, 6>, 3>& out) {
   const double c = 0.5 * (n - 1);
   const auto at = [&](int x, int y) { return static_cast<double>(p[static_cast<long>(y) * n + x]); };
   double mean = 0;
@@ -21,10 +26,10 @@ ScanMotionResponse::ScanMotionResponse(const PatternBank& bank) {
         mean += at(x, y);
         ++count;
       }
-  if (count < 64) return;
+  if (count < 64) return false;
   mean /= static_cast<double>(count);
   Eigen::Matrix<double, 6, 6> h = Eigen::Matrix<double, 6, 6>::Zero();
-  Eigen::Matrix<double, 6, 6> t = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 3> t = Eigen::Matrix<double, 6, 3>::Zero();
   for (int y = 1; y < n - 1; ++y)
     for (int x = 1; x < n - 1; ++x) {
       // Gradients only where the pixel and its four neighbours are inside the support.
@@ -32,17 +37,15 @@ ScanMotionResponse::ScanMotionResponse(const PatternBank& bank) {
       const double ux = x - c, uy = y - c;
       const double gx = 0.5 * (at(x + 1, y) - at(x - 1, y)), gy = 0.5 * (at(x, y + 1) - at(x, y - 1));
       // The pose's fields at u: translation, rotation (φ counter-clockwise on screen moves u by
-      // (u_y, -u_x) per radian), scale (u), then gain and offset.
+      // (u_y, -u_x) per radian, y down), scale (u), then gain and offset.
       Eigen::Matrix<double, 6, 1> j;
-      j << gx, gy, gx * uy - gy * ux, gx * ux + gy * uy, at(x, y) - mean, 1.0;
+      const double turn = gx * uy - gy * ux;
+      j << gx, gy, turn, gx * ux + gy * uy, at(x, y) - mean, 1.0;
       h.noalias() += j * j.transpose();
-      t.col(0) += j * (gx * ux);
-      t.col(1) += j * (gx * uy);
-      t.col(2) += j * (gy * ux);
-      t.col(3) += j * (gy * uy);
-      const double turn = gx * uy - gy * ux;  // the rotation field's change of the pattern at u
-      t.col(4) += j * (turn * ux);
-      t.col(5) += j * (turn * uy);
+      // u's row lies u_y rows from the pose's: displaced by u_y × (v_x, v_y, the turn).
+      t.col(0) += j * (gx * uy);
+      t.col(1) += j * (gy * uy);
+      t.col(2) += j * (turn * uy);
     }
   // The walk fits position and angle at the tracked scale (the scale probe reads scale after
   // it): the scale is not a parameter of the fit whose bias this is.
@@ -51,33 +54,48 @@ ScanMotionResponse::ScanMotionResponse(const PatternBank& bank) {
   h(3, 3) = 1.0;
   t.row(3).setZero();
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(h);
-  if (ldlt.info() != Eigen::Success) return;
-  const Eigen::Matrix<double, 6, 6> k = ldlt.solve(t);
-  if (!k.allFinite()) return;
-  for (int ij = 0; ij < 6; ++ij)
-    for (int r = 0; r < 6; ++r) k_[static_cast<std::size_t>(ij)][static_cast<std::size_t>(r)] = k(r, ij);
-  valid_ = true;
+  if (ldlt.info() != Eigen::Success) return false;
+  const Eigen::Matrix<double, 6, 3> k = ldlt.solve(t);
+  if (!k.allFinite()) return false;
+  for (int i = 0; i < 3; ++i)
+    for (int r = 0; r < 6; ++r) out[static_cast<std::size_t>(i)][static_cast<std::size_t>(r)] = k(r, i);
+  return true;
+}
+
+}  // namespace
+
+ScanMotionResponse::ScanMotionResponse(const PatternBank& bank) {
+  const int angles = bank.angles();
+  if (angles <= 0) return;
+  const double bank_step = 360.0 / angles;
+  const int stride = std::max(1, static_cast<int>(std::lround(kAngleStrideDeg / bank_step)));
+  std::vector<Response> k;
+  for (int j = 0; j < angles; j += stride) {
+    Response r{};
+    if (!response_of(bank.pattern(j), bank.size_px(), r)) return;  // not valid: no correction
+    k.push_back(r);
+  }
+  k_ = std::move(k);
+  step_deg_ = bank_step * stride;
 }
 
 ScanMotionBias ScanMotionResponse::bias(double phi_deg, double scale, double vx_px_per_row, double vy_px_per_row,
                                         double turn_deg_per_row) const noexcept {
-  if (!valid_) return {};
-  const double rad = phi_deg * (std::numbers::pi / 180.0), cs = std::cos(rad), sn = std::sin(rad);
-  // Pattern u lies at s·R u from the pose (R = [[cos, sin], [-sin, cos]], y down): its row offset
-  // is s·(ρ·u) with ρ = R's second row. A shift v per row displaces it by v × that offset, in
-  // pattern axes Rᵀv / s (the scale cancels); a turn ω per row by ω × that offset along the
-  // rotation field (the scale stays).
-  const double vx_p = cs * vx_px_per_row - sn * vy_px_per_row, vy_p = sn * vx_px_per_row + cs * vy_px_per_row;
-  const double rho_x = -sn, rho_y = cs;
-  const double w_turn = scale * turn_deg_per_row * (std::numbers::pi / 180.0);
-  const double w[6] = {vx_p * rho_x, vx_p * rho_y, vy_p * rho_x, vy_p * rho_y, w_turn * rho_x, w_turn * rho_y};
+  if (k_.empty() || !std::isfinite(phi_deg)) return {};
+  // The sampled copy nearest the target's angle (its response turns slowly with the angle).
+  const long n = static_cast<long>(k_.size());
+  const long i = ((std::lround(phi_deg / step_deg_) % n) + n) % n;
+  const Response& r = k_[static_cast<std::size_t>(i)];
+  // The copy is the target as the field shows it at scale 1: copy pixel u lies at s·u from the
+  // pose, s·u_y rows from the pose's row. A shift v per row displaces it by v·s·u_y, v·u_y in the
+  // copy's pixels (the scale cancels); a turn ω per row by ω·s·u_y along the rotation field.
+  const double w[3] = {vx_px_per_row, vy_px_per_row, scale * turn_deg_per_row * (std::numbers::pi / 180.0)};
   double d[6] = {};
-  for (int ij = 0; ij < 6; ++ij)
-    for (int r = 0; r < 6; ++r) d[r] += w[ij] * k_[static_cast<std::size_t>(ij)][static_cast<std::size_t>(r)];
-  // The pattern-axis shift back to the field's axes: s·R.
+  for (int c = 0; c < 3; ++c)
+    for (int p = 0; p < 6; ++p) d[p] += w[c] * r[static_cast<std::size_t>(c)][static_cast<std::size_t>(p)];
   ScanMotionBias b;
-  b.x_px = scale * (cs * d[0] + sn * d[1]);
-  b.y_px = scale * (-sn * d[0] + cs * d[1]);
+  b.x_px = scale * d[0];  // the copy's pixels to the field's
+  b.y_px = scale * d[1];
   b.phi_deg = d[2] * (180.0 / std::numbers::pi);
   b.scale = d[3];
   return b;

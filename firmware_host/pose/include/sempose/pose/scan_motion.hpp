@@ -5,11 +5,13 @@
 // angle, scale, gain, offset) takes the part of that displacement its own parameters can
 // express as the target's pose: noise-free, 200 px/s and 50 µs rows turned the needle tip
 // +0.63°, the lamella on its post +0.26° and the lamella +0.22° (pose_accuracy_bench fast rows:
-// the largest part of their angle error). Linearised about the true pose over the pattern's
-// support (least squares with the pattern's gradients: the fit's own first-order response), the
-// bias is linear in the velocity (and the turn rate) and in the direction the rows run through
-// the pattern; six 6-vectors per pattern at setup, contracted per frame (RT: no allocation).
+// the largest part of their angle error). Linearised about the true pose over the support of the
+// bank's copy at the target's angle (least squares with that copy's gradients: the fit's own
+// first-order response; the copy at 0° turned was 2× off at 30–45° where a pattern's support is
+// not round, the lamella on its post), the bias is linear in the velocity and the turn rate: three
+// 6-vectors per angle sampled at setup (every kAngleStrideDeg), read per frame (RT: no allocation).
 #include <array>
+#include <vector>
 
 namespace sempose::pose {
 
@@ -24,20 +26,21 @@ struct ScanMotionBias {
 class ScanMotionResponse {
  public:
   ScanMotionResponse() = default;
-  // Setup: from the bank's pattern at angle 0 (its support, as the fit scores it).
+  // Setup: from the bank's copies (their supports, as the fit scores them).
   explicit ScanMotionResponse(const PatternBank& bank);
   // A target at phi_deg and scale moving (vx, vy) px and turning turn_deg per scanned row (its
   // velocity × one row's time).
   ScanMotionBias bias(double phi_deg, double scale, double vx_px_per_row, double vy_px_per_row,
                       double turn_deg_per_row) const noexcept;
-  bool valid() const noexcept { return valid_; }
+  bool valid() const noexcept { return !k_.empty(); }
 
  private:
-  // K_ij = H⁻¹ Σ J (G·e_i) u_j over the support (i: the displacement's pattern axis or the
-  // rotation field, j: the pattern axis the row offset runs along), ij = xx, xy, yx, yy, θx, θy;
-  // each over (x, y, θ, scale, gain, offset).
-  std::array<std::array<double, 6>, 6> k_{};
-  bool valid_ = false;
+  // Per sampled angle: K_i = H⁻¹ Σ J (G·e_i) u_y over the copy's support, i = the displacement
+  // along the field's x, along y, the rotation field (u_y: a pixel's row offset from the pose's
+  // row); each over (x, y, θ, scale, gain, offset).
+  using Response = std::array<std::array<double, 6>, 3>;
+  std::vector<Response> k_;
+  double step_deg_ = 0;
 };
 
 }  // namespace sempose::pose
