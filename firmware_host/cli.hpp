@@ -65,6 +65,39 @@ inline void add_recording(std::vector<NamedPath>& inputs, const std::string& wha
   }
 }
 
+// Where writing `path` lands: its symbolic links followed, also one whose target does not exist
+// yet (writing through it creates the target), then made absolute and normal. Found probing:
+// `pattern --out LINK` with LINK → a frame of the recording passed the "not in the frames
+// folder" check, which looked at LINK's own folder, and overwrote the frame.
+inline std::filesystem::path resolved_output(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::path p = std::filesystem::absolute(path, ec);
+  if (ec) return path;
+  for (int hops = 0; hops < 40 && std::filesystem::is_symlink(std::filesystem::symlink_status(p, ec)); ++hops) {
+    const std::filesystem::path target = std::filesystem::read_symlink(p, ec);
+    if (ec) break;
+    p = target.is_absolute() ? target : p.parent_path() / target;
+  }
+  const std::filesystem::path canonical = std::filesystem::weakly_canonical(p, ec);
+  return ec ? p.lexically_normal() : canonical;
+}
+
+// Whether two output paths land on one file: the same file (hard links too) or the same place.
+inline bool same_output(const std::string& a, const std::string& b) {
+  if (a.empty() || b.empty() || a == "-" || b == "-") return false;
+  std::error_code ec;
+  if (std::filesystem::equivalent(a, b, ec) && !ec) return true;
+  return resolved_output(a) == resolved_output(b);
+}
+
+// Whether writing `out` puts a file into folder `dir` (through links too).
+inline bool output_in_folder(const std::string& out, const std::string& dir) {
+  if (out.empty() || out == "-" || dir.empty()) return false;
+  std::error_code ec;
+  const bool in = std::filesystem::equivalent(resolved_output(out).parent_path(), dir, ec);
+  return in && !ec;
+}
+
 inline std::string output_overwrites_input(const std::string& what, const std::string& out,
                                            const std::vector<NamedPath>& inputs) {
   if (out.empty() || out == "-") return "";

@@ -17,6 +17,7 @@
 #include "cli_signals.hpp"
 #include "cli_options.hpp"
 #include "pattern_stillness.hpp"
+#include "sempose/config/reader.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
 
@@ -51,6 +52,11 @@ int sempose::cli::pattern(int argc, char** argv) {
   const long size = static_cast<long>(opt.whole("--size", 128)), average = static_cast<long>(opt.whole("--average", 10));
   if (cli::refuse_stdout_output("pattern", out, "the pattern's PGM file")) return 2;
   if (cli::refuse_control_characters("pattern", "--out", out)) return 2;
+  // A folder or device as --out failed after every frame was read with "cannot create the file".
+  if (const std::string why = config::output_path_problem(out); !why.empty()) {
+    std::fprintf(stderr, "sempose pattern: --out: '%s' cannot take the pattern: it is %s\n", out.c_str(), why.c_str());
+    return 2;
+  }
   double cx = 0, cy = 0;
   {
     const auto comma = center.find(',');
@@ -64,13 +70,19 @@ int sempose::cli::pattern(int argc, char** argv) {
     // A PGM written into the frames folder is read as a frame by the next replay or pattern
     // (a "size differs" failure), and one named like a frame overwrites the recording: the
     // pattern goes elsewhere.
+    // Through a link too (resolved_output), and a hard link to a frame is that frame.
+    std::vector<cli::NamedPath> frames;
+    cli::add_recording(frames, "--frames", dir);
     std::error_code ec;
-    const auto out_dir = std::filesystem::absolute(out, ec).parent_path();
-    if (!ec && std::filesystem::equivalent(out_dir, dir, ec) && !ec) {
+    if (cli::output_in_folder(out, dir)) {
       std::fprintf(stderr,
                    "sempose pattern: --out '%s' is in the frames folder %s: it would be read as a frame of the "
                    "recording%s; write the pattern outside it\n",
                    out.c_str(), dir.c_str(), std::filesystem::exists(out, ec) ? " (and overwrites one)" : "");
+      return 2;
+    }
+    if (const std::string problem = cli::output_overwrites_input("--out", out, frames); !problem.empty()) {
+      std::fprintf(stderr, "sempose pattern: %s\n", problem.c_str());
       return 2;
     }
   }

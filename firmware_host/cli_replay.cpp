@@ -240,10 +240,9 @@ int run_replay(int argc, char** argv) {
       return 2;
     }
     // A new .pgm in the frames folder is read as a frame by the next replay of it.
-    std::error_code ec;
-    const auto out_dir = std::filesystem::absolute(out_path, ec).parent_path();
-    if (out_path != "-" && hal::is_pgm_name(out_path) &&
-        std::filesystem::equivalent(out_dir, frames_dir, ec) && !ec) {
+    // Through a link too: where the CSV lands, and under the name it lands as.
+    if (out_path != "-" && hal::is_pgm_name(cli::resolved_output(out_path).string()) &&
+        cli::output_in_folder(out_path, frames_dir)) {
       std::fprintf(stderr, "sempose replay: --out '%s' is a PGM in the frames folder %s: it would be read as a frame; "
                    "name the poses' CSV otherwise\n", out_path.c_str(), frames_dir.c_str());
       return 2;
@@ -268,8 +267,9 @@ int run_replay(int argc, char** argv) {
   std::map<std::pair<long, int>, Truth> truth;
   if (!truth_path.empty()) {
     std::vector<hal::TruthRow> rows;
+    std::size_t non_finite = 0;
     try {
-      rows = hal::read_truth_csv(truth_path, hal::kMaxTargets);
+      rows = hal::read_truth_csv(truth_path, hal::kMaxTargets, &non_finite);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "sempose replay: --truth: %s\n", e.what());
       return 2;
@@ -296,6 +296,11 @@ int run_replay(int argc, char** argv) {
     if (truth.empty()) {
       std::fprintf(stderr, "sempose replay: warning: --truth '%s' has no usable row (frame,x_px,y_px,phi_deg[,target], "
                    "finite): the target is taken to be on no frame\n", truth_path.c_str());
+    } else if (non_finite > 0) {
+      // Some rows only (found probing: a nan cell dropped its frame from the comparison unsaid).
+      std::fprintf(stderr, "sempose replay: warning: --truth '%s': %zu rows have a non-finite x_px, y_px or phi_deg: the "
+                   "target is taken to be off those frames (a TRACKING pose there counts as tracking_without_truth)\n",
+                   truth_path.c_str(), non_finite);
     }
   }
 

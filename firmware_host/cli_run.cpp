@@ -213,10 +213,7 @@ int sempose::cli::run(int argc, char** argv) {
                                     {can_log_key, can_log}}) {
       if (const std::string why = output_overwrites_input(key, path, inputs); !why.empty()) bad += "  " + why + "\n";
     }
-    std::error_code ec1, ec2;
-    if (!can_log.empty() && !cfg.output.poses_csv.empty() &&
-        std::filesystem::weakly_canonical(can_log, ec1) == std::filesystem::weakly_canonical(cfg.output.poses_csv, ec2) &&
-        !ec1 && !ec2) {
+    if (cli::same_output(can_log, cfg.output.poses_csv)) {  // the same path, a hard or symbolic link
       bad += std::string("  ") + can_log_key + ": '" + can_log + "' is also output.poses_csv: the CAN log and the poses " +
              "would be written into one file; name two files\n";
     }
@@ -227,9 +224,7 @@ int sempose::cli::run(int argc, char** argv) {
       const std::string hist = hist_dir + "/" + name;
       for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
                                       {can_log_key, can_log}}) {
-        std::error_code e1, e2;
-        if (!path.empty() && std::filesystem::weakly_canonical(path, e1) == std::filesystem::weakly_canonical(hist, e2) &&
-            !e1 && !e2) {
+        if (cli::same_output(path, hist)) {
           bad += std::string("  ") + key + ": '" + path + "' is the histogram file " + hist + " (" +
                  (opt.hist_dir.empty() ? "output.hist_dir" : "--hist-dir") + "), written over it at exit; name another file\n";
         }

@@ -158,6 +158,13 @@ int sempose::cli::sim(int argc, char** argv) {
                    "scan.max_dwell_ns)\n", dwell, scan.min_dwell_ns, scan.max_dwell_ns);
       return 2;
     }
+    // The scan generator sets dwells in steps (found probing: `--dwell 123` with 50 ns steps
+    // recorded "dwell 123 ns" for frames scanned at another dwell).
+    if (rounded != dwell) {
+      std::fprintf(stderr, "sempose sim: --dwell: %llu ns is not a multiple of scan.dwell_step_ns (%u ns): the scan "
+                   "generator would scan at %u ns; give a multiple\n", dwell, scan.dwell_step_ns, rounded);
+      return 2;
+    }
   }
   bool made_dir = false;  // --out did not exist: made here (and removed again on a signal)
   {

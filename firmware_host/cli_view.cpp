@@ -76,6 +76,19 @@ int sempose::cli::view(int argc, char** argv) {
     std::fprintf(stderr, "sempose view: --out: '%s' cannot hold the pictures: it is %s\n", out_dir.c_str(), why.c_str());
     return 2;
   }
+  // The pictures go beside the recording, not into it (through a link neither): found probing,
+  // `--out REC` wrote track.* and roi_*.png among the frames a replay reads.
+  if (!frames_dir.empty()) {
+    std::error_code ec;
+    if (std::filesystem::equivalent(cli::resolved_output(out_dir), frames_dir, ec) && !ec) {
+      std::fprintf(stderr, "sempose view: --out '%s' is the frames folder --frames '%s': the pictures would be written "
+                   "into the recording; choose another --out\n", out_dir.c_str(), frames_dir.c_str());
+      return 2;
+    }
+  }
+  if (frames_dir.empty() && !patterns.empty()) {
+    std::fprintf(stderr, "sempose view: warning: --pattern draws on the ROI pictures, which need --frames: ignored\n");
+  }
   // A FIFO as --poses blocked in open() (found probing: the process hung).
   if (const std::string why = config::path_kind_problem(poses_path); !why.empty()) {
     std::fprintf(stderr, "sempose view: --poses: '%s' is %s (need the CSV of a run or a replay)\n", poses_path.c_str(),
@@ -117,7 +130,14 @@ int sempose::cli::view(int argc, char** argv) {
     if (!frames_dir.empty()) frame_files = hal::list_pgm_frames(frames_dir);
 
     if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
-    std::filesystem::create_directories(out_dir);
+    {
+      std::error_code ec;  // a folder that cannot be made: named by its option, not a bare filesystem error
+      std::filesystem::create_directories(out_dir, ec);
+      if (ec) {
+        std::fprintf(stderr, "sempose view: --out: cannot create the folder '%s' (%s)\n", out_dir.c_str(), ec.message().c_str());
+        return 2;
+      }
+    }
     std::size_t tracked = 0;
     for (const auto& r : rows) tracked += r.status == "TRACKING";
     std::string title = std::filesystem::path(poses_path).filename().string();

@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -1224,4 +1225,75 @@ TEST(CliFaults, DegenerateRecordingsPatternsAndTruthsAreNamed) {
                       std::string::npos;
     EXPECT_EQ(said, frames == "/small") << frames << ": " << r.err;
   }
+}
+
+// A run refused because its poses' CSV is being written by another process must not have
+// touched its CAN log (found probing: the log was emptied before the CSV's lock was tried).
+// The other writer here is this test, holding the lock a run or replay would take.
+TEST(CliFaults, ARunRefusedOnOneOutputLeavesTheOtherUntouched) {
+  const std::string dir = work_dir() + "/lock_order";
+  fs::create_directories(dir);
+  const std::string csv = dir + "/poses.csv", can_log = dir + "/can.log";
+  std::ofstream(can_log) << "OLD\n";
+  const int held = ::open(csv.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  ASSERT_GE(held, 0);
+  ASSERT_EQ(::flock(held, LOCK_EX | LOCK_NB), 0);
+  const Outcome r = run({"run", "--config", small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + can_log + "}\n"),
+                         "--duration", "1"});
+  ::close(held);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("is being written by another process"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(can_log), "OLD\n") << "the refused run emptied its CAN log";
+}
+
+// Outputs are judged where writing them lands, through links (found probing: a symbolic link
+// to a frame as `pattern --out` overwrote the frame, a hard link too; `replay --out LINK` with
+// LINK → REC/new.pgm put a PGM among the frames; `view --out REC` wrote its pictures into the
+// recording; a CAN log and a poses' CSV that were one file through a link were not seen as one).
+TEST(CliFaults, OutputsThroughLinksAreJudgedWhereTheyLand) {
+  const std::string dir = work_dir() + "/links";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 2));
+  const std::string frame = dir + "/rec/frame_000001.pgm";
+  const std::string before = slurp(frame);
+  fs::create_symlink(frame, dir + "/soft.pgm");
+  fs::create_hard_link(frame, dir + "/hard.pgm");
+  for (const char* out : {"/soft.pgm", "/hard.pgm"}) {
+    const Outcome r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--out", dir + out}, 60);
+    EXPECT_EQ(r.code, 2) << out << ": " << r.err;
+    EXPECT_NE(r.err.find("frame"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(slurp(frame), before) << "a frame of the recording was overwritten through a link";
+  fs::create_symlink(dir + "/rec/new.pgm", dir + "/poses.csv");  // dangling: writing creates REC/new.pgm
+  Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/poses.csv"}, 120);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/rec/new.pgm")) << "replay wrote a PGM into the frames folder";
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/ok.csv"}, 120);
+  ASSERT_EQ(r.code, 0) << r.err;
+  fs::create_directory_symlink(dir + "/rec", dir + "/pictures");
+  for (const char* out : {"/rec", "/pictures"}) {
+    r = run({"view", "--poses", dir + "/ok.csv", "--frames", dir + "/rec", "--out", dir + out}, 120);
+    EXPECT_EQ(r.code, 2) << out << ": " << r.err;
+    EXPECT_NE(r.err.find("is the frames folder"), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(dir + "/rec/track.png"));
+  fs::create_symlink(dir + "/one.log", dir + "/also.csv");  // dangling: both outputs are one.log
+  r = run({"run", "--config", small_config(dir, "output: {poses_csv: " + dir + "/also.csv}\ncan: {log_file: " + dir + "/one.log}\n"),
+           "--duration", "1"});
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("is also output.poses_csv"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/one.log")) << "a refused run created its output";
+}
+
+// `sim --dwell` off the scan generator's dwell steps recorded frames "at" a dwell no scan had
+// (found probing: --dwell 123 with 50 ns steps). Refused, naming the step and what it would be.
+TEST(CliFaults, SimDwellOffTheStepsIsRefused) {
+  const std::string dir = work_dir() + "/dwell_step";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "2", "--dwell", "123", "--config", small_config(dir, "")}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--dwell: 123 ns is not a multiple of scan.dwell_step_ns"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/rec"));
 }

@@ -94,13 +94,16 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     if (locked) out.output_locks.push_back(std::move(l));
     return locked;
   };
+  // Both locked before either is opened: a run refused on the second must not have emptied the
+  // first (found probing: a run refused on a poses CSV another run was writing had already
+  // truncated its own CAN log).
   if (rt::Status locked = lock(can_log_override.empty() ? "can.log_file" : "--can-log", can_log); !locked) return locked;
+  if (rt::Status locked = lock("output.poses_csv", cfg.output.poses_csv); !locked) return locked;
   rt::Status st = can_output::make_can_output(cfg.can, can_log_override, out.can);
   if (!st) return rt::Status::failure("can: " + st.message);
   st = can_output::make_gpio_outputs(cfg.gpio, out.gpio_out);
   if (!st) return rt::Status::failure("gpio: " + st.message);
   if (!cfg.output.poses_csv.empty()) {
-    if (rt::Status locked = lock("output.poses_csv", cfg.output.poses_csv); !locked) return locked;
     out.csv = std::make_unique<pipeline::CsvPoseSink>(cfg.output.poses_csv, cfg.output.csv_buffer_poses,
                                                       out.trackers.trackers.size() > 1);
     st = out.csv->open();
