@@ -2,7 +2,10 @@
 
 #include <sys/stat.h>
 
+#include <cctype>
 #include <cerrno>
+#include <initializer_list>
+#include <vector>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -168,14 +171,66 @@ std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::
   return rows;
 }
 
-std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets) {
+namespace {
+// A truth file's first line is its header, frame,x_px,y_px,phi_deg[,target], read by position.
+// Found probing: a header naming the columns in another order (frame,y_px,x_px,...) was read
+// as if it did not, and a file with no header lost its first row without a word. A header of
+// other names is taken as it stands (hand-made truths name them as they like); one that names
+// x, y or the angle in another place is refused, and a first line of numbers is a row.
+// Returns whether the first line is data.
+bool check_truth_header(const std::string& path) {
+  std::ifstream f(path);
+  std::string line;
+  if (!std::getline(f, line)) return false;
+  std::vector<std::string> cells;
+  std::stringstream ss(line);
+  for (std::string cell; std::getline(ss, cell, ',');) {
+    cell = trim(cell);
+    std::transform(cell.begin(), cell.end(), cell.begin(), [](unsigned char c) { return std::tolower(c); });
+    cells.push_back(cell);
+  }
+  bool numbers = !cells.empty();
+  for (const std::string& c : cells) {
+    char* end = nullptr;
+    std::strtod(c.c_str(), &end);
+    numbers = numbers && !c.empty() && *end == '\0';
+  }
+  if (numbers) return true;
+  const struct {
+    std::size_t at;
+    std::initializer_list<const char*> names;
+  } expected[] = {{0, {"frame", "frame_seq", "frame_index"}}, {1, {"x", "x_px"}}, {2, {"y", "y_px"}},
+                  {3, {"phi", "phi_deg", "angle", "angle_deg", "theta"}}, {4, {"target", "target_index"}}};
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    for (const auto& e : expected) {
+      const bool named = std::find_if(e.names.begin(), e.names.end(), [&](const char* n) { return cells[i] == n; }) != e.names.end();
+      if (named && i != e.at) {
+        throw std::runtime_error(path + ":1: the header '" + shown(trim(line)) + "' has '" + cells[i] + "' in column " +
+                                 std::to_string(i + 1) + ": the columns are read in the order frame,x_px,y_px,phi_deg[,target]");
+      }
+    }
+  }
+  return false;
+}
+}  // namespace
+
+std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows) {
   std::vector<std::size_t> lines;
   const std::vector<std::vector<double>> rows = read_numeric_csv(path, 4, &lines);
+  std::vector<double> first_row;  // a file without a header: its first line is a row
+  if (check_truth_header(path)) {
+    std::ifstream f(path);
+    std::string first;
+    std::getline(f, first);
+    std::stringstream ss(first);
+    for (std::string cell; std::getline(ss, cell, ',');) first_row.push_back(std::strtod(trim(cell).c_str(), nullptr));
+    if (first_row.size() < 4) throw std::runtime_error(path + ":1: expected at least 4 columns");
+  }
   std::vector<TruthRow> truth;
   std::map<std::pair<long long, int>, std::size_t> line_of;  // (frame, target) -> its line
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const std::vector<double>& r = rows[i];
-    const std::string at = path + ":" + std::to_string(lines[i]) + ": ";
+  std::size_t non_finite = 0;
+  auto take = [&](const std::vector<double>& r, std::size_t line) {
+    const std::string at = path + ":" + std::to_string(line) + ": ";
     auto whole = [](double v, double below) { return v >= 0 && v < below && v == std::floor(v); };
     if (!whole(r[0], 1e15)) {
       throw std::runtime_error(at + "frame " + shown_number(r[0]) + " is not a frame index (a whole number >= 0)");
@@ -184,14 +239,28 @@ std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets) {
       throw std::runtime_error(at + "target " + shown_number(r[4]) + " is not a target index in [0, " +
                                std::to_string(max_targets - 1) + "]");
     }
+    // A pose no scan field holds (1e308 px gave rms_px=inf and a 300-digit max): refused. Non-finite
+    // is the target not on that frame (`sempose sim` writes nan there), counted for the caller.
+    const char* names[] = {"x_px", "y_px", "phi_deg"};
+    for (int k = 1; k <= 3; ++k) {
+      const double limit = k == 3 ? 1e6 : 1e7;
+      if (std::isfinite(r[k]) && std::fabs(r[k]) > limit) {
+        throw std::runtime_error(at + names[k - 1] + " " + shown_number(r[k]) + " is out of range [" + shown_number(-limit) +
+                                 ", " + shown_number(limit) + "]");
+      }
+    }
     TruthRow t{static_cast<long long>(r[0]), r.size() >= 5 ? static_cast<int>(r[4]) : 0, r[1], r[2], r[3]};
-    if (const auto [it, fresh] = line_of.emplace(std::make_pair(t.frame, t.target), lines[i]); !fresh) {
+    if (const auto [it, fresh] = line_of.emplace(std::make_pair(t.frame, t.target), line); !fresh) {
       throw std::runtime_error(at + "a second row for frame " + std::to_string(t.frame) + " target " +
                                std::to_string(t.target) + " (the first is on line " + std::to_string(it->second) +
                                "): which one is the truth?");
     }
     if (std::isfinite(t.x_px) && std::isfinite(t.y_px) && std::isfinite(t.phi_deg)) truth.push_back(t);
-  }
+    else ++non_finite;
+  };
+  if (!first_row.empty()) take(first_row, 1);
+  for (std::size_t i = 0; i < rows.size(); ++i) take(rows[i], lines[i]);
+  if (non_finite_rows) *non_finite_rows = non_finite;
   return truth;
 }
 

@@ -32,7 +32,9 @@ bool next_number(const std::vector<unsigned char>& d, std::size_t& pos, long lon
     if (value > 1'000'000'000) return false;
     ++pos;
   }
-  return true;
+  // A field ends at whitespace or a comment: "64.0" was read as 64 and its ".0" blamed on the
+  // next field (found probing: "missing or bad height" for a bad width).
+  return pos >= d.size() || std::isspace(d[pos]) || d[pos] == '#';
 }
 
 std::string parse(const std::vector<unsigned char>& d, Image& out) {
@@ -41,11 +43,13 @@ std::string parse(const std::vector<unsigned char>& d, Image& out) {
     for (char& c : got) if (!std::isprint(static_cast<unsigned char>(c))) c = '?';
     return "wrong magic '" + got + "' (expected P5, binary greymap)";
   }
+  // "P564 64 255" is not a P5 header (found probing: read as width 64): the magic stands alone.
+  if (d.size() > 2 && !std::isspace(d[2]) && d[2] != '#') return "header: no whitespace after the magic P5";
   std::size_t pos = 2;
   long long w = 0, h = 0, maxval = 0;
-  if (!next_number(d, pos, w)) return "header: missing or bad width";
-  if (!next_number(d, pos, h)) return "header: missing or bad height";
-  if (!next_number(d, pos, maxval)) return "header: missing or bad maxval";
+  if (!next_number(d, pos, w)) return "header: missing or bad width (a whole number, then whitespace)";
+  if (!next_number(d, pos, h)) return "header: missing or bad height (a whole number, then whitespace)";
+  if (!next_number(d, pos, maxval)) return "header: missing or bad maxval (a whole number, then whitespace)";
   if (w <= 0 || h <= 0 || w > kPgmMaxSide || h > kPgmMaxSide) {
     return "size " + std::to_string(w) + "x" + std::to_string(h) + " is outside 1.." +
            std::to_string(kPgmMaxSide) + " per side";
@@ -164,7 +168,7 @@ void write_pgm(const std::string& path, const Image& image) {
     }
   }
   std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) throw std::runtime_error(path + ": cannot create the file");
+  if (!f) throw std::runtime_error(path + ": cannot create the file (" + std::strerror(errno) + ")");
   f.write(out.data(), static_cast<std::streamsize>(out.size()));
   f.close();
   if (!f) throw std::runtime_error(path + ": write failed (disk full?)");

@@ -81,6 +81,9 @@ TEST(Pgm, EachMalformedFileNamesTheProblem) {
   check("maxval0.pgm", "P5\n2 2\n0\nabcd", "maxval 0");
   check("maxval_big.pgm", "P5\n2 2\n70000\nabcdefgh", "maxval 70000");
   check("noheight.pgm", "P5\n2 \n", "height");
+  // A field runs to whitespace (found probing: "P564 64 255" read as width 64, "64.0" blamed on the height).
+  check("glued_magic.pgm", "P564 2 255\nabcd", "no whitespace after the magic P5");
+  check("fraction.pgm", "P5\n2.0 2\n255\nabcd", "missing or bad width");
   // Bytes beyond the raster: read as a wrong image without a word before.
   check("comment_after_maxval.pgm", "P5\n2 2\n255 # hand-made\nabcd", "12 bytes after the 2x2 raster");
   check("wide_under_255.pgm", "P5\n2 2\n255\nabcdefgh", "4 bytes after the 2x2 raster");

@@ -232,6 +232,37 @@ TEST(FramesCsv, TruthRowsNameOneWholeFrameAndTargetEach) {
       EXPECT_NE(std::string(e.what()).find(path + c.expect), std::string::npos) << e.what();
     }
   }
+  // Found probing: 1e308 px gave rms_px=inf, a header naming y before x was read by position,
+  // a file without a header lost its first row, nan rows were dropped without a count.
+  const Case more[] = {
+      {"0,1e308,20,0\n", ":2: x_px 1e+308 is out of range [-10000000, 10000000]"},
+      {"0,10,20,1e308\n", ":2: phi_deg 1e+308 is out of range [-1000000, 1000000]"},
+  };
+  for (const Case& c : more) {
+    std::ofstream(path) << "frame,x_px,y_px,phi_deg\n" << c.rows;
+    try {
+      read_truth_csv(path, 4);
+      ADD_FAILURE() << "accepted: " << c.rows;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(path + c.expect), std::string::npos) << e.what();
+    }
+  }
+  std::ofstream(path) << "frame,y_px,x_px,phi_deg\n0,10,20,0\n";
+  try {
+    read_truth_csv(path, 4);
+    ADD_FAILURE() << "a header naming y_px in x_px's column was read by position";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(":1: the header 'frame,y_px,x_px,phi_deg' has 'y_px' in column 2"), std::string::npos)
+        << e.what();
+  }
+  std::ofstream(path) << "0,10,20,0\n1,11,20,0\n";
+  std::vector<TruthRow> headerless = read_truth_csv(path, 4);
+  ASSERT_EQ(headerless.size(), 2u) << "a file without a header lost its first row";
+  EXPECT_EQ(headerless[0].frame, 0);
+  std::ofstream(path) << "f,a,b,c\n0,10,20,0\n1,nan,20,0\n2,inf,3,0\n";  // names of its own: read by position
+  std::size_t non_finite = 0;
+  EXPECT_EQ(read_truth_csv(path, 4, &non_finite).size(), 1u);
+  EXPECT_EQ(non_finite, 2u);
   // One row per frame and target, several targets, a non-finite pose skipped.
   std::ofstream(path) << "frame,x_px,y_px,phi_deg,target\n0,10,20,1,0\n0,30,40,2,1\n1,nan,20,0,0\n";
   const std::vector<TruthRow> rows = read_truth_csv(path, 4);

@@ -35,7 +35,9 @@ struct TruthRow {
 // max_targets) and at most one row per frame and target — a frame of 1.5 was read as frame 1,
 // -3 or a target of 0.5 dropped without a word, and of two rows for one frame the last one won
 // silently. Each of these throws naming the file, the line and the cell (a second row: both
-// lines). A row whose pose is not finite is skipped (no truth on that frame).
-std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets);
+// lines). A row whose pose is not finite is skipped (no truth on that frame), counted in
+// non_finite_rows; a pose beyond ±1e7 px or ±1e6° throws. The header is checked (a column named
+// in another place throws) and a first line of numbers is read as a row.
+std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows = nullptr);
 
 }  // namespace sempose::hal
