@@ -44,6 +44,15 @@ void cross_check(Section& root, const AppConfig& c) {
                           std::to_string(c.scan.max_roi_w) + "x" + std::to_string(c.scan.max_roi_h) +
                           " (allowed: at most the scan limits, or the whole field)");
   }
+  // A pattern larger than the field cannot be found in it (found probing: a 16x16 field failed
+  // in setup with "render_sim_pattern: size 128 does not fit the field", no key named). A
+  // replay's field is its frames' size, checked when they are read.
+  if (c.source != "replay" && c.tracker.pattern_size_px > std::min(c.scan.field_w, c.scan.field_h)) {
+    root.errors().add(root.mark(), "tracker.pattern_size_px",
+                      std::to_string(c.tracker.pattern_size_px) + " px does not fit the " + std::to_string(c.scan.field_w) +
+                          "x" + std::to_string(c.scan.field_h) + " scan field (scan.field_w, scan.field_h): at most " +
+                          std::to_string(std::min(c.scan.field_w, c.scan.field_h)));
+  }
   // Files: checked for their kind before anything opens them (a directory reads as empty, a
   // FIFO blocks in open(), a device never ends), so a wrong path is a message, not a hang.
   for (std::size_t i = 0; i < c.targets.size(); ++i) {
