@@ -94,6 +94,43 @@ TEST(TrackPlot, SymmetricTargetsPhiLineSaysModulo) {
   for (const char* ext : {".gp", ".dat", ".png"}) fs::remove(stem + ext);
 }
 
+// A long run's plot: above 18,000 poses a target's line is drawn from each bucket's extremes
+// (gnuplot took over a minute for 200k poses, found probing), and every excursion and every
+// pose that was not TRACKING still shows in the data gnuplot draws.
+TEST(TrackPlot, ALongRunIsDrawnFromEachBucketsExtremes) {
+  std::vector<PoseRow> rows(200000);
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    rows[i].frame = i;
+    rows[i].t_ns = static_cast<std::int64_t>(i) * 1'000'000;
+    rows[i].x_px = 100 + std::sin(i * 0.01);
+    rows[i].y_px = 50;
+    rows[i].score = 0.9;
+    rows[i].status = "TRACKING";
+  }
+  rows[123457].x_px = 400;  // one excursion
+  rows[77777].status = "LOST";
+  rows[77777].score = 0.1;
+  const std::string stem = temp("long");
+  plot_track(rows, stem, "t");
+  std::ifstream dat(stem + ".dat");
+  std::size_t lines = 0;
+  bool excursion = false, lost = false;
+  for (std::string line; std::getline(dat, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    ++lines;
+    std::istringstream in(line);
+    double t, frame, x, y, phi, score, tracked;
+    in >> t >> frame >> x >> y >> phi >> score >> tracked;
+    excursion = excursion || x == 400;
+    lost = lost || (frame == 77777 && tracked == 0);
+  }
+  EXPECT_LE(lines, 18000u) << "the plot's data is bounded";
+  EXPECT_GT(lines, 1000u);
+  EXPECT_TRUE(excursion) << "a one-pose excursion was dropped";
+  EXPECT_TRUE(lost) << "the LOST pose was dropped";
+  for (const char* ext : {".gp", ".dat", ".png"}) fs::remove(stem + ext);
+}
+
 TEST(PoseCsv, ErrorsNameFileLineAndCell) {
   const std::string p = temp("bad.csv");
   expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,1,2,3,0.5,TRACKING\n1,0,1,zwei,3,0.5,TRACKING\n",
@@ -113,6 +150,9 @@ TEST(PoseCsv, ErrorsNameFileLineAndCell) {
       {"0,0,1e300,2,3,0.5,TRACKING", "x_px '1e300' is not a number in [-1e+06, 1e+06]"},
       {"0,0,1,-2e6,3,0.5,TRACKING", "y_px '-2e6' is not a number in [-1e+06, 1e+06]"},
       {"0,0,1,2,1e200,0.5,TRACKING", "phi_deg '1e200' is not a number in [-360, 360]"},
+      // A counter sempose writes in digits: "1e0" was read as frame 1 (found probing).
+      {"1e0,0,1,2,3,0.5,TRACKING", "frame '1e0' is not a whole number"},
+      {"1.0,0,1,2,3,0.5,TRACKING", "frame '1.0' is not a whole number"},
   };
   for (const auto& [row, message] : cells) {
     expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status\n" + row + "\n", p + ":2: " + message);

@@ -27,7 +27,10 @@ double number(const std::string& cell, const std::string& where) {
 double number_in(const std::string& cell, const std::string& where, const char* what, double lo, double hi,
                  bool whole) {
   const double v = number(cell, where);
-  if (v < lo || v > hi || (whole && v != std::floor(v))) {
+  // A whole number in digits: "1e0" or "1.0" as a frame counter is no file sempose wrote.
+  const std::string unsigned_part = !cell.empty() && cell[0] == '-' ? cell.substr(1) : cell;
+  const bool digits = !unsigned_part.empty() && unsigned_part.find_first_not_of("0123456789") == std::string::npos;
+  if (v < lo || v > hi || (whole && (v != std::floor(v) || !digits))) {
     std::ostringstream m;
     m << where << ": " << what << " '" << cell << "' is not " << (whole ? "a whole number" : "a number") << " in [" << lo
       << ", " << hi << "]";
