@@ -6,9 +6,13 @@
 #include "sempose/pose/window_noise.hpp"
 
 #include <fftw3.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <new>
 #include <random>
 #include <string>
@@ -17,6 +21,40 @@
 namespace sempose::pose {
 
 void FftwFree::operator()(void* p) const noexcept { fftwf_free(p); }
+
+namespace {
+// Memory setup may still take: the kernel's MemAvailable, and below RLIMIT_AS what the process
+// has not mapped yet. 0: unknown (no limit applied).
+std::uint64_t available_memory_bytes() {
+  std::uint64_t avail = 0;
+  std::ifstream meminfo("/proc/meminfo");
+  for (std::string key; meminfo >> key;) {
+    std::uint64_t kb = 0;
+    meminfo >> kb;
+    if (key == "MemAvailable:") {
+      avail = kb * 1024;
+      break;
+    }
+    meminfo.ignore(256, '\n');
+  }
+  rlimit as{};
+  if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
+    std::uint64_t mapped_pages = 0;
+    std::ifstream statm("/proc/self/statm");
+    statm >> mapped_pages;
+    const std::uint64_t mapped = mapped_pages * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+    const std::uint64_t left = as.rlim_cur > mapped ? as.rlim_cur - mapped : 0;
+    avail = avail == 0 ? left : std::min(avail, left);
+  }
+  return avail;
+}
+
+std::string megabytes(std::uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.0f MB", static_cast<double>(bytes) / 1e6);
+  return text;
+}
+}  // namespace
 
 void downsample_pattern(const float* src, int n, int factor, float* out) noexcept {
   const int m = n / factor;
@@ -66,6 +104,20 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
   // The frame is low-passed the same way (Prefilter); filtering before rotating is the same
   // as after for this near-isotropic kernel and keeps one interpolation for all angles.
   prefilter_pattern(src.data(), n, spec.prefilter_passes);
+  // A config inside every key's range can still ask for more than the machine has (found
+  // probing: pattern 512, ROI 1024, 0.25° steps at full resolution: tens of GB, and setup
+  // ended in "out of memory" naming nothing, or in the OOM killer). Said with its parts.
+  const std::uint64_t copies = static_cast<std::uint64_t>(angles_) * n * n * sizeof(float);
+  const std::uint64_t fine = sizeof(Complex) * static_cast<std::uint64_t>(spectrum_len_) * angles_;
+  const std::uint64_t search = sizeof(Complex) * static_cast<std::uint64_t>(coarse_len_ + coarse_wide_len_) * coarse_angles_;
+  if (const std::uint64_t avail = available_memory_bytes(); avail > 0 && copies + fine + search > avail) {
+    why = "the pattern bank needs " + megabytes(copies + fine + search) + ", more than the " + megabytes(avail) +
+          " this machine has available: " + std::to_string(angles_) + " turned copies of the " + std::to_string(n) + "² pattern " +
+          megabytes(copies) + " (tracker.angle_step_deg, tracker.pattern_size_px), their spectra at the ROI's size " +
+          megabytes(fine) + " (tracker.roi_size_px), " + std::to_string(coarse_angles_) + " start-search spectra " +
+          megabytes(search) + " (tracker.search_angle_step_deg, tracker.search_downsample, the field's size)";
+    return false;
+  }
   spatial_.assign(static_cast<std::size_t>(angles_) * n * n, 0.0f);
   spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * spectrum_len_ * angles_)), FftwFree{});
   coarse_spectra_.reset(static_cast<Complex*>(fftwf_malloc(sizeof(Complex) * coarse_len_ * coarse_angles_)), FftwFree{});
