@@ -354,4 +354,19 @@ TEST_F(FakeTree, AFifoOrDeviceInTheTreeIsNotRead) {
   EXPECT_FALSE(r.empty());
 }
 
+// Found probing: an empty --root tree passed irq-affinity and cpufreq on data it never read,
+// and an online list it could not parse showed as "online: ". Unread is said, never a pass.
+TEST_F(FakeTree, WhatCannotBeReadIsNotPassed) {
+  put("sys/devices/system/cpu/online", "0-99999999999999999999\n");
+  auto r = run();
+  EXPECT_EQ(find(r, "rt-cpus").level, Level::kFail);
+  EXPECT_NE(find(r, "rt-cpus").detail.find("not a list of cores"), std::string::npos) << find(r, "rt-cpus").detail;
+  fs::remove_all(root / "sys");
+  fs::remove_all(root / "proc/irq");
+  r = run();
+  EXPECT_EQ(find(r, "rt-cpus").level, Level::kFail);
+  EXPECT_EQ(find(r, "cpufreq").level, Level::kWarn) << find(r, "cpufreq").detail;
+  EXPECT_EQ(find(r, "irq-affinity").level, Level::kWarn) << find(r, "irq-affinity").detail;
+}
+
 }  // namespace

@@ -191,7 +191,11 @@ void check_governor(const SystemTree& tree, const std::vector<int>& rt, std::vec
       seen = *g;
     }
   }
-  if (!any_cpufreq) out.push_back(pass("cpufreq", "no frequency scaling on the RT cores (fixed clock or VM)"));
+  // No cpufreq folder is a fixed clock (or a VM) only where the cores' folder is there at all.
+  if (!any_cpufreq && !rt.empty() && !tree.exists("sys/devices/system/cpu")) {
+    out.push_back(warn("cpufreq", "cannot read /sys/devices/system/cpu: frequency scaling of the RT cores not checked",
+                       "run on a Linux system with /sys mounted"));
+  } else if (!any_cpufreq) out.push_back(pass("cpufreq", "no frequency scaling on the RT cores (fixed clock or VM)"));
   else if (slow.empty()) out.push_back(pass("cpufreq", "performance on RT cores " + format_cpu_list(rt)));
   else
     out.push_back(warn("cpufreq", "governor '" + seen + "' on RT core(s) " + format_cpu_list(slow) + ": clock ramps add latency",
@@ -232,7 +236,10 @@ void check_irqs(const SystemTree& tree, const std::vector<int>& rt, const std::v
   const std::string hk = housekeeping.empty() ? "0" : format_cpu_list(housekeeping);
   const std::string fix = "boot with irqaffinity=" + hk + ", or: for f in /proc/irq/*/smp_affinity_list; do echo " + hk +
                           " > $f; done";
-  if (on_rt.empty() && !default_on_rt) {
+  if (movable == 0 && !def) {
+    // Nothing read: not "none on the RT cores" (found probing: an empty tree passed).
+    out.push_back(warn("irq-affinity", "cannot read /proc/irq: IRQ affinity not checked", "run on a Linux system with /proc mounted"));
+  } else if (on_rt.empty() && !default_on_rt) {
     out.push_back(pass("irq-affinity", std::to_string(movable) + " IRQs, none may run on RT cores " + format_cpu_list(rt)));
   } else {
     std::string which;
@@ -393,9 +400,21 @@ std::vector<CheckResult> run_checks(const SystemTree& tree, const config::AppCon
   const auto& p = cfg.pipeline;
   const bool spin = p.polling == "spin";
   const std::vector<int> rt = rt_cpus(p);
-  const std::vector<int> online = parse_cpu_list(tree.read("sys/devices/system/cpu/online").value_or("")).value_or(std::vector<int>{});
+  const auto online_text = tree.read("sys/devices/system/cpu/online");
+  const auto online_parsed = parse_cpu_list(online_text.value_or(""));
+  const std::vector<int> online = online_parsed.value_or(std::vector<int>{});
   check_kernel(tree, out);
-  check_cpus(rt, online, out);
+  // The online cores are what the core checks judge against: unread or unparseable, they are
+  // not judged against nothing (found probing: "online: " for a list it could not parse).
+  if (!online_text || !online_parsed || online.empty()) {
+    out.push_back(fail("rt-cpus",
+                       !online_text ? std::string("cannot read /sys/devices/system/cpu/online: the online cores are unknown")
+                                    : "/sys/devices/system/cpu/online holds '" + online_text->substr(0, 64) +
+                                          "', not a list of cores",
+                       "run on a Linux system with /sys mounted (check-rt --root: a tree with sys/devices/system/cpu/online)"));
+  } else {
+    check_cpus(rt, online, out);
+  }
   check_isolation(tree, rt, spin, out);
   check_throttling(tree, spin, out);
   check_governor(tree, rt, out);
