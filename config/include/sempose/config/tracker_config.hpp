@@ -70,10 +70,9 @@ struct TrackerConfig {
   // A raster scan's rows follow one another in time: a target moving during the scan shows
   // sheared and stretched, and the rigid fit reads part of that as a turn (0.3° at 200 px/s with
   // 50 µs rows). true: the bias the tracked velocity causes (scan_motion.hpp) is taken out of
-  // every ROI pose. Off by default: on, it measured better on the benchmark's moving rows but
-  // three twin-crossing tests of pose_false_tracking_test lie (the corrected poses take other
-  // paths through the twin rules, which were tuned on uncorrected ones; pose README). Not for a
-  // scan whose rows do not run top to bottom in time.
+  // every ROI pose. Off by default: on, the benchmark measured better (median and against ViSP,
+  // 0 false either way) but pose_envelope_probe reported more false TRACKING poses (pose
+  // README: Motion during the scan). Not for a scan whose rows do not run top to bottom in time.
   bool correct_scan_motion = false;
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
