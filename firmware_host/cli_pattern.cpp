@@ -71,8 +71,6 @@ int sempose::cli::pattern(int argc, char** argv) {
     // (a "size differs" failure), and one named like a frame overwrites the recording: the
     // pattern goes elsewhere.
     // Through a link too (resolved_output), and a hard link to a frame is that frame.
-    std::vector<cli::NamedPath> frames;
-    cli::add_recording(frames, "--frames", dir);
     std::error_code ec;
     if (cli::output_in_folder(out, dir)) {
       std::fprintf(stderr,
@@ -81,6 +79,8 @@ int sempose::cli::pattern(int argc, char** argv) {
                    out.c_str(), dir.c_str(), std::filesystem::exists(out, ec) ? " (and overwrites one)" : "");
       return 2;
     }
+    std::vector<cli::NamedPath> frames;
+    cli::add_recording(frames, "--frames", dir);
     if (const std::string problem = cli::output_overwrites_input("--out", out, frames); !problem.empty()) {
       std::fprintf(stderr, "sempose pattern: %s\n", problem.c_str());
       return 2;

@@ -55,6 +55,15 @@ bool parse_count(const std::string& cell, std::int64_t max, std::int64_t& out) {
   return true;
 }
 
+
+// One CSV cell as a number, the whole cell (blanks and a CR aside): "12abc" was read as 12,
+// "0x1p3" as 8.
+bool whole_cell_number(const std::string& cell, double& v) {
+  char* end = nullptr;
+  v = std::strtod(cell.c_str(), &end);
+  while (*end == ' ' || *end == '\t' || *end == '\r') ++end;
+  return end != cell.c_str() && *end == '\0' && cell.find_first_of("xX") == std::string::npos;
+}
 }  // namespace
 
 std::vector<std::int64_t> parse_frames_csv(const std::string& text, std::size_t frame_count, const std::string& where) {
@@ -153,11 +162,8 @@ std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::
     std::stringstream ss(line);
     std::string cell;
     while (std::getline(ss, cell, ',')) {
-      char* end = nullptr;
-      const double v = std::strtod(cell.c_str(), &end);
-      // The whole cell (blanks and a CR aside): "12abc" was read as 12, "0x1p3" as 8.
-      while (*end == ' ' || *end == '\t' || *end == '\r') ++end;
-      if (end == cell.c_str() || *end != '\0' || cell.find_first_of("xX") != std::string::npos) {
+      double v = 0;
+      if (!whole_cell_number(cell, v)) {
         throw std::runtime_error(path + ":" + std::to_string(line_no) + ": '" + shown(cell) + "' is not a number");
       }
       row.push_back(v);
@@ -177,25 +183,25 @@ namespace {
 // as if it did not, and a file with no header lost its first row without a word. A header of
 // other names is taken as it stands (hand-made truths name them as they like); one that names
 // x, y or the angle in another place is refused, and a first line of numbers is a row.
-// Returns whether the first line is data.
-bool check_truth_header(const std::string& path) {
+// Returns the first line's numbers when it is a row (empty: a header).
+std::vector<double> check_truth_header(const std::string& path) {
   std::ifstream f(path);
   std::string line;
-  if (!std::getline(f, line)) return false;
+  if (!std::getline(f, line)) return {};
   std::vector<std::string> cells;
+  std::vector<double> numbers;
   std::stringstream ss(line);
   for (std::string cell; std::getline(ss, cell, ',');) {
+    double v = 0;
+    if (whole_cell_number(cell, v)) numbers.push_back(v);
     cell = trim(cell);
     std::transform(cell.begin(), cell.end(), cell.begin(), [](unsigned char c) { return std::tolower(c); });
     cells.push_back(cell);
   }
-  bool numbers = !cells.empty();
-  for (const std::string& c : cells) {
-    char* end = nullptr;
-    std::strtod(c.c_str(), &end);
-    numbers = numbers && !c.empty() && *end == '\0';
+  if (!cells.empty() && numbers.size() == cells.size()) {
+    if (numbers.size() < 4) throw std::runtime_error(path + ":1: expected at least 4 columns");
+    return numbers;
   }
-  if (numbers) return true;
   const struct {
     std::size_t at;
     std::initializer_list<const char*> names;
@@ -210,22 +216,14 @@ bool check_truth_header(const std::string& path) {
       }
     }
   }
-  return false;
+  return {};
 }
 }  // namespace
 
 std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows) {
   std::vector<std::size_t> lines;
   const std::vector<std::vector<double>> rows = read_numeric_csv(path, 4, &lines);
-  std::vector<double> first_row;  // a file without a header: its first line is a row
-  if (check_truth_header(path)) {
-    std::ifstream f(path);
-    std::string first;
-    std::getline(f, first);
-    std::stringstream ss(first);
-    for (std::string cell; std::getline(ss, cell, ',');) first_row.push_back(std::strtod(trim(cell).c_str(), nullptr));
-    if (first_row.size() < 4) throw std::runtime_error(path + ":1: expected at least 4 columns");
-  }
+  const std::vector<double> first_row = check_truth_header(path);  // a file without a header: its first line is a row
   std::vector<TruthRow> truth;
   std::map<std::pair<long long, int>, std::size_t> line_of;  // (frame, target) -> its line
   std::size_t non_finite = 0;

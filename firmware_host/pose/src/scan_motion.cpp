@@ -90,14 +90,12 @@ ScanMotionBias ScanMotionResponse::bias(double phi_deg, double scale, double vx_
   // pose, s·u_y rows from the pose's row. A shift v per row displaces it by v·s·u_y, v·u_y in the
   // copy's pixels (the scale cancels); a turn ω per row by ω·s·u_y along the rotation field.
   const double w[3] = {vx_px_per_row, vy_px_per_row, scale * turn_deg_per_row * (std::numbers::pi / 180.0)};
-  double d[6] = {};
-  for (int c = 0; c < 3; ++c)
-    for (int p = 0; p < 6; ++p) d[p] += w[c] * r[static_cast<std::size_t>(c)][static_cast<std::size_t>(p)];
   // The turn's share of the position is left out: taken out, it made the spinning rows' position
   // worse (pose_accuracy_bench --quick, needle tip spin at 20 e-/px 3.24 -> 5.12x the bound, the
   // lamella's 4.12 -> 5.01x) where without it they stay as uncorrected; its angle share is kept.
-  d[0] -= w[2] * r[2][0];
-  d[1] -= w[2] * r[2][1];
+  double d[6] = {};
+  for (int c = 0; c < 3; ++c)
+    for (int p = c == 2 ? 2 : 0; p < 6; ++p) d[p] += w[c] * r[static_cast<std::size_t>(c)][static_cast<std::size_t>(p)];
   ScanMotionBias b;
   b.x_px = scale * d[0];  // the copy's pixels to the field's
   b.y_px = scale * d[1];
