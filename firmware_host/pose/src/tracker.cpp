@@ -570,8 +570,9 @@ bool Tracker::Impl::at_field_edge(const PoseEstimate& e, double load_scale) cons
          e.meas_y_px + r > field.field_h - 1 - margin;
 }
 
-double Tracker::Impl::significance_z() const noexcept {
-  const double p = std::clamp(cfg.max_false_probability, 1e-12, 0.5);
+// z with 0.5·erfc(z/√2) = p, p clamped to [1e-12, 0.5].
+double Tracker::Impl::upper_normal_quantile(double p_in) noexcept {
+  const double p = std::clamp(p_in, 1e-12, 0.5);
   double lo = 0, hi = 10;  // 0.5·erfc(z/√2) = p, decreasing in z
   for (int i = 0; i < 50; ++i) {
     const double mid = 0.5 * (lo + hi);
