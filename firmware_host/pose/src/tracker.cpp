@@ -767,11 +767,39 @@ bool Tracker::Impl::settle_flip(const PatternBank& bank, Measurement& m, PoseEst
   return false;
 }
 
+// A pose followed again after a hold or a loss is reported TRACKING only when it is this
+// frame's best explanation against the target turned 180° about it (opposite_of: the binned
+// FFT at φ + 180° around the pose, the walk and the fit). While a target is lost or held its
+// angle is free, and a partly symmetric pattern's own turned copy beside the true place fits
+// it nearly as well: pose_envelope_probe spin_45deg_per_frame, the lamella on its post at
+// 6 e⁻/px, followed again on a held ROI 16 px and 171–180° off at 0.72–0.78 while the target
+// itself scored 0.79–0.82 there, TRACKING on 7 frames. The opposite only vetoes (UNCERTAIN,
+// kReasonUnexplained): it is not taken, since under a passing twin it can outscore the true
+// pose (open_flip_on_jump says how that went), and the flip check decides which to follow
+// where it opens. The first TRACKING pose that leads its opposite ends the doubt. One binned
+// FFT and a walk on the frames after a hold or loss only; a pattern of declared order > 1 is
+// not checked (its turned look is the target).
+void Tracker::Impl::judge_against_opposite(const PatternBank& bank, const Measurement& m, PoseEstimate& e) noexcept {
+  if (!resumed_unvouched || e.state != TrackState::kTracking) return;
+  if (angle_order > 1 || !(cfg.max_false_probability > 0) || loss.calibrating() || !m.valid) {
+    resumed_unvouched = false;
+    return;
+  }
+  const Measurement f = opposite_of(bank, m, e);
+  if (f.valid && f.score > m.score) {
+    e.state = TrackState::kUncertain;
+    e.reason_bits |= kReasonUnexplained;
+    return;
+  }
+  resumed_unvouched = false;
+}
+
 void Tracker::Impl::hold() noexcept {
   if (observer) observer->discard();
   filter.reset();
   tracking = false;
   ++held_frames;
+  resumed_unvouched = true;
   // The next ROI at the last accepted pose, without velocity: following the unexplained
   // poses let the ROI wander onto a look-alike along the needle's body and be resumed there
   // (pipeline_test: median error 55 px). The score level stays, the weak-frame count restarts.
@@ -791,6 +819,7 @@ void Tracker::Impl::go_lost() noexcept {
     held_scale = scale;
   }
   held_frames = 0;
+  resumed_unvouched = true;
   loss.set_held(false);
   loss.reset();
   motion.reset();
@@ -1244,6 +1273,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.reason_bits |= kReasonUnexplained;
       }
       judge_fit(e, off);
+      judge_against_opposite(bank, m, e);
       if (away_from_held) {
         if (!(e.chi2 > 0)) e.chi2 = normalised_chi2(e.score, attainable_score(frame.pixels, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y, m.j));
         judge_away_from_held(e);

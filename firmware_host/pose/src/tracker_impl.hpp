@@ -404,6 +404,10 @@ struct Tracker::Impl {
   // at the place or their fit, over kAwaySettleFrames frames, is at the target's own level
   // (judge_away_from_held, tracker.cpp says why).
   bool lost_after_hold = false;
+  // Since the last hold or loss no TRACKING pose has been measured against its 180° opposite
+  // (judge_against_opposite, tracker.cpp says why). Set by hold() and go_lost().
+  bool resumed_unvouched = true;
+  void judge_against_opposite(const PatternBank& bank, const Measurement& m, PoseEstimate& e) noexcept;
   // This frame's search found something after such a loss (the target covered: another object
   // may be what it found; ContinuityAnchor::forget_keeping_velocity's `covered`).
   bool found_after_hold = false;
