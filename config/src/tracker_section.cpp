@@ -74,6 +74,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("sigma_calibration", c.sigma_calibration, 0.0, 100.0);
   s.opt("sigma_noise_factor", c.sigma_noise_factor, 0.0, 100.0);
   s.opt("sigma_angle_factor", c.sigma_angle_factor, 0.01, 100.0);
+  s.opt("sigma_scale_factor", c.sigma_scale_factor, 0.01, 100.0);
   s.opt("sigma_floor_px", c.sigma_floor_px, 0.0, 10.0);
   s.opt("sigma_floor_deg", c.sigma_floor_deg, 0.0, 10.0);
   s.opt("sigma_pattern_noise", c.sigma_pattern_noise);

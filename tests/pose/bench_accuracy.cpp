@@ -436,6 +436,7 @@ int main(int argc, char** argv) {
     else if (a == "--sigma-calibration" && i + 1 < argc) sigma_cal = std::atof(argv[++i]);
     else if (a == "--sigma-noise-factor" && i + 1 < argc) tc.sigma_noise_factor = std::atof(argv[++i]);
     else if (a == "--sigma-angle-factor" && i + 1 < argc) tc.sigma_angle_factor = std::atof(argv[++i]);
+    else if (a == "--sigma-scale-factor" && i + 1 < argc) tc.sigma_scale_factor = std::atof(argv[++i]);
     else if (a == "--sigma-pattern-noise" && i + 1 < argc) tc.sigma_pattern_noise = std::string(argv[++i]) != "off";
     else if (a == "--rate-poses" && i + 1 < argc) tc.predict_rate_poses = std::atoi(argv[++i]);
     else if (a == "--attainable-pattern-noise" && i + 1 < argc) tc.attainable_pattern_noise = std::string(argv[++i]) != "off";
@@ -456,7 +457,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off] [--measure-tau on|off] [--scan-motion on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-scale-factor S] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off] [--measure-tau on|off] [--scan-motion on|off]\n", argv[0]);
       return 2;
     }
   }
@@ -651,11 +652,11 @@ int main(int argc, char** argv) {
       // and estimated scale, reason bits, correlations spent, start search) to see what separates false poses from true ones.
       if (std::getenv("BENCH_TRACE")) {
         const hal::TargetTruth& tr = seen;
-        std::fprintf(stderr, "T %s %s %g %zu st%d score %.4f chi2 %.3f dpos %.3f dphi %.3f scale %.3f est %.3f rb %02x ex %.3f ey %.3f sx %.3f sy %.3f sphi %.3f steps %d srch %d\n", row.target.c_str(),
+        std::fprintf(stderr, "T %s %s %g %zu st%d score %.4f chi2 %.3f dpos %.3f dphi %.3f scale %.3f est %.3f rb %02x ex %.3f ey %.3f sx %.3f sy %.3f sphi %.3f steps %d srch %d dscl %.6f ssc %.6f\n", row.target.c_str(),
                      row.label.c_str(), row.dose, f, static_cast<int>(e.state), e.score, e.chi2,
                      std::hypot(e.x_px - tr.x_px, e.y_px - tr.y_px), angle_error(e.phi_deg, tr.phi_deg, e.angle_order), tr.scale, e.scale, e.reason_bits,
                      e.meas_x_px - tr.x_px, e.meas_y_px - tr.y_px, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg, e.angle_steps,
-                     static_cast<int>(e.searched));
+                     static_cast<int>(e.searched), e.scale - tr.scale, e.sigma_scale);
       }
       if (!std::isfinite(e.x_px) || !std::isfinite(e.phi_deg) || !std::isfinite(e.score)) ++bad;
       sem.push_back({e.state == TrackState::kTracking, e.x_px, e.y_px, e.phi_deg, seen, e.angle_order});

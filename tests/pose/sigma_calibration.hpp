@@ -62,6 +62,7 @@ class SigmaCalibrationTable {
     // The gripper's jaws deform the target under a rigid pattern: reported on their own.
     const int group = sigma_fit_target(target) ? 0 : target == "gripper" ? 2 : 1;
     groups_[{group, -dose}].add(z);
+    all_[-dose].add(z);
     const bool special = label == "jaws" || label == "charge+defoc" || label.rfind("scale", 0) == 0;
     kinds_[special ? label : std::string("motion")].add(z);
     ++rows_;
@@ -78,6 +79,12 @@ class SigmaCalibrationTable {
                   key.first == 0 ? "fit (needle_tip, lamella_post)" : key.first == 1 ? "held out (lamella, warped)" : "held out: gripper jaws", -key.second,
                   z.zx(), z.zy(), z.zphi(), z.zscale(), z.n ? z.sigma_px / z.n : NAN, z.n ? z.sigma_deg / z.n : NAN);
     }
+    // Issue 13's own reading ("over the benchmark ... at doses 2.5-20"): every row of the dose,
+    // whatever its group, the gripper's jaws included.
+    for (const auto& [neg_dose, z] : all_) {
+      std::printf("%-34s %5.1f | %5.2f %5.2f %5.2f %6.2f | %8.4f %8.4f\n", "all rows", -neg_dose, z.zx(), z.zy(), z.zphi(),
+                  z.zscale(), z.n ? z.sigma_px / z.n : NAN, z.n ? z.sigma_deg / z.n : NAN);
+    }
     for (const auto& [kind, z] : kinds_) {
       std::printf("%-34s %5s | %5.2f %5.2f %5.2f %6.2f | %8.4f %8.4f\n", ("rows: " + kind).c_str(), "all", z.zx(), z.zy(),
                   z.zphi(), z.zscale(), z.n ? z.sigma_px / z.n : NAN, z.n ? z.sigma_deg / z.n : NAN);
@@ -88,6 +95,7 @@ class SigmaCalibrationTable {
  private:
   std::map<std::pair<int, double>, ZSums> groups_;
   std::map<std::string, ZSums> kinds_;
+  std::map<double, ZSums> all_;  // by −dose (the highest first)
   int rows_ = 0, rows_in_range_ = 0, rows_with_sigma_ = 0;
 };
 

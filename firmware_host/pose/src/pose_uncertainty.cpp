@@ -151,7 +151,7 @@ bool invert6(double a[kParams][kParams]) noexcept {
 
 PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration,
                                  double floor_px, double floor_deg, double noise_factor, double angle_factor,
-                                 int max_angles, bool pattern_noise)
+                                 int max_angles, bool pattern_noise, double scale_factor)
     : scorer_(scorer),
       pattern_px_(pattern_px),
       tile_(std::max(1, tile_px)),
@@ -160,6 +160,7 @@ PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int 
       floor_deg_(floor_deg),
       noise_factor_(noise_factor),
       angle_factor_(angle_factor),
+      scale_factor_(scale_factor),
       pattern_noise_(pattern_noise),
       tile_sums_(static_cast<std::size_t>(pattern_px / std::max(1, tile_px) + 1) * kParams, 0.0),
       row_(static_cast<std::size_t>(8) * pattern_px, 0.0f),
@@ -360,7 +361,7 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
   out.x_px = std::hypot(std::sqrt(var[0]), floor_px_);
   out.y_px = std::hypot(std::sqrt(var[1]), floor_px_);
   out.phi_deg = std::hypot(angle_factor_ * std::sqrt(var[2]), floor_deg_);
-  out.scale = std::sqrt(var[3]);
+  out.scale = scale_factor_ * std::sqrt(var[3]);
   // The cross term's noise is Σ ∂T·∂n: variance ≈ s²/2 · Σ (∂T)² for white noise (a central
   // difference of white noise has half its variance).
   const SharpnessSums sh = sharpness_sums(T, roi + static_cast<std::size_t>(m.uy) * w + m.ux, w, P, bands, n_bands);

@@ -219,7 +219,7 @@ struct Tracker::Impl {
         refinement(scorer, c.refine, angles.step_deg),
         split(scorer, 1.0),
         uncertainty(scorer, s.pattern_px, c.sigma_tile_px, c.sigma_calibration, c.sigma_floor_px, c.sigma_floor_deg,
-                    c.sigma_noise_factor, c.sigma_angle_factor, angles.count, c.sigma_pattern_noise),
+                    c.sigma_noise_factor, c.sigma_angle_factor, angles.count, c.sigma_pattern_noise, c.sigma_scale_factor),
         loss(cfg),
         motion(c.predict_velocity, c.predict_rate_poses),
         filter(c.filter),

@@ -107,11 +107,13 @@ struct TrackerConfig {
   // were fitted on needle_tip and lamella_post rows of pose_accuracy_bench only
   // (tests/pose/fit_sigma_calibration.py --pooled --k 0.75, with the pattern-noise term; README: Uncertainty):
   //   σ² = calibration²·(sandwich + walk step²) + noise_factor²·(Fisher × residual variance) + floor²
-  // and σφ's first two parts × angle_factor.
+  // and σφ's first two parts × angle_factor, σscale × scale_factor (fitted after the others, the
+  // same way: fit_sigma_calibration.py --pooled prints it).
   std::int32_t sigma_tile_px = 8;
   double sigma_calibration = 0.75;
   double sigma_noise_factor = 4.95;
   double sigma_angle_factor = 1.18;
+  double sigma_scale_factor = 0.92;
   // A floor added in quadrature to σx, σy (px of the loaded ROI) and σφ (deg): a bias of the
   // pattern against the target that no single frame shows (0: the fit chose none).
   double sigma_floor_px = 0.0, sigma_floor_deg = 0.0;

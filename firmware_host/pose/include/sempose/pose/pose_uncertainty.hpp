@@ -61,12 +61,13 @@ class PoseUncertainty {
   // the factor on the sandwich and step part (1: as it is); floor_px, floor_deg the model-error
   // floor added in quadrature to σx, σy and σφ (0: none); noise_factor the factor on the
   // white-noise (Fisher × residual variance) part added in quadrature (0: none); angle_factor
-  // a further factor on σφ's two parts (the walk's angle fit is less efficient than its position).
+  // a further factor on σφ's two parts (the walk's angle fit is less efficient than its position);
+  // scale_factor the same on σscale (the scale probe's reading is not the fit's optimum either).
   // max_angles: the banks' angle count, for the per-angle cache of JᵀJ (0: no cache).
   // pattern_noise: take the recorded pattern's noise (the bank's noise_gram) out of JᵀJ.
   PoseUncertainty(const ExactScorer& scorer, int pattern_px, int tile_px, double calibration, double floor_px = 0,
                   double floor_deg = 0, double noise_factor = 0, double angle_factor = 1, int max_angles = 0,
-                  bool pattern_noise = true);
+                  bool pattern_noise = true, double scale_factor = 1);
 
   // At most this share of a diagonal of JᵀJ is taken as the pattern's noise (a pattern that is
   // mostly noise would otherwise leave a singular H_c).
@@ -87,6 +88,7 @@ class PoseUncertainty {
   double floor_px_, floor_deg_;
   double noise_factor_;
   double angle_factor_;
+  double scale_factor_;
   bool pattern_noise_;
   std::vector<double> tile_sums_;  // one tile row's g_b: (pattern_px / tile + 1) × 6
   std::vector<float> row_;         // one row's ∂T/∂x and a tile row's column sums (7): 8 × pattern_px
