@@ -2,7 +2,8 @@
 // row's valid TRACKING poses (calibrated: 0.8–1.25), and pooled over groups of rows — the
 // targets the calibration factor is fitted on (needle_tip, lamella_post) and the held-out ones
 // (lamella, warped; the gripper's jaws apart: a deforming target), per dose — so that a factor is never judged on the rows it was
-// fitted on. The per-row sums are over the poses the bench's RMS errors are over (TRACKING, not a
+// fitted on — and over every row of a dose whatever its group (issue 13's own reading, "over the
+// benchmark"). The per-row sums are over the poses the bench's RMS errors are over (TRACKING, not a
 // start-search frame, ≤ 3 px and ≤ 10° off, not the frame of a jump).
 #pragma once
 
