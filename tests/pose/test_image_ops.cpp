@@ -81,6 +81,53 @@ TEST(SummedAreaTables, EveryRectangleEqualsTheBruteSum) {
   EXPECT_EQ(t.total_squares(), 49 * 50);
 }
 
+// On demand (the exact scorer's use): after attach(), cover() tables only what rectangles are
+// about to be read from; every rectangle read after covering it equals the brute sum, whichever
+// way the rectangles wander (down: rows added; left, right, up: the whole region tabled), and
+// the first cover tables no more than its rectangle and the margin.
+TEST(SummedAreaTables, OnDemandRectanglesEqualTheBruteSum) {
+  const int w = 61, h = 47, stride = w + 5;
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> u(-(1 << 19), 1 << 19);
+  std::vector<std::int32_t> img(static_cast<std::size_t>(stride) * h);
+  for (auto& v : img) v = u(rng);
+  SummedAreaTables t(64, 64);
+  const auto brute = [&](int x0, int y0, int x1, int y1, std::int64_t& s, std::int64_t& s2) {
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) s += img[y * stride + x], s2 += static_cast<std::int64_t>(img[y * stride + x]) * img[y * stride + x];
+  };
+  for (int trial = 0; trial < 40; ++trial) {
+    t.attach(img.data(), w, h, stride);
+    const int m = SummedAreaTables::kCoverMargin;
+    for (int k = 0; k < 12; ++k) {
+      int x0 = static_cast<int>(rng() % w), x1 = static_cast<int>(rng() % w);
+      int y0 = static_cast<int>(rng() % h), y1 = static_cast<int>(rng() % h);
+      if (x0 > x1) std::swap(x0, x1);
+      if (y0 > y1) std::swap(y0, y1);
+      t.cover(x0, y0, x1, y1);
+      if (k == 0) {
+        EXPECT_EQ(t.origin_x(), std::max(0, x0 - m));
+        EXPECT_EQ(t.origin_y(), std::max(0, y0 - m));
+        EXPECT_EQ(t.width(), std::min(w, x1 + 1 + m) - t.origin_x());
+        EXPECT_EQ(t.height(), y1 + 1 - t.origin_y());
+      }
+      std::int64_t s = 0, s2 = 0, rs = 0, rs2 = 0;
+      t.add_rect(x0, y0, x1, y1, s, s2);
+      brute(x0, y0, x1, y1, rs, rs2);
+      ASSERT_EQ(s, rs) << "trial " << trial << " rectangle " << k;
+      ASSERT_EQ(s2, rs2) << "trial " << trial << " rectangle " << k;
+    }
+  }
+  // A full build after on-demand use tables the whole region from its corner again.
+  t.build(img.data(), w, h, stride);
+  EXPECT_EQ(t.origin_x(), 0);
+  EXPECT_EQ(t.width(), w);
+  std::int64_t all = 0, all2 = 0;
+  brute(0, 0, w - 1, h - 1, all, all2);
+  EXPECT_EQ(t.total(), all);
+  EXPECT_EQ(t.total_squares(), all2);
+}
+
 // The integer prefilter against a plain per-pass reference ([1 4 6 4 1] along x, then along y,
 // edges replicated, each pass shifted back to 20 bits): 1-3 passes, a row stride, small and
 // odd sizes (the filter streams its rows through a ring).

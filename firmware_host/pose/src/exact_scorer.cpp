@@ -40,6 +40,20 @@ SEMPOSE_CLONES double masked_dot(const float* t, int size,
   return total;
 }
 
+// Σ v over n integers, in independent lanes (vectorised; exact, so any order gives the same).
+SEMPOSE_CLONES std::int64_t integer_sum(const std::int32_t* v, std::size_t n) noexcept {
+  std::int64_t lanes[kChunkPx] = {};
+  std::size_t i = 0;
+  for (; i + kChunkPx <= n; i += kChunkPx) {
+#pragma omp simd
+    for (int l = 0; l < kChunkPx; ++l) lanes[l] += v[i + l];
+  }
+  std::int64_t total = 0;
+  for (; i < n; ++i) total += v[i];
+  for (std::int64_t l : lanes) total += l;
+  return total;
+}
+
 }  // namespace
 
 ExactScorer::ExactScorer(const PatternMask& fine_mask, int max_roi_px)
@@ -50,13 +64,13 @@ ExactScorer::ExactScorer(const PatternMask& fine_mask, int max_roi_px)
       tables_(max_roi_px, max_roi_px) {}
 
 void ExactScorer::load(const std::int32_t* filtered, int w, int h) noexcept {
-  tables_.build(filtered, w, h, w);
-  roi_w_ = tables_.width();
-  roi_h_ = tables_.height();
-  // The ROI's mean from the table's corner (exact; a running double sum is a serial chain
-  // of dependent adds and cost more than the table).
+  // Tabled on demand: parts() covers the windows it reads (about half of a 192² ROI).
+  tables_.attach(filtered, w, h, w);
+  roi_w_ = std::clamp(w, 0, max_roi_px_);
+  roi_h_ = std::clamp(h, 0, max_roi_px_);
+  // The ROI's mean, exact (integer sum; a running double sum is a serial chain of dependent adds).
   const std::size_t n = static_cast<std::size_t>(roi_w_) * roi_h_;
-  const float mean = static_cast<float>(static_cast<double>(tables_.total()) / static_cast<double>(n));
+  const float mean = static_cast<float>(static_cast<double>(integer_sum(filtered, n)) / static_cast<double>(n));
   for (std::size_t i = 0; i < n; ++i) roi_[i] = static_cast<float>(filtered[i]) - mean;
 }
 
@@ -67,6 +81,7 @@ ScoreParts ExactScorer::parts(const PatternBank& bank, int j, int ux, int uy) co
   std::int64_t s1 = 0, s2 = 0;
   const MaskBand* bands = bank.support_bands(j);
   const int n_bands = bank.support_band_count(j);
+  tables_.cover(ux, uy, ux + pattern_px_ - 1, uy + pattern_px_ - 1);
   for (int k = 0; k < n_bands; ++k) {
     const MaskBand& b = bands[k];
     tables_.add_rect(ux + b.x0, uy + b.y0, ux + b.x1, uy + b.y1, s1, s2);

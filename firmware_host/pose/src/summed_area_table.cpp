@@ -75,8 +75,10 @@ template <typename T>
 void SummedAreaTables::build_impl(const T* px, int w, int h, std::ptrdiff_t stride) noexcept {
   w = std::clamp(w, 0, max_w_);
   h = std::clamp(h, 0, max_h_);
+  ox_ = oy_ = 0;
   w_ = w;
   h_ = h;
+  src_ = nullptr;
   const std::size_t sw = row_stride();
   std::int64_t* s1 = sum_.data();
   std::int64_t* s2 = sum_sq_.data();
@@ -87,6 +89,52 @@ void SummedAreaTables::build_impl(const T* px, int w, int h, std::ptrdiff_t stri
     a1[0] = a2[0] = 0;
     add_row(px + y * stride, w, s1 + y * sw, s2 + y * sw, a1, a2);
   }
+}
+
+void SummedAreaTables::attach(const std::int32_t* pixels, int w, int h, std::ptrdiff_t stride) noexcept {
+  src_ = pixels;
+  src_w_ = std::clamp(w, 0, max_w_);
+  src_h_ = std::clamp(h, 0, max_h_);
+  src_stride_ = stride;
+  tabled_ = false;
+  ox_ = oy_ = w_ = h_ = 0;
+}
+
+void SummedAreaTables::cover(int x0, int y0, int x1, int y1) noexcept {
+  if (src_ == nullptr) return;
+  if (!tabled_) {
+    table_part(std::max(0, x0 - kCoverMargin), std::max(0, y0 - kCoverMargin), std::min(src_w_, x1 + 1 + kCoverMargin),
+               y1 + 1);
+  } else if (x0 < ox_ || x1 >= ox_ + w_ || y0 < oy_) {
+    table_part(0, 0, src_w_, std::max(y1 + 1, oy_ + h_));
+  }
+  if (y1 >= oy_ + h_) add_rows(y1 + 1);
+}
+
+void SummedAreaTables::table_part(int x0, int y0, int x1, int y1) noexcept {
+  ox_ = x0;
+  oy_ = y0;
+  w_ = x1 - x0;
+  h_ = 0;
+  tabled_ = true;
+  const std::size_t sw = row_stride();
+  for (std::size_t x = 0; x < sw; ++x) sum_[x] = sum_sq_[x] = 0;
+  add_rows(y1);
+}
+
+void SummedAreaTables::add_rows(int y1) noexcept {
+  y1 = std::min(y1, src_h_);
+  const std::size_t sw = row_stride();
+  std::int64_t* s1 = sum_.data();
+  std::int64_t* s2 = sum_sq_.data();
+  for (int y = oy_ + h_; y < y1; ++y) {
+    const int r = y - oy_;
+    std::int64_t* a1 = s1 + (r + 1) * sw;
+    std::int64_t* a2 = s2 + (r + 1) * sw;
+    a1[0] = a2[0] = 0;
+    add_row(src_ + y * src_stride_ + ox_, w_, s1 + r * sw, s2 + r * sw, a1, a2);
+  }
+  h_ = std::max(h_, y1 - oy_);
 }
 
 }  // namespace sempose::pose

@@ -1,6 +1,7 @@
 // The one exact scorer of the pose engine: the ZNCC of one bank angle at one integer
 // displacement of the loaded ROI, at full resolution, over that angle's support. The window's
-// mean and variance come from the ROI's summed-area tables (four look-ups per support band),
+// mean and variance come from the ROI's summed-area tables (four look-ups per support band;
+// tabled on demand over the windows scored, so the tables are mutable state of a const score),
 // Σ t·f from one dot product (the pattern is zero-mean and unit norm under its support). The
 // orientation walk, the fit and the start search all score through this class; its unit test
 // checks it against a brute-force ZNCC.
@@ -29,7 +30,8 @@ class ExactScorer {
   // chunks); max_roi_px: the largest ROI side loaded.
   ExactScorer(const PatternMask& fine_mask, int max_roi_px);
 
-  // RT: keeps the prefiltered ROI (w×h, row stride w) minus its mean, and its tables.
+  // RT: keeps the prefiltered ROI (w×h, row stride w) minus its mean, and tables it on demand:
+  // `filtered` must stay as it is until the next load (the loader's own buffer).
   void load(const std::int32_t* filtered, int w, int h) noexcept;
   int max_roi_px() const noexcept { return max_roi_px_; }
   int roi_w() const noexcept { return roi_w_; }
@@ -53,7 +55,7 @@ class ExactScorer {
   std::vector<MaskBand> chunk_bands_;  // the circle widened to 16-float chunks
   int roi_w_ = 0, roi_h_ = 0;
   std::vector<float> roi_;             // prefiltered ROI minus its mean (row stride roi_w_)
-  SummedAreaTables tables_;
+  mutable SummedAreaTables tables_;     // on demand (cover() in parts())
 };
 
 }  // namespace sempose::pose
