@@ -140,8 +140,7 @@ int sempose::cli::view(int argc, char** argv) {
     }
     std::size_t tracked = 0;
     for (const auto& r : rows) tracked += r.status == "TRACKING";
-    std::string title = std::filesystem::path(poses_path).filename().string();
-    title.erase(std::remove(title.begin(), title.end(), '\''), title.end());
+    const std::string title = std::filesystem::path(poses_path).filename().string();  // quoted by plot_track
     const std::string plot_problem = operator_view::plot_track(rows, out_dir + "/track", title);
     for (const char* ext : {".dat", ".gp", ".png"}) {
       if (std::filesystem::exists(out_dir + "/track" + ext)) written.push_back(out_dir + "/track" + ext);

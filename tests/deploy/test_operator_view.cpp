@@ -94,6 +94,38 @@ TEST(TrackPlot, SymmetricTargetsPhiLineSaysModulo) {
   for (const char* ext : {".gp", ".dat", ".png"}) fs::remove(stem + ext);
 }
 
+// Text from outside never becomes gnuplot commands (found probing `sempose view`): a target name
+// from the poses CSV holding a quote, a system() call and a newline, in an output folder whose
+// name holds a quote and a system() call. The script quotes the names (a quote doubled, control
+// characters as '?') and names its files by their leaf names, gnuplot running in their folder.
+TEST(TrackPlot, NamesAndFoldersFromOutsideAreTextNotCommands) {
+  const fs::path dir = temp("q'; system('touch PWNED'); print '");
+  fs::create_directories(dir);
+  const fs::path witness = dir / "PWNED";
+  PoseRow a;
+  a.target = "x'; system('touch " + witness.string() + "'); print '\nsystem('touch " + witness.string() + "')";
+  a.status = "TRACKING";
+  PoseRow b = a;
+  b.frame = 1;
+  b.x_px = 3;
+  const std::string stem = (dir / "track").string();
+  const std::string problem = plot_track({a, b}, stem, "it's a title");
+  std::ostringstream text;
+  text << std::ifstream(stem + ".gp").rdbuf();
+  const std::string gp = text.str();
+  EXPECT_NE(gp.find("title 'target x''; system(''touch "), std::string::npos) << gp;
+  EXPECT_NE(gp.find("''); print ''?system(''touch "), std::string::npos) << "the newline shown as '?': " << gp;
+  EXPECT_NE(gp.find("set output 'track.png'"), std::string::npos) << gp;
+  EXPECT_NE(gp.find("title 'it''s a title'"), std::string::npos) << gp;
+  EXPECT_EQ(gp.find(dir.string()), std::string::npos) << "no folder path in the script: " << gp;
+  if (problem.find("not found") == std::string::npos) {  // gnuplot installed (ci/setup installs it)
+    EXPECT_EQ(problem, "");
+    EXPECT_TRUE(fs::exists(stem + ".png")) << "drawn in a folder whose name holds a quote";
+  }
+  EXPECT_FALSE(fs::exists(witness)) << "a name from outside ran as a command";
+  fs::remove_all(dir);
+}
+
 // A long run's plot: above 18,000 poses a target's line is drawn from each bucket's extremes
 // (gnuplot took over a minute for 200k poses, found probing), and every excursion and every
 // pose that was not TRACKING still shows in the data gnuplot draws.

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <stdexcept>
 #include <vector>
@@ -19,6 +20,26 @@ int order_of(const std::vector<PoseRow>& rows, const std::string& target) {
     if (r.target == target) order = std::max(order, r.angle_order);
   }
   return order;
+}
+
+// Text from outside (a target name read from the poses CSV, the file's name) as a gnuplot string:
+// single-quoted, a quote doubled (gnuplot's only escape there) and any control character shown
+// as '?'. A name holding "'; system('...')" was a command gnuplot ran, and a newline would end
+// the string's line and start a command of its own (found probing `sempose view`).
+std::string gnuplot_quoted(const std::string& text) {
+  std::string out = "'";
+  for (const char c : text) {
+    if (c == '\'') out += "''";
+    else out += (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) ? '?' : c;
+  }
+  return out + "'";
+}
+
+// A path for the "run it by hand" message, quoted for a POSIX shell.
+std::string shell_quoted(const std::string& path) {
+  std::string out = "'";
+  for (const char c : path) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
 }
 
 // A plot 1000 px wide shows no more than a few thousand points a line; gnuplot's cairo took
@@ -90,11 +111,16 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
   bool timed = false;
   for (const auto& r : rows) timed = timed || r.t_ns != t0;
   const std::string xcol = timed ? "1" : "2";
+  // The script names its files by their leaf names and gnuplot runs in their folder: no path
+  // from the command line is ever part of the script's text.
+  const std::filesystem::path stem_path(stem);
+  const std::string leaf = stem_path.filename().string();
+  const std::string dir = stem_path.has_parent_path() ? stem_path.parent_path().string() : ".";
   {
     std::ofstream gp(stem + ".gp");
     gp << "set terminal pngcairo size 1000,900 font ',10'\n"
-       << "set output '" << stem << ".png'\n"
-       << "set multiplot layout 4,1 title '" << title << "'\n"
+       << "set output " << gnuplot_quoted(leaf + ".png") << "\n"
+       << "set multiplot layout 4,1 title " << gnuplot_quoted(title) << "\n"
        << "set grid\nset key outside right\nset lmargin 10\n";
     const char* panels[4][2] = {{"3", "x (px)"}, {"4", "y (px)"}, {"5", "phi (deg)"}, {"6", "score (ZNCC)"}};
     for (int p = 0; p < 4; ++p) {
@@ -105,8 +131,8 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
         std::string name = targets[k].empty() ? "target 0" : "target " + targets[k];
         // A symmetric target's angle is known modulo 360°/n only: its phi line says so.
         if (p == 2 && order_of(rows, targets[k]) > 1) name += " (mod " + std::to_string(360 / order_of(rows, targets[k])) + ")";
-        gp << (k ? ", " : "") << "'" << stem << ".dat' index " << k << " using " << xcol << ":" << panels[p][0]
-           << " with lines lw 1.2 title '" << name << "'";
+        gp << (k ? ", " : "") << gnuplot_quoted(leaf + ".dat") << " index " << k << " using " << xcol << ":" << panels[p][0]
+           << " with lines lw 1.2 title " << gnuplot_quoted(name);
         // Poses that were not TRACKING: marked on the line so lost stretches stand out.
         gp << ", '' index " << k << " using " << xcol << ":($7 == 0 ? $" << panels[p][0]
            << " : 1/0) with points pt 7 ps 0.4 lc rgb 'red' title '" << (k ? "" : "not TRACKING") << "'";
@@ -116,15 +142,17 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
     gp << "unset multiplot\n";
     if (!gp) throw std::runtime_error(stem + ".gp: cannot write");
   }
-  const std::string cmd = "gnuplot '" + stem + ".gp'";
+  const std::string cmd = "cd " + shell_quoted(dir) + " && gnuplot " + shell_quoted(leaf + ".gp");
   const pid_t pid = fork();
   if (pid == 0) {
-    execlp("gnuplot", "gnuplot", (stem + ".gp").c_str(), static_cast<char*>(nullptr));
+    if (chdir(dir.c_str()) != 0) _exit(126);
+    execlp("gnuplot", "gnuplot", (leaf + ".gp").c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
   int status = 0;
   if (pid < 0 || waitpid(pid, &status, 0) < 0) return "cannot start gnuplot; run: " + cmd;
   if (WIFEXITED(status) && WEXITSTATUS(status) == 127) return "gnuplot not found (apt-get install gnuplot-nox); then run: " + cmd;
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 126) return "cannot enter " + dir + " to run gnuplot; run: " + cmd;
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return "gnuplot failed on " + stem + ".gp";
   return "";
 }
