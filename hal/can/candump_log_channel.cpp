@@ -82,7 +82,7 @@ std::unique_ptr<CandumpLogChannel> CandumpLogChannel::open(const CandumpLogOptio
   ch->wall_clock_ = o.wall_clock;
   // At least 4 KiB and four lines; a power of two.
   ch->ring_.allocate(std::max<std::size_t>({4096, kMaxLine * 4, o.buffer_bytes}));
-  ch->file_ = ::open(o.path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  ch->file_ = ::open(o.path.c_str(), O_WRONLY | O_CREAT | (o.keep_existing ? 0 : O_TRUNC) | O_CLOEXEC, 0644);
   if (ch->file_ < 0) {
     status = rt::Status::failure("can.log_file '" + o.path + "': cannot create: " + std::strerror(errno));
     return nullptr;

@@ -56,6 +56,7 @@ std::string work_dir() {
 // after timeout_s.
 constexpr int kWhenRunning = -2;
 long g_child_file_size_limit = -1;  // RLIMIT_FSIZE of the child in bytes (-1: unlimited)
+long g_child_open_files_limit = -1;  // RLIMIT_NOFILE of the child (-1: as inherited)
 Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int signal_after_ms = -1, int sig = SIGTERM) {
   const std::string dir = work_dir();
   const std::string out_path = dir + "/stdout.txt", err_path = dir + "/stderr.txt";
@@ -75,6 +76,10 @@ Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int sig
     if (g_child_file_size_limit >= 0) {
       const rlimit lim{static_cast<rlim_t>(g_child_file_size_limit), static_cast<rlim_t>(g_child_file_size_limit)};
       setrlimit(RLIMIT_FSIZE, &lim);
+    }
+    if (g_child_open_files_limit >= 0) {
+      const rlimit lim{static_cast<rlim_t>(g_child_open_files_limit), static_cast<rlim_t>(g_child_open_files_limit)};
+      setrlimit(RLIMIT_NOFILE, &lim);
     }
     std::vector<char*> argv;
     std::string bin = SEMPOSE_BIN;
@@ -1244,6 +1249,49 @@ TEST(CliFaults, ARunRefusedOnOneOutputLeavesTheOtherUntouched) {
   EXPECT_EQ(r.code, 2) << r.out << r.err;
   EXPECT_NE(r.err.find("is being written by another process"), std::string::npos) << r.err;
   EXPECT_EQ(slurp(can_log), "OLD\n") << "the refused run emptied its CAN log";
+}
+
+// Every output opened before any is emptied (found probing: under `ulimit -n 6` a run whose CSV
+// could not be opened, "Too many open files", had already emptied the last run's CAN log). For
+// each limit on open files that refuses the run: the last run's outputs are as they were, and
+// a first run's (none there before) are not left behind empty.
+TEST(CliFaults, ARunRefusedForWantOfFilesEmptiesNoOutput) {
+  const std::string dir = work_dir() + "/nofile";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string csv = dir + "/poses.csv", can_log = dir + "/can.log";
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + can_log + "}\n");
+  int refused_at_the_csv = 0;
+  bool ran = false;  // a limit the run needs no more than: higher ones run too
+  for (long limit = 4; limit <= 32 && !ran; ++limit) {
+    for (const bool had_outputs : {true, false}) {
+      fs::remove(csv);
+      fs::remove(can_log);
+      if (had_outputs) {
+        std::ofstream(can_log) << "OLD LOG\n";
+        std::ofstream(csv) << "OLD CSV\n";
+      }
+      g_child_open_files_limit = limit;
+      const Outcome r = run({"run", "--config", cfg, "--duration", "0.2"});
+      g_child_open_files_limit = -1;
+      ASSERT_FALSE(r.hung) << limit;
+      ASSERT_TRUE(r.exited) << "limit " << limit << ": signal " << r.signal << "\n" << r.err;
+      if (r.code == 0) {
+        ran = true;
+        continue;
+      }
+      refused_at_the_csv += r.err.find("output.poses_csv: cannot create") != std::string::npos;
+      if (had_outputs) {
+        EXPECT_EQ(slurp(can_log), "OLD LOG\n") << "limit " << limit << ": the refused run emptied the CAN log\n" << r.err;
+        EXPECT_EQ(slurp(csv), "OLD CSV\n") << "limit " << limit << ": the refused run emptied the CSV\n" << r.err;
+      } else {
+        EXPECT_FALSE(fs::exists(can_log)) << "limit " << limit << ": a refused first run left its CAN log\n" << r.err;
+        EXPECT_FALSE(fs::exists(csv)) << "limit " << limit << ": a refused first run left its CSV\n" << r.err;
+      }
+    }
+  }
+  EXPECT_GT(refused_at_the_csv, 0) << "no limit refused the run at the CSV, the case this test is for";
+  EXPECT_TRUE(ran) << "no limit up to 32 open files ran";
 }
 
 // Outputs are judged where writing them lands, through links (found probing: a symbolic link

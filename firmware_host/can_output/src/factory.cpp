@@ -6,7 +6,8 @@
 
 namespace sempose::can_output {
 
-rt::Status make_can_output(const config::CanConfig& cfg, const std::string& log_override, CanOutput& out) {
+rt::Status make_can_output(const config::CanConfig& cfg, const std::string& log_override, CanOutput& out,
+                           bool keep_existing_log) {
   rt::Status st;
   const ipc::IdMap ids{cfg.base_id, cfg.effective_command_id()};
   if (!ids.valid()) {
@@ -33,6 +34,7 @@ rt::Status make_can_output(const config::CanConfig& cfg, const std::string& log_
     o.buffer_bytes = cfg.log_buffer_bytes;
     o.wall_clock = cfg.log_timestamps == "wall";
     o.fd = cfg.fd == "on";  // a log has no MTU: FD frames only when asked for explicitly
+    o.keep_existing = keep_existing_log;
     auto ch = hal::CandumpLogChannel::open(o, st);
     if (!ch) return st;
     out.description = "candump log " + o.path + " (" + (o.fd ? "CAN FD" : "classic CAN") + ", as " + o.channel_name + ")";

@@ -1,5 +1,6 @@
 #include "sempose/pipeline/csv_pose_sink.hpp"
 
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -33,15 +34,35 @@ void CsvPoseSink::note_error(int err, std::uint64_t lines) {
 }
 
 rt::Status CsvPoseSink::open() {
+  rt::Status st = open_keeping();
+  return st ? begin() : st;
+}
+
+rt::Status CsvPoseSink::open_keeping() {
   // "-" is standard output, as for any Unix tool that writes a stream (`replay --out - | …`).
-  file_ = path_ == "-" ? stdout : std::fopen(path_.c_str(), "w");
-  if (file_ == nullptr) {
-    return rt::Status::failure("output.poses_csv: cannot create '" + path_ + "': " + std::strerror(errno));
+  if (path_ == "-") {
+    file_ = stdout;
+    return rt::Status::success();
   }
-  // A regular file can be cut back to its last whole line after a failed write (below); a
-  // pipe or terminal cannot and need not (a pipe takes a line whole or fails with EPIPE).
+  const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  file_ = fd >= 0 ? ::fdopen(fd, "w") : nullptr;  // "w" on an open descriptor truncates nothing
+  if (file_ == nullptr) {
+    const int err = errno;
+    if (fd >= 0) ::close(fd);
+    return rt::Status::failure("output.poses_csv: cannot create '" + path_ + "': " + std::strerror(err));
+  }
+  return rt::Status::success();
+}
+
+rt::Status CsvPoseSink::begin() {
+  if (file_ == nullptr) return rt::Status::failure("output.poses_csv: '" + path_ + "' is not open");
+  // A regular file is emptied now (a device or a pipe has nothing to empty), and can be cut back
+  // to its last whole line after a failed write (below); a pipe or terminal cannot and need not
+  // (a pipe takes a line whole or fails with EPIPE).
   struct stat st{};
   regular_file_ = ::fstat(::fileno(file_), &st) == 0 && S_ISREG(st.st_mode);
+  if (regular_file_ && ::ftruncate(::fileno(file_), 0) != 0)
+    return rt::Status::failure("output.poses_csv: cannot empty '" + path_ + "': " + std::strerror(errno));
   good_offset_ = regular_file_ ? std::ftell(file_) : 0;
   header_written_ = false;
   write_pending();  // the header, now: a full disk shows at once

@@ -21,6 +21,8 @@ OutputLock::~OutputLock() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+bool OutputLock::empty_file() const noexcept { return fd_ < 0 || ::ftruncate(fd_, 0) == 0; }
+
 rt::Status OutputLock::acquire(const std::string& what, const std::string& path) {
   if (path.empty() || path == "-") return {};
   struct stat st {};
@@ -94,20 +96,36 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     if (locked) out.output_locks.push_back(std::move(l));
     return locked;
   };
-  // Both locked before either is opened: a run refused on the second must not have emptied the
-  // first (found probing: a run refused on a poses CSV another run was writing had already
-  // truncated its own CAN log).
-  if (rt::Status locked = lock(can_log_override.empty() ? "can.log_file" : "--can-log", can_log); !locked) return locked;
-  if (rt::Status locked = lock("output.poses_csv", cfg.output.poses_csv); !locked) return locked;
-  rt::Status st = can_output::make_can_output(cfg.can, can_log_override, out.can);
-  if (!st) return rt::Status::failure("can: " + st.message);
+  // Both locked before either is opened, and both opened before either is emptied: a run refused
+  // on the second, or on anything after, must not have emptied the first (found probing: a run
+  // refused on a poses CSV another run was writing had already truncated its own CAN log, and so
+  // had one whose CSV could not be opened for want of a file descriptor). A file that did not
+  // exist before the run is removed again when the run is refused.
+  const auto exists = [](const std::string& f) {
+    struct stat st {};
+    return !f.empty() && f != "-" && ::stat(f.c_str(), &st) == 0;
+  };
+  const bool log_existed = exists(can_log), csv_existed = exists(cfg.output.poses_csv);
+  const auto refuse = [&](rt::Status st) {
+    out.csv.reset();
+    out.can.sink.reset();  // before the channel it sends on
+    out.can.channel.reset();
+    if (!log_existed && exists(can_log)) ::unlink(can_log.c_str());
+    if (!csv_existed && exists(cfg.output.poses_csv)) ::unlink(cfg.output.poses_csv.c_str());
+    return st;
+  };
+  const std::size_t log_lock = out.output_locks.size();
+  if (rt::Status locked = lock(can_log_override.empty() ? "can.log_file" : "--can-log", can_log); !locked) return refuse(locked);
+  if (rt::Status locked = lock("output.poses_csv", cfg.output.poses_csv); !locked) return refuse(locked);
+  rt::Status st = can_output::make_can_output(cfg.can, can_log_override, out.can, true);
+  if (!st) return refuse(rt::Status::failure("can: " + st.message));
   st = can_output::make_gpio_outputs(cfg.gpio, out.gpio_out);
-  if (!st) return rt::Status::failure("gpio: " + st.message);
+  if (!st) return refuse(rt::Status::failure("gpio: " + st.message));
   if (!cfg.output.poses_csv.empty()) {
     out.csv = std::make_unique<pipeline::CsvPoseSink>(cfg.output.poses_csv, cfg.output.csv_buffer_poses,
                                                       out.trackers.trackers.size() > 1);
-    st = out.csv->open();
-    if (!st) return st;
+    st = out.csv->open_keeping();
+    if (!st) return refuse(st);
   }
   out.sink = out.can.sink.get();
   if (out.csv) {
@@ -123,8 +141,17 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
   try {
     out.pipeline = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *out.scan, raw, *out.sink, *out.clock);
   } catch (const std::exception& e) {
-    return rt::Status::failure(e.what());
+    out.pipeline.reset();
+    out.sink = nullptr;
+    out.tee.reset();
+    out.gpio_sink.reset();
+    return refuse(rt::Status::failure(e.what()));
   }
+  // Every output open: now the candump log (a regular file; SocketCAN has none) and the CSV are
+  // emptied, and the CSV's header written.
+  if (!out.output_locks[log_lock].empty_file())
+    return rt::Status::failure("can.log_file '" + can_log + "': cannot empty it: " + std::strerror(errno));
+  if (out.csv) return out.csv->begin();
   return rt::Status::success();
 }
 

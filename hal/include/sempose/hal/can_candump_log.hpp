@@ -27,11 +27,15 @@ struct CandumpLogOptions {
   std::size_t buffer_bytes = 1u << 20;    // rounded up to a power of two
   bool wall_clock = false;  // false: timestamps from the sender's clock (t_ns); true: CLOCK_REALTIME
   bool fd = false;          // accept CAN FD frames (the log can hold them; replay needs an FD bus)
+  // Opened without truncating: the caller empties the file once every output of the run has
+  // opened (sempose run: a run refused on a later output must not have emptied this one).
+  bool keep_existing = false;
 };
 
 class CandumpLogChannel final : public CanChannel {
  public:
-  // Setup: creates/truncates the file. nullptr + message naming the path and errno text.
+  // Setup: creates/truncates the file (keep_existing: creates, truncates nothing). nullptr +
+  // message naming the path and errno text.
   static std::unique_ptr<CandumpLogChannel> open(const CandumpLogOptions& options, rt::Status& status);
   ~CandumpLogChannel() override;  // flushes and closes
 

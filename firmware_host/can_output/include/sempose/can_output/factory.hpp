@@ -22,8 +22,10 @@ struct CanOutput {
 };
 
 // can.interface set: SocketCAN on it. Otherwise (or when log_override is non-empty, i.e.
-// `sempose run --can-log FILE`): the candump log (log_override or can.log_file).
-rt::Status make_can_output(const config::CanConfig& cfg, const std::string& log_override, CanOutput& out);
+// `sempose run --can-log FILE`): the candump log (log_override or can.log_file), truncated
+// unless keep_existing_log (the caller empties it once every output has opened).
+rt::Status make_can_output(const config::CanConfig& cfg, const std::string& log_override, CanOutput& out,
+                           bool keep_existing_log = false);
 
 // gpio.chip empty or the line -1: returns ok with a null pointer (no GPIO).
 rt::Status make_frame_sync(const config::GpioConfig& cfg, std::unique_ptr<hal::GpioFrameSync>& out);

@@ -22,6 +22,11 @@ class CsvPoseSink final : public PoseSink {
   CsvPoseSink(std::string path, std::size_t capacity, bool with_target_column);
   ~CsvPoseSink() override;
   rt::Status open();
+  // Setup, in two steps (sempose run, so that a run refused on a later output has emptied
+  // nothing): open_keeping() creates the file or opens it as it is, truncating nothing;
+  // begin() then empties it and writes the header.
+  rt::Status open_keeping();
+  rt::Status begin();
 
   PublishResult publish(const PoseRecord& pose, std::int64_t t_now_ns) noexcept override;
   // Non-RT: writes everything published so far.

@@ -40,6 +40,9 @@ class OutputLock {
   // missing one, created here without truncating anything) is locked; a device (/dev/null,
   // /dev/full) or "-" is not. Fails naming `what` when another process holds the lock.
   rt::Status acquire(const std::string& what, const std::string& path);
+  // Empties the locked file (opened without truncating: the run empties its outputs once every
+  // one of them has opened); true when emptied or nothing is locked (a device, "-").
+  bool empty_file() const noexcept;
 
  private:
   int fd_ = -1;
