@@ -30,6 +30,7 @@
 #include "sempose/config/app_config.hpp"
 #include "sempose/config/reader.hpp"
 #include "sempose/hal/comedi_scan_source.hpp"
+#include "sempose/hal/replay_source.hpp"
 #include "sempose/pipeline/pipeline.hpp"
 #include "sempose/pipeline/stall_watchdog.hpp"
 #include "sempose/rt/alloc_counter.hpp"
@@ -212,6 +213,19 @@ int sempose::cli::run(int argc, char** argv) {
     for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
                                     {can_log_key, can_log}}) {
       if (const std::string why = output_overwrites_input(key, path, inputs); !why.empty()) bad += "  " + why + "\n";
+    }
+    // A new .pgm in the recording's frames folder is read as a frame by the next replay or run
+    // of it (found probing: output.poses_csv REC/frame_999999.pgm, or --can-log REC/zz.pgm, ran
+    // and every replay of REC after failed on its "wrong magic"). Through a link too.
+    if (cfg.source == "replay") {
+      for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
+                                      {can_log_key, can_log}}) {
+        if (!path.empty() && path != "-" && hal::is_pgm_name(cli::resolved_output(path).string()) &&
+            cli::output_in_folder(path, cfg.replay.frames_dir)) {
+          bad += std::string("  ") + key + ": '" + path + "' is a PGM in the recording's frames folder " + cfg.replay.frames_dir +
+                 " (replay.frames_dir): it would be read as a frame; name the file otherwise\n";
+        }
+      }
     }
     if (cli::same_output(can_log, cfg.output.poses_csv)) {  // the same path, a hard or symbolic link
       bad += std::string("  ") + can_log_key + ": '" + can_log + "' is also output.poses_csv: the CAN log and the poses " +

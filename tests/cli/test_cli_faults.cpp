@@ -547,6 +547,43 @@ TEST(CliFaults, RunOnARecordingSaysWhichFieldItUses) {
   EXPECT_NE(r.out.find("note: the field is the source's 320x240, not scan.field_w/h 640x480"), std::string::npos) << r.out;
 }
 
+// A run on a recording writes no PGM among its frames (found probing: output.poses_csv
+// REC/frame_999999.pgm ran, exit 0, and every replay of REC after failed on its "wrong magic";
+// --can-log REC/zz.pgm the same). Refused by name before anything is written; the replay after
+// still reads the recording.
+TEST(CliFaults, RunWritesNoPgmIntoTheRecordingItReads) {
+  const std::string dir = work_dir() + "/run_into_rec";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 3));
+  const std::string rec = dir + "/rec";
+  const auto frames_in_rec = [&] {
+    int n = 0;
+    for (const auto& e : fs::directory_iterator(rec)) n += e.path().extension() == ".pgm";
+    return n;
+  };
+  const int frames = frames_in_rec();
+  const auto config = [&](const std::string& csv, const std::string& log) {
+    const std::string path = dir + "/run_" + std::to_string(frames_in_rec()) + fs::path(csv).stem().string() + ".yaml";
+    std::ofstream(path) << "source: replay\nreplay: {frames_dir: " << rec << "}\ntargets: [{name: a, pattern_sets: [{file: " << dir
+                        << "/p.pgm}]}]\noutput: {poses_csv: " << csv << "}\ncan: {log_file: " << log
+                        << "}\npipeline: {lock_memory: false, hold_dma_latency: false, acquisition: {cpu: -1, priority: 0}, "
+                           "correlation: {cpu: -1, priority: 0}, output: {cpu: -1, priority: 0}, non_rt_cpu: -1}\n";
+    return path;
+  };
+  Outcome r = run({"run", "--config", config(rec + "/frame_999999.pgm", dir + "/can.log"), "--duration", "5"}, 60);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("output.poses_csv: '" + rec + "/frame_999999.pgm' is a PGM in the recording's frames folder"), std::string::npos)
+      << r.err;
+  r = run({"run", "--config", config(dir + "/poses.csv", dir + "/can.log"), "--can-log", rec + "/zz.pgm", "--duration", "5"}, 60);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("--can-log: '" + rec + "/zz.pgm' is a PGM in the recording's frames folder"), std::string::npos) << r.err;
+  EXPECT_EQ(frames_in_rec(), frames) << "a PGM was written among the frames";
+  // Another name in the folder, or a PGM beside it, is no frame: runs.
+  r = run({"run", "--config", config(dir + "/poses.pgm", rec + "/can.log"), "--duration", "5"}, 60);
+  EXPECT_EQ(r.code, 0) << r.err;
+}
+
 // Hostile option values (found probing the six commands): each used to run with something the
 // operator did not mean — `check-rt --config ''` checked the built-in defaults, `--hist-dir
 // --strict-rt` ran without --strict-rt and wrote into a folder called "--strict-rt", a hex
