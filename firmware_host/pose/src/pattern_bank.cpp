@@ -4,15 +4,13 @@
 #include "sempose/pose/box_downsample.hpp"
 #include "sempose/pose/prefilter.hpp"
 #include "sempose/pose/window_noise.hpp"
+#include "sempose/rt/memory_room.hpp"
 
 #include <fftw3.h>
-#include <sys/resource.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <new>
 #include <random>
 #include <string>
@@ -23,32 +21,6 @@ namespace sempose::pose {
 void FftwFree::operator()(void* p) const noexcept { fftwf_free(p); }
 
 namespace {
-// Memory setup may still take: the kernel's MemAvailable, and below RLIMIT_AS what the process
-// has not mapped yet. 0: unknown (no limit applied).
-std::uint64_t available_memory_bytes() {
-  std::uint64_t avail = 0;
-  std::ifstream meminfo("/proc/meminfo");
-  for (std::string key; meminfo >> key;) {
-    std::uint64_t kb = 0;
-    meminfo >> kb;
-    if (key == "MemAvailable:") {
-      avail = kb * 1024;
-      break;
-    }
-    meminfo.ignore(256, '\n');
-  }
-  rlimit as{};
-  if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
-    std::uint64_t mapped_pages = 0;
-    std::ifstream statm("/proc/self/statm");
-    statm >> mapped_pages;
-    const std::uint64_t mapped = mapped_pages * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
-    const std::uint64_t left = as.rlim_cur > mapped ? as.rlim_cur - mapped : 0;
-    avail = avail == 0 ? left : std::min(avail, left);
-  }
-  return avail;
-}
-
 std::string megabytes(std::uint64_t bytes) {
   char text[32];
   std::snprintf(text, sizeof text, "%.0f MB", static_cast<double>(bytes) / 1e6);
@@ -110,7 +82,7 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
   const std::uint64_t copies = static_cast<std::uint64_t>(angles_) * n * n * sizeof(float);
   const std::uint64_t fine = sizeof(Complex) * static_cast<std::uint64_t>(spectrum_len_) * angles_;
   const std::uint64_t search = sizeof(Complex) * static_cast<std::uint64_t>(coarse_len_ + coarse_wide_len_) * coarse_angles_;
-  if (const std::uint64_t avail = available_memory_bytes(); avail > 0 && copies + fine + search > avail) {
+  if (const std::uint64_t avail = rt::memory_room().least(); avail > 0 && copies + fine + search > avail) {
     why = "the pattern bank needs " + megabytes(copies + fine + search) + ", more than the " + megabytes(avail) +
           " this machine has available: " + std::to_string(angles_) + " turned copies of the " + std::to_string(n) + "² pattern " +
           megabytes(copies) + " (tracker.angle_step_deg, tracker.pattern_size_px), their spectra at the ROI's size " +
