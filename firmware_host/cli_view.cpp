@@ -189,7 +189,7 @@ int sempose::cli::view(int argc, char** argv) {
     }
     std::printf("view: %zu poses, %zu target(s), %.1f%% TRACKING\n", rows.size(), targets.size(), 100.0 * tracked / rows.size());
     if (plot_problem.empty()) std::printf("view: %s/track.png (x, y, phi, score over %s)\n", out_dir.c_str(), "time");
-    else std::printf("view: plot not drawn: %s\n", plot_problem.c_str());
+    else std::fprintf(stderr, "sempose view: plot not drawn: %s\n", plot_problem.c_str());  // exit 1: an error, on stderr
     if (pictures > 0) {
       std::printf("view: %d ROI pictures (every %d poses per target): %s/%s ... %s\n", pictures, every, out_dir.c_str(),
                   first.c_str(), last.c_str());

@@ -19,8 +19,10 @@ bool is_target_name(const std::string& name) {
 }
 
 std::string make_target_name(const std::string& raw, std::size_t index, const std::vector<std::string>& taken) {
-  // Room for a "_N" suffix when the name is taken.
-  std::string base = raw.substr(0, kMaxTargetNameLength - 12);
+  // Room for a "_N" suffix when the name is taken; not cut inside a UTF-8 character.
+  std::size_t cut = std::min(raw.size(), kMaxTargetNameLength - 12);
+  while (cut > 0 && cut < raw.size() && (static_cast<unsigned char>(raw[cut]) & 0xC0) == 0x80) --cut;
+  std::string base = raw.substr(0, cut);
   std::replace_if(base.begin(), base.end(), [](unsigned char ch) { return breaks_word(ch); }, '_');
   if (base.empty()) base = "target" + std::to_string(index);
   std::string name = base;

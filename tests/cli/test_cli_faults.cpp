@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -875,6 +876,23 @@ TEST(CliFaults, ViewOutThatIsAFileIsNamedByTheOption) {
   };
   for (const Refusal& c : cases) ASSERT_NO_FATAL_FAILURE(expect_refused(c, 20));
   EXPECT_EQ(slurp(dir + "/afile"), "x\n");
+}
+
+// view without gnuplot (found probing): exit 1, and the reason on standard error with the command
+// to draw the plot by hand — it was printed on standard output, stderr empty.
+TEST(CliFaults, ViewWithoutGnuplotSaysSoOnStandardError) {
+  const std::string dir = work_dir() + "/view_no_gnuplot";
+  fs::create_directories(dir);
+  std::ofstream(dir + "/poses.csv") << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,1,2,3,0.5,TRACKING\n";
+  const std::string path = std::getenv("PATH") ? std::getenv("PATH") : "";
+  ::setenv("PATH", (dir + "/no_such_bin").c_str(), 1);
+  const Outcome r = run({"view", "--poses", dir + "/poses.csv", "--out", dir + "/out"}, 20);
+  ::setenv("PATH", path.c_str(), 1);
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find("sempose view: plot not drawn: gnuplot not found (apt-get install gnuplot-nox); then run: cd '"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("not drawn"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(dir + "/out/track.gp")) << "the script to draw it by hand";
 }
 
 // A --truth of no usable row (empty, a header only — sim's truth for a target never in the

@@ -241,6 +241,11 @@ TEST(AppConfig, NamesMadeFromFilesKeepTheRule) {
   EXPECT_NE(made, std::string(52, 'n'));
   EXPECT_FALSE(is_target_name(std::string(65, 'n')));
   EXPECT_TRUE(is_target_name(std::string(64, 'n')));
+  // A name from a file of accented letters (two bytes each) is cut between letters, not inside one.
+  std::string accents;
+  for (int i = 0; i < 40; ++i) accents += "\xc3\xa9";  // é
+  EXPECT_EQ(make_target_name(accents, 0, {}), accents.substr(0, 52));
+  EXPECT_EQ(make_target_name("x" + accents, 0, {}), "x" + accents.substr(0, 50));
 }
 
 TEST(AppConfig, SpinPollingNeedsACorePerStage) {
