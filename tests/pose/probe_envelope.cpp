@@ -440,7 +440,7 @@ int main(int argc, char** argv) {
                          static_cast<int>(e.reason_bits), e.searched ? " searched" : "");
           if (trace && t2.present) std::fprintf(stderr, " second %.1f %.1f %.1f", t2.x_px, t2.y_px, t2.phi_deg);
           if (trace) std::fprintf(stderr, " mid %.2f", std::hypot(e.x_px - t_mid.x_px, e.y_px - t_mid.y_px));
-          if (trace) std::fprintf(stderr, " ss %.4f", e.sigma_scale);
+          if (trace) std::fprintf(stderr, " ss %.4f sx %.3f sy %.3f sphi %.3f", e.sigma_scale, e.sigma_x_px, e.sigma_y_px, e.sigma_phi_deg);
           if (trace) std::fputc('\n', stderr);
           if (e.state != TrackState::kTracking) continue;
           ++tracking;
