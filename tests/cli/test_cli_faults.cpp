@@ -388,6 +388,41 @@ TEST(CliFaults, ARecordingBeyondTheAddressSpaceLimitIsRefusedByName) {
   EXPECT_FALSE(fs::exists(dir + "/out.csv"));
 }
 
+// A pattern that is one straight edge (left half black, right half white) leaves the place along
+// the edge unknown: the fit's curvature is singular and no σ is measured (0). Its poses, 20 px off
+// the lamella it was run on, were TRACKING on σ 0 (found probing: 4 of 20 in replay, 60 a second
+// in run). No TRACKING pose without a σ.
+TEST(CliFaults, APoseWithoutASigmaIsNeverTracking) {
+  const std::string dir = work_dir() + "/edge_pattern";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string cfg = dir + "/edge.yaml";
+  std::ofstream(cfg) << "source: sim\nscan: {field_w: 320, field_h: 240, max_roi_w: 192, max_roi_h: 192}\n"
+                        "sim:\n  clock: virtual\n  seed: 3\n  targets:\n    - {texture: {source: lamella}, size: [60, 40], "
+                        "start: [160, 120, 0], trajectory: {kind: sine, amplitude_x_px: 10, amplitude_y_px: 5, period_s: 2}}\n"
+                        "tracker: {pattern_size_px: 64, roi_size_px: 96}\n";
+  Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "20", "--config", cfg, "--dwell", "2000"}, 120);
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::string edge = "P5\n64 64\n255\n";
+  for (int i = 0; i < 64 * 64; ++i) edge += static_cast<char>(i % 64 < 32 ? 0 : 255);
+  std::ofstream(dir + "/edge.pgm", std::ios::binary) << edge;
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/edge.pgm", "--config", cfg, "--out", dir + "/out.csv"}, 60);
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::istringstream csv(slurp(dir + "/out.csv"));
+  int rows = 0, tracking_without_sigma = 0;
+  for (std::string line; std::getline(csv, line);) {
+    if (line.rfind("frame", 0) == 0) continue;
+    ++rows;
+    std::vector<std::string> cell;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cell.push_back(c);
+    ASSERT_GE(cell.size(), 12u) << line;
+    tracking_without_sigma += cell[6] == "TRACKING" && std::stod(cell[8]) == 0.0;
+  }
+  EXPECT_EQ(rows, 20);
+  EXPECT_EQ(tracking_without_sigma, 0) << "TRACKING poses whose sigma_x_px is 0 (4 before)";
+}
+
 // "-" as --out: replay writes its poses' CSV to standard output (the report to stderr, so a
 // pipe gets CSV only); sim, pattern and view refuse it by name rather than make a file or
 // folder called "-".

@@ -359,6 +359,11 @@ Tracker::Impl::Loaded Tracker::Impl::search_sigma(const PatternBank& bank, const
 // given its 1 px innovation).
 bool Tracker::Impl::trusted_pose(const PoseEstimate& e, const Innovation& innov) const noexcept {
   double s_px = std::max(e.sigma_x_px, e.sigma_y_px), s_deg = e.sigma_phi_deg;
+  // No σ (0: the fit's curvature was singular, PoseUncertainty not valid) is no vouching: a
+  // pattern that is one straight edge leaves the place along the edge unknown, and its poses,
+  // 20 px off, were TRACKING on σ 0 as "no error expected" (found probing: replay and run).
+  if (cfg.max_false_probability > 0 && !loss.calibrating() && !(e.sigma_x_px > 0 && e.sigma_y_px > 0 && e.sigma_phi_deg > 0))
+    return false;
   if (e.score < loss.explained_bound() && !motion.pose_noise_known() && !loss.calibrating()) return false;
   if (motion.pose_noise_known() && e.score < loss.explained_bound()) {
     const double k = motion.pose_noise_carried() ? motion.carried_noise_factor(frame_dwell_ns, e.score) : 1.0;
