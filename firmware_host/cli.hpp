@@ -1,6 +1,9 @@
 // The `sempose` subcommands. Each returns the process exit code; argv[0] is the subcommand.
 #pragma once
 
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -28,9 +31,32 @@ int view(int argc, char** argv);     // operator's pictures of a run or recordin
 // (`sempose run --strict-rt` refuses to start on 3).
 int print_rt_checks(const config::AppConfig& cfg, const std::string& root);
 
+// Whether an output path is this process's standard output or error itself (/dev/stdout,
+// /proc/self/fd/2, the terminal or file they are open on): "standard output" / "standard error",
+// else nullptr. Found probing: `output.poses_csv: /dev/stdout` opened the file stdout was
+// redirected to a second time, and the CSV and the status lines wrote over each other (the
+// header gone, lines torn, exit 0). The null device is no stream to mix: it is never one.
+inline const char* standard_stream_named(const std::string& path) {
+  if (path.empty() || path == "-") return nullptr;
+  struct stat out {};
+  if (::stat(path.c_str(), &out) != 0) return nullptr;
+  if (S_ISCHR(out.st_mode) && out.st_rdev == makedev(1, 3)) return nullptr;
+  for (const auto& [fd, name] : {std::pair{1, "standard output"}, std::pair{2, "standard error"}}) {
+    struct stat s {};
+    if (::fstat(fd, &s) == 0 && s.st_dev == out.st_dev && s.st_ino == out.st_ino) return name;
+  }
+  return nullptr;
+}
+
 // "-" names standard output to most tools; where an output is a folder or a binary file whose
-// command also reports on stdout, sempose refuses it instead of creating a file called "-".
+// command also reports on stdout, sempose refuses it instead of creating a file called "-" — and
+// refuses a path that is the standard output or error stream itself (standard_stream_named).
 inline bool refuse_stdout_output(const char* command, const std::string& value, const char* what) {
+  if (const char* stream = standard_stream_named(value)) {
+    std::fprintf(stderr, "sempose %s: --out '%s' is this process's %s, which carries its report: --out names %s\n", command,
+                 value.c_str(), stream, what);
+    return true;
+  }
   if (value != "-") return false;
   std::fprintf(stderr, "sempose %s: --out '-' (standard output) is not supported: --out names %s\n", command, what);
   return true;

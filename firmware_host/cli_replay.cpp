@@ -138,8 +138,8 @@ int run_replay(int argc, char** argv) {
   if (const int code = cli::finish_parse("replay", opt, usage); code >= 0) return code;
   // A signal stops the replay and removes the CSV begun (stop_replay).
   cli::catch_termination_signals();
-  const std::string frames_dir = opt.text("--frames"), config_path = opt.text("--config"), truth_path = opt.text("--truth"),
-                    out_path = opt.text("--out");
+  const std::string frames_dir = opt.text("--frames"), config_path = opt.text("--config"), truth_path = opt.text("--truth");
+  std::string out_path = opt.text("--out");
   if (cli::refuse_control_characters("replay", "--out", out_path)) return 2;
   std::vector<std::string> patterns, masks;  // masks[i]: --mask after pattern i ("" = none)
   for (const OptionValue& v : opt.given) {
@@ -206,6 +206,18 @@ int run_replay(int argc, char** argv) {
                    app.targets.size());
       return 2;
     }
+  }
+  // --out naming this process's standard output itself (/dev/stdout, /proc/self/fd/1) is "-":
+  // the report goes to stderr, as it does for "-" (found probing: opened a second time, the file
+  // stdout was redirected to got the summary written over the CSV's header and first rows).
+  // Standard error carries the warnings: refused.
+  if (const char* stream = cli::standard_stream_named(out_path)) {
+    if (std::string(stream) == "standard error") {
+      std::fprintf(stderr, "sempose replay: --out '%s' is this process's standard error, which carries its warnings: name a file or '-'\n",
+                   out_path.c_str());
+      return 2;
+    }
+    out_path = "-";
   }
   // A FIFO as --out or --truth blocked in open() (found probing: the process hung); a
   // directory as --truth was read as a truth of no rows (exit 0, nothing compared).

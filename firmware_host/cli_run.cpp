@@ -227,6 +227,13 @@ int sempose::cli::run(int argc, char** argv) {
         }
       }
     }
+    for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
+                                    {can_log_key, can_log}}) {
+      if (const char* stream = cli::standard_stream_named(path)) {
+        bad += std::string("  ") + key + ": '" + path + "' is this process's " + stream +
+               ", which carries the run's status lines and warnings: the two would be written over each other; name a file\n";
+      }
+    }
     if (cli::same_output(can_log, cfg.output.poses_csv)) {  // the same path, a hard or symbolic link
       bad += std::string("  ") + can_log_key + ": '" + can_log + "' is also output.poses_csv: the CAN log and the poses " +
              "would be written into one file; name two files\n";

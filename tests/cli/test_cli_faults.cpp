@@ -423,6 +423,36 @@ TEST(CliFaults, APoseWithoutASigmaIsNeverTracking) {
   EXPECT_EQ(tracking_without_sigma, 0) << "TRACKING poses whose sigma_x_px is 0 (4 before)";
 }
 
+// An output path that is the process's standard output or error itself (/dev/stdout,
+// /proc/self/fd/2): found probing, the file stdout was redirected to was opened a second time and
+// the CSV and the status lines wrote over each other (header gone, torn lines, exit 0). run and
+// pattern refuse it by key or option; replay takes /dev/stdout as "-" (its report to stderr).
+TEST(CliFaults, AnOutputThatIsTheStandardStreamItselfIsNotWrittenOver) {
+  const std::string dir = work_dir() + "/std_streams";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 4));
+  Outcome r = run({"run", "--config", small_config(dir, "output: {poses_csv: /dev/stdout}\ncan: {log_file: " + dir + "/can.log}\n"),
+                   "--duration", "1"});
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("output.poses_csv: '/dev/stdout' is this process's standard output"), std::string::npos) << r.err;
+  r = run({"run", "--config", small_config(dir, "output: {poses_csv: " + dir + "/p.csv}\ncan: {log_file: /proc/self/fd/2}\n"),
+           "--duration", "1"});
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("can.log_file: '/proc/self/fd/2' is this process's standard error"), std::string::npos) << r.err;
+  r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--out", "/dev/stdout"});
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("--out '/dev/stdout' is this process's standard output"), std::string::npos) << r.err;
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "/dev/stdout"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.rfind("frame,t_ns,", 0), 0u) << "the CSV's header first on stdout: " << r.out.substr(0, 200);
+  EXPECT_EQ(r.out.find("summary:"), std::string::npos) << "the report went to stdout too: " << r.out;
+  EXPECT_NE(r.err.find("summary:"), std::string::npos) << r.err;
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "/dev/stderr"});
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--out '/dev/stderr' is this process's standard error"), std::string::npos) << r.err;
+}
+
 // "-" as --out: replay writes its poses' CSV to standard output (the report to stderr, so a
 // pipe gets CSV only); sim, pattern and view refuse it by name rather than make a file or
 // folder called "-".
