@@ -87,6 +87,8 @@ std::unique_ptr<CandumpLogChannel> CandumpLogChannel::open(const CandumpLogOptio
     status = rt::Status::failure("can.log_file '" + o.path + "': cannot create: " + std::strerror(errno));
     return nullptr;
   }
+  struct stat st{};
+  ch->regular_file_ = ::fstat(ch->file_, &st) == 0 && S_ISREG(st.st_mode);
   status = rt::Status::success();
   return ch;
 }
@@ -121,6 +123,14 @@ void CandumpLogChannel::flush() {
   if (file_ < 0) return;
   std::uint64_t flushed = 0;
   for (auto pending = ring_.readable(); !pending.empty(); pending = ring_.readable()) {
+    if (skip_to_line_end_) {  // the rest of a line tear_back() cut from the file: dropped, counted
+      const char* nl = static_cast<const char*>(std::memchr(pending.data(), '\n', pending.size()));
+      const std::size_t n = nl ? static_cast<std::size_t>(nl - pending.data()) + 1 : pending.size();
+      ring_.consume(n);
+      lost_.fetch_add(n, std::memory_order_relaxed);
+      skip_to_line_end_ = nl == nullptr;
+      continue;
+    }
     const ssize_t w = ::write(file_, pending.data(), pending.size());
     if (w < 0) {
       if (errno == EINTR) continue;
@@ -129,11 +139,24 @@ void CandumpLogChannel::flush() {
       // send() counts every frame it cannot keep as dropped.
       write_errors_.fetch_add(1, std::memory_order_relaxed);
       last_errno_.store(errno, std::memory_order_relaxed);
+      tear_back();
       break;
     }
-    ring_.consume(static_cast<std::size_t>(w));
-    written_.fetch_add(static_cast<std::uint64_t>(w), std::memory_order_relaxed);
-    flushed += static_cast<std::uint64_t>(w);
+    const auto n = static_cast<std::size_t>(w);
+    for (std::size_t i = n; i > 0; --i) {
+      if (pending.data()[i - 1] == '\n') {
+        whole_end_ = file_end_ + i;
+        break;
+      }
+    }
+    file_end_ += n;
+    ring_.consume(n);
+    written_.fetch_add(n, std::memory_order_relaxed);
+    flushed += n;
+    if (n < pending.size()) {  // a short write (a full disk takes what fits): the rest next time
+      tear_back();
+      break;
+    }
   }
   // Written into a file that was deleted meanwhile (an operator cleaning the log folder):
   // the bytes reach nobody. Counted as lost and as a write error, not taken as written.
@@ -143,6 +166,20 @@ void CandumpLogChannel::flush() {
     last_errno_.store(ENOENT, std::memory_order_relaxed);
     lost_.fetch_add(flushed, std::memory_order_relaxed);
   }
+}
+
+// A write that failed or fell short may have left the file ending inside a line (found probing:
+// the log on a full tmpfs ended in "(000", where the poses' CSV is cut back to its last whole
+// line). A regular file is cut back to its last whole line, the cut bytes counted lost, and the
+// rest of that line, still in the ring, dropped when the next flush reaches it.
+void CandumpLogChannel::tear_back() {
+  if (!regular_file_ || file_end_ == whole_end_) return;
+  if (::ftruncate(file_, static_cast<off_t>(whole_end_)) != 0 || ::lseek(file_, static_cast<off_t>(whole_end_), SEEK_SET) < 0) return;
+  const std::uint64_t torn = file_end_ - whole_end_;
+  written_.fetch_sub(torn, std::memory_order_relaxed);
+  lost_.fetch_add(torn, std::memory_order_relaxed);
+  file_end_ = whole_end_;
+  skip_to_line_end_ = true;
 }
 
 }  // namespace sempose::hal

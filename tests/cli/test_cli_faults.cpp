@@ -926,6 +926,35 @@ TEST(CliFaults, AFileSizeLimitIsAWriteErrorNotADeath) {
   EXPECT_NE(rp.err.find("pose lines not written"), std::string::npos) << rp.err;
 }
 
+// The candump log under the same limit ends in whole lines (found probing, on a full tmpfs: the
+// log ended in a torn "(000" while the CSV is cut back to its last whole line). Every line is a
+// candump line; the cut bytes are counted in can_log_bytes_lost.
+TEST(CliFaults, ACandumpLogCutShortEndsInWholeLines) {
+  const std::string dir = work_dir() + "/fsize_can";
+  fs::create_directories(dir);
+  const std::string log = dir + "/can.log";
+  const std::string cfg = small_config(dir, "output: {poses_csv: /dev/null}\ncan: {log_file: " + log + "}\n");
+  for (const long limit : {16384L, 20000L, 30011L}) {
+    g_child_file_size_limit = limit;
+    const Outcome r = run({"run", "--config", cfg, "--duration", "2"}, 60);
+    g_child_file_size_limit = -1;
+    ASSERT_FALSE(r.hung);
+    EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal;
+    EXPECT_EQ(r.code, 4) << r.out << r.err;
+    EXPECT_NE(field(r.out, "can_log_bytes_lost"), "0") << r.out;
+    const std::string text = slurp(log);
+    EXPECT_LE(text.size(), static_cast<std::size_t>(limit));
+    ASSERT_TRUE(!text.empty() && text.back() == '\n') << "limit " << limit << ": a torn last line: ..." << text.substr(text.size() - std::min<std::size_t>(text.size(), 60));
+    std::istringstream lines(text);
+    int n = 0;
+    for (std::string line; std::getline(lines, line); ++n) {
+      ASSERT_TRUE(line.size() > 20 && line[0] == '(' && line.find(") can0 ") != std::string::npos && line.find('#') != std::string::npos)
+          << "limit " << limit << ", line " << n << ": " << line;
+    }
+    EXPECT_GT(n, 100);
+  }
+}
+
 // view --out on a regular file or below one: refused by the option before any input is read
 // (it was a bare "filesystem error: cannot create directories: Not a directory [afile]").
 TEST(CliFaults, ViewOutThatIsAFileIsNamedByTheOption) {

@@ -54,7 +54,8 @@ class CandumpLogChannel final : public CanChannel {
   std::uint64_t write_errors() const noexcept { return write_errors_.load(std::memory_order_relaxed); }
   int last_errno() const noexcept { return last_errno_.load(std::memory_order_relaxed); }
   std::uint64_t bytes_pending() const noexcept { return ring_.pending(); }
-  // Bytes written into the file after it was deleted (ENOENT in last_errno()): lost too.
+  // Bytes written into the file after it was deleted (ENOENT in last_errno()), and the bytes of
+  // a line a failed write tore (cut from the file, the rest dropped from the ring): lost too.
   std::uint64_t bytes_lost_to_deleted_file() const noexcept { return lost_.load(std::memory_order_relaxed); }
 
  private:
@@ -63,6 +64,12 @@ class CandumpLogChannel final : public CanChannel {
   std::string path_;
   std::string channel_;
   int file_ = -1;
+  // A regular file ends in whole lines: where its last whole line ends, where writing is, and
+  // whether the ring's head is the rest of a line cut from the file (tear_back()).
+  bool regular_file_ = false;
+  std::uint64_t file_end_ = 0, whole_end_ = 0;
+  bool skip_to_line_end_ = false;
+  void tear_back();
   bool fd_ = false;
   bool wall_clock_ = false;
   rt::SpscBuffer<char> ring_;  // send (RT) → flush (non-RT)
