@@ -36,11 +36,14 @@ int print_rt_checks(const config::AppConfig& cfg, const std::string& root);
 // else nullptr. Found probing: `output.poses_csv: /dev/stdout` opened the file stdout was
 // redirected to a second time, and the CSV and the status lines wrote over each other (the
 // header gone, lines torn, exit 0). The null device is no stream to mix: it is never one.
+inline bool is_null_device(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && S_ISCHR(st.st_mode) && st.st_rdev == makedev(1, 3);
+}
 inline const char* standard_stream_named(const std::string& path) {
-  if (path.empty() || path == "-") return nullptr;
+  if (path.empty() || path == "-" || is_null_device(path)) return nullptr;
   struct stat out {};
   if (::stat(path.c_str(), &out) != 0) return nullptr;
-  if (S_ISCHR(out.st_mode) && out.st_rdev == makedev(1, 3)) return nullptr;
   for (const auto& [fd, name] : {std::pair{1, "standard output"}, std::pair{2, "standard error"}}) {
     struct stat s {};
     if (::fstat(fd, &s) == 0 && s.st_dev == out.st_dev && s.st_ino == out.st_ino) return name;
@@ -109,8 +112,9 @@ inline std::filesystem::path resolved_output(const std::string& path) {
 }
 
 // Whether two output paths land on one file: the same file (hard links too) or the same place.
+// The null device takes both without mixing anything (a run that keeps neither).
 inline bool same_output(const std::string& a, const std::string& b) {
-  if (a.empty() || b.empty() || a == "-" || b == "-") return false;
+  if (a.empty() || b.empty() || a == "-" || b == "-" || is_null_device(a)) return false;
   std::error_code ec;
   if (std::filesystem::equivalent(a, b, ec) && !ec) return true;
   return resolved_output(a) == resolved_output(b);
