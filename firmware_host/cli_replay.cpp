@@ -105,19 +105,22 @@ class TruthCheckSink final : public pipeline::PoseSink {
   bool truth_given_;  // --truth given (an empty one: the target is on no frame)
 };
 
-// A replay stopped by a signal: its CSV holds whole lines of the frames so far and would look
-// like the replay of a shorter recording, so it is closed and removed (a regular file only:
-// not standard output or a device), and the process ends by the signal (cli_signals.hpp).
+// A replay that did not finish (stopped by a signal, a write that failed, the run broken off):
+// its CSV holds whole lines of the frames so far and would look like the replay of a shorter
+// recording, so it is closed and removed (a regular file only: not standard output or a
+// device). True when removed.
+bool remove_incomplete_csv() {
+  if (g_csv == nullptr) return false;
+  g_csv->close();
+  struct stat st {};
+  return g_out_path != "-" && ::stat(g_out_path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::unlink(g_out_path.c_str()) == 0;
+}
+
+// Stopped by a signal: the incomplete CSV removed, and the process ends by the signal
+// (cli_signals.hpp).
 [[noreturn]] void stop_replay(int sig) {
   char name[24];
-  bool removed = false;
-  if (g_csv != nullptr) {
-    g_csv->close();
-    struct stat st {};
-    if (g_out_path != "-" && ::stat(g_out_path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) {
-      removed = ::unlink(g_out_path.c_str()) == 0;
-    }
-  }
+  const bool removed = remove_incomplete_csv();
   std::fprintf(stderr, "sempose replay: stopped by %s after %llu poses%s\n", sempose::cli::signal_name(sig, name),
                static_cast<unsigned long long>(g_poses),
                removed ? (": removed the incomplete " + g_out_path).c_str() : g_csv ? "" : ": nothing written");
@@ -341,12 +344,18 @@ int run_replay(int argc, char** argv) {
   pipeline::OfflineRunStats stats;
   const rt::Status ran = runner.run(0, stats);
   if (!ran.ok) {
-    std::fprintf(stderr, "sempose replay: %s\n", ran.message.c_str());
+    std::fprintf(stderr, "sempose replay: %s%s\n", ran.message.c_str(),
+                 remove_incomplete_csv() ? ("; removed the incomplete " + out_path).c_str() : "");
     return 2;
   }
+  // Lines lost to a full disk or a file-size limit: the CSV's whole lines would look like the
+  // replay of a shorter recording (found probing: exit 4 with "11 pose lines not written", and
+  // the header and 19 whole rows left behind). Removed, as a stopped replay's is.
   if (!csv.close() || stats.publish_failures != 0) {
-    std::fprintf(stderr, "sempose replay: %s: %llu pose lines not written (%s)\n", out_path.c_str(),
-                 static_cast<unsigned long long>(csv.lost_lines() + csv.dropped()), std::strerror(csv.last_errno()));
+    const unsigned long long lost = csv.lost_lines() + csv.dropped();
+    const int err = csv.last_errno();
+    std::fprintf(stderr, "sempose replay: %s: %llu pose lines not written (%s)%s\n", out_path.c_str(), lost, std::strerror(err),
+                 remove_incomplete_csv() ? "; removed the incomplete file" : "");
     return 4;
   }
   // With the poses on standard output (--out -) the report goes to stderr, so a pipe gets CSV only.

@@ -936,6 +936,10 @@ TEST(CliFaults, AFileSizeLimitIsAWriteErrorNotADeath) {
   EXPECT_EQ(rp.signal, 0) << "replay killed by signal " << rp.signal;
   EXPECT_EQ(rp.code, 4) << rp.err;
   EXPECT_NE(rp.err.find("pose lines not written"), std::string::npos) << rp.err;
+  // Its whole lines would look like the replay of a shorter recording (found probing: header and
+  // 19 rows left): removed, as a stopped replay's CSV is.
+  EXPECT_NE(rp.err.find("removed the incomplete file"), std::string::npos) << rp.err;
+  EXPECT_FALSE(fs::exists(replay_csv)) << slurp(replay_csv);
 }
 
 // The candump log under the same limit ends in whole lines (found probing, on a full tmpfs: the
