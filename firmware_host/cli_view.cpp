@@ -128,6 +128,43 @@ int sempose::cli::view(int argc, char** argv) {
     for (const auto& p : patterns) pattern_images.push_back(hal::read_pgm(p));
     std::vector<std::string> frame_files;
     if (!frames_dir.empty()) frame_files = hal::list_pgm_frames(frames_dir);
+    // The rows a picture is drawn of (every `every`-th pose of each target, up to the last frame
+    // the folder holds), and each of their frames read once before anything is written: found
+    // probing, a truncated frame 10 ended view with exit 2 after track.* and roi_000000..09.png
+    // were written, and a frame of another size than the others was drawn without a word (replay
+    // refuses such a recording).
+    std::vector<std::size_t> drawn;
+    std::size_t beyond_frame = 0;  // a pose of a frame the folder does not hold (0: none)
+    if (!frame_files.empty()) {
+      std::map<std::string, std::size_t> seen;  // poses per target so far
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        if (seen[rows[i].target]++ % static_cast<std::size_t>(every) != 0) continue;
+        if (rows[i].frame >= frame_files.size()) {
+          beyond_frame = rows[i].frame;
+          break;
+        }
+        drawn.push_back(i);
+      }
+      std::vector<char> checked(frame_files.size(), 0);
+      int first_w = -1, first_h = -1;
+      std::string first_file;
+      for (const std::size_t i : drawn) {
+        const std::size_t f = rows[i].frame;
+        if (checked[f]) continue;
+        checked[f] = 1;
+        const hal::Image img = hal::read_pgm(frame_files[f]);
+        if (first_w < 0) {
+          first_w = img.width;
+          first_h = img.height;
+          first_file = frame_files[f];
+        } else if (img.width != first_w || img.height != first_h) {
+          throw std::runtime_error(frame_files[f] + ": size " + std::to_string(img.width) + "x" + std::to_string(img.height) +
+                                   " differs from " + first_file + "'s " + std::to_string(first_w) + "x" +
+                                   std::to_string(first_h) + ": not one recording");
+        }
+        if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
+      }
+    }
 
     if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
     {
@@ -150,18 +187,15 @@ int sempose::cli::view(int argc, char** argv) {
     int pictures = 0;
     std::string first, last;
     if (!frame_files.empty()) {
-      std::map<std::string, std::size_t> seen;  // poses per target so far
       std::size_t outside = 0;                   // drawn poses outside their frame
       std::vector<std::vector<std::pair<float, float>>> edges;
       for (const auto& img : pattern_images) edges.push_back(operator_view::pattern_edge_points(img));
-      for (const auto& r : rows) {
-        const std::size_t k = seen[r.target]++;
-        if (k % static_cast<std::size_t>(every) != 0) continue;
-        if (r.frame >= frame_files.size()) {
-          std::fprintf(stderr, "sempose view: pose of frame %llu but %s holds %zu frames; ROI pictures stop here\n",
-                       static_cast<unsigned long long>(r.frame), frames_dir.c_str(), frame_files.size());
-          break;
-        }
+      if (beyond_frame > 0) {
+        std::fprintf(stderr, "sempose view: pose of frame %llu but %s holds %zu frames; ROI pictures stop there\n",
+                     static_cast<unsigned long long>(beyond_frame), frames_dir.c_str(), frame_files.size());
+      }
+      for (const std::size_t i : drawn) {
+        const operator_view::PoseRow& r = rows[i];
         const std::size_t t = static_cast<std::size_t>(std::find(targets.begin(), targets.end(), r.target) - targets.begin());
         const hal::Image frame = hal::read_pgm(frame_files[r.frame]);
         // sempose's poses lie in the field: one outside these frames is from another recording

@@ -1188,6 +1188,37 @@ TEST(CliFaults, ViewStoppedByASignalLeavesNoPicturesThatLookWhole) {
   }
 }
 
+// Every frame view draws is read before anything is written (found probing: a truncated frame
+// 10 ended view with exit 2 after track.* and roi_000000..09.png were written; a frame of another
+// size was drawn without a word, where replay refuses such a recording).
+TEST(CliFaults, ViewReadsEveryFrameItDrawsBeforeWriting) {
+  const std::string dir = work_dir() + "/view_bad_frame";
+  fs::remove_all(dir);
+  const Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "12", "--config", small_config(work_dir(), "")}, 120);
+  ASSERT_EQ(made.code, 0) << made.err;
+  {
+    std::ofstream csv(dir + "/poses.csv");
+    csv << "frame,t_ns,x_px,y_px,phi_deg,score,status\n";
+    for (int f = 0; f < 12; ++f) csv << f << "," << f * 1000000 << ",160,120,0,0.9,TRACKING\n";
+  }
+  const std::string frame = dir + "/rec/frame_000010.pgm", whole = slurp(frame);
+  fs::resize_file(frame, whole.size() / 2);
+  Outcome r = run({"view", "--poses", dir + "/poses.csv", "--out", dir + "/v1", "--frames", dir + "/rec", "--every", "1"});
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("frame_000010.pgm: truncated"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/v1")) << "output written before the bad frame was found";
+  std::string wider = "P5\n321 240\n255\n" + std::string(321 * 240, '\x40');
+  std::ofstream(frame, std::ios::binary | std::ios::trunc) << wider;
+  r = run({"view", "--poses", dir + "/poses.csv", "--out", dir + "/v2", "--frames", dir + "/rec", "--every", "1"});
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("frame_000010.pgm: size 321x240 differs from"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/v2"));
+  // Not drawn (every 4th pose: frames 0, 4, 8), the odd frame is not read: the view is drawn.
+  r = run({"view", "--poses", dir + "/poses.csv", "--out", dir + "/v3", "--frames", dir + "/rec", "--every", "4"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/v3/roi_000008.png"));
+}
+
 // A control character in an output path (a newline, a tab, an escape, a NUL from a YAML
 // escape) was used as it stood: a file name with a newline breaks every line-oriented tool and
 // log, and "a\0b" from YAML was cut to "a". Refused naming the key or option and the
