@@ -50,6 +50,31 @@ std::vector<std::string> list_pgm_frames(const std::string& dir) {
   }
   if (names.empty()) throw std::runtime_error(dir + ": no *.pgm frames in the directory");
   std::sort(names.begin(), names.end());
+  // Frames are taken in name order; named frame_N.pgm (as sim and recorders write them), a number
+  // missing between two frames shifts every later frame's time and truth by one (found probing:
+  // frame_000010.pgm deleted, the truth compared against the wrong frames without a word).
+  const auto number_of = [](const std::string& path, long long& n) {
+    const std::string stem = fs::path(path).stem().string();
+    if (stem.rfind("frame_", 0) != 0 || stem.size() == 6 || stem.size() > 24) return false;
+    n = 0;
+    for (std::size_t i = 6; i < stem.size(); ++i) {
+      if (stem[i] < '0' || stem[i] > '9') return false;
+      n = n * 10 + (stem[i] - '0');
+    }
+    return true;
+  };
+  long long prev = 0, n = 0;
+  bool numbered = true;
+  for (std::size_t i = 0; i < names.size() && numbered; ++i) numbered = number_of(names[i], n);
+  for (std::size_t i = 0; numbered && i < names.size(); ++i) {
+    number_of(names[i], n);
+    if (i > 0 && n != prev + 1) {
+      throw std::runtime_error(dir + ": frame " + std::to_string(prev + 1) + " is missing (" + fs::path(names[i - 1]).filename().string() +
+                               " is followed by " + fs::path(names[i]).filename().string() +
+                               "): every later frame would be taken for the one before it");
+    }
+    prev = n;
+  }
   return names;
 }
 

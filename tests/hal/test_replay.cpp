@@ -262,6 +262,27 @@ TEST(FramesCsv, TruthRowsNameOneWholeFrameAndTargetEach) {
   EXPECT_DOUBLE_EQ(rows[1].x_px, 30);
 }
 
+// A frame file missing from a numbered recording (frame_000001.pgm deleted) shifted every later
+// frame onto the one before it, times and truth compared against the wrong frames without a word
+// (found probing). Named; a recording of other names is taken in name order as before.
+TEST(Replay, AFrameMissingFromANumberedRecordingIsNamed) {
+  const auto dir = test::temp_dir("replay_gap");
+  write_sequence(dir, 4, false, false);
+  std::filesystem::remove(dir / "frame_000002.pgm");
+  try {
+    list_pgm_frames(dir.string());
+    ADD_FAILURE() << "a gap in the numbers was taken";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 2 is missing (frame_000001.pgm is followed by frame_000003.pgm)"), std::string::npos)
+        << e.what();
+  }
+  std::filesystem::rename(dir / "frame_000003.pgm", dir / "frame_000002.pgm");
+  EXPECT_EQ(list_pgm_frames(dir.string()).size(), 3u) << "numbered without a gap again";
+  std::filesystem::rename(dir / "frame_000002.pgm", dir / "zz_last.pgm");
+  std::filesystem::rename(dir / "frame_000000.pgm", dir / "a_first.pgm");
+  EXPECT_EQ(list_pgm_frames(dir.string()).size(), 3u) << "names of another kind: in name order";
+}
+
 }  // namespace
 }  // namespace sempose::hal
 

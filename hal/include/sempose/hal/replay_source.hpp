@@ -51,7 +51,8 @@ class ReplaySource final : public TimedScanSource {
 // case): a frame named .PGM used to be skipped without a word (frames.csv then had "one row
 // too many", or without frames.csv the recording was a frame short). A FIFO, device or socket
 // named *.pgm is refused by name (reading it would block or never end); a directory is not a
-// frame and is passed over.
+// frame and is passed over. Frames all named frame_N.pgm must be numbered without a gap (a
+// missing one is named); other names are taken in name order as they are.
 std::vector<std::string> list_pgm_frames(const std::string& dir);
 // Whether a file name ends in .pgm, in any case.
 bool is_pgm_name(const std::string& path);
