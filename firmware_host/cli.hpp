@@ -4,7 +4,9 @@
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <system_error>
@@ -49,6 +51,15 @@ inline const char* standard_stream_named(const std::string& path) {
     if (::fstat(fd, &s) == 0 && s.st_dev == out.st_dev && s.st_ino == out.st_ino) return name;
   }
   return nullptr;
+}
+
+// At a command's end: whether its report on standard output was lost (stdout on a full disk,
+// /dev/full, a closed pipe), said on stderr. Found probing: replay's truth and summary lines,
+// pattern's and view's lines were lost with nothing on stderr and exit 0.
+inline bool report_lost(const char* command) {
+  if (std::fflush(stdout) == 0 && !std::ferror(stdout)) return false;
+  std::fprintf(stderr, "sempose %s: standard output: the report could not be written (%s)\n", command, std::strerror(errno));
+  return true;
 }
 
 // "-" names standard output to most tools; where an output is a folder or a binary file whose

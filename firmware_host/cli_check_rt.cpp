@@ -59,5 +59,7 @@ int sempose::cli::check_rt(int argc, char** argv) {
       return 2;
     }
   }
-  return print_rt_checks(cfg, root);
+  const int code = print_rt_checks(cfg, root);
+  // The report lost (stdout on a full disk): said on stderr; a passing check is not a pass unseen.
+  return report_lost("check-rt") && code == 0 ? 4 : code;
 }

@@ -202,5 +202,5 @@ int sempose::cli::pattern(int argc, char** argv) {
     std::fprintf(stderr, "sempose pattern: %s\n", e.what());
     return 2;  // the frames: missing, unreadable, not PGM
   }
-  return 0;
+  return cli::report_lost("pattern") ? 4 : 0;
 }

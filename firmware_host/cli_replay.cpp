@@ -359,23 +359,30 @@ int run_replay(int argc, char** argv) {
     return 4;
   }
   // With the poses on standard output (--out -) the report goes to stderr, so a pipe gets CSV only.
-  std::FILE* report = out_path == "-" ? stderr : stdout;
-  if (!truth_path.empty()) {
-    const long n = sink.compared;
-    std::fprintf(report, "truth: poses_compared=%ld rms_px=%.4f max_px=%.4f rms_deg=%.4f max_deg=%.4f false_tracking=%ld "
-                "tracking_without_truth=%ld\n",
-                n, n ? std::sqrt(sink.sum_px2 / n) : 0.0, sink.max_px, n ? std::sqrt(sink.sum_deg2 / n) : 0.0, sink.max_deg,
-                sink.false_tracking, sink.uncompared);
+  const auto print_report = [&](std::FILE* report) {
+    if (!truth_path.empty()) {
+      const long n = sink.compared;
+      std::fprintf(report, "truth: poses_compared=%ld rms_px=%.4f max_px=%.4f rms_deg=%.4f max_deg=%.4f false_tracking=%ld "
+                  "tracking_without_truth=%ld\n",
+                  n, n ? std::sqrt(sink.sum_px2 / n) : 0.0, sink.max_px, n ? std::sqrt(sink.sum_deg2 / n) : 0.0, sink.max_deg,
+                  sink.false_tracking, sink.uncompared);
+    }
+    std::vector<double> compute_us;
+    for (const std::int64_t ns : stats.roi_compute_ns) compute_us.push_back(ns * 1e-3);
+    std::fprintf(report, "summary: frames=%llu tracked_share=%.4f compute_us_p50=%.1f compute_us_p99=%.1f compute_us_max=%.1f "
+                "acquire_ms=%.2f\n",
+                static_cast<unsigned long long>(stats.frames),
+                stats.poses ? static_cast<double>(stats.tracked) / static_cast<double>(stats.poses) : 0.0,
+                percentile(compute_us, 0.5), percentile(compute_us, 0.99),
+                compute_us.empty() ? 0.0 : *std::max_element(compute_us.begin(), compute_us.end()),
+                stats.search_compute_ns.empty() ? 0.0 : stats.search_compute_ns.front() * 1e-6);
+  };
+  print_report(out_path == "-" ? stderr : stdout);
+  // A report lost on stdout (a full disk, /dev/full) is said and repeated on stderr: exit 4.
+  if (out_path != "-" && cli::report_lost("replay")) {
+    print_report(stderr);
+    return 4;
   }
-  std::vector<double> compute_us;
-  for (const std::int64_t ns : stats.roi_compute_ns) compute_us.push_back(ns * 1e-3);
-  std::fprintf(report, "summary: frames=%llu tracked_share=%.4f compute_us_p50=%.1f compute_us_p99=%.1f compute_us_max=%.1f "
-              "acquire_ms=%.2f\n",
-              static_cast<unsigned long long>(stats.frames),
-              stats.poses ? static_cast<double>(stats.tracked) / static_cast<double>(stats.poses) : 0.0,
-              percentile(compute_us, 0.5), percentile(compute_us, 0.99),
-              compute_us.empty() ? 0.0 : *std::max_element(compute_us.begin(), compute_us.end()),
-              stats.search_compute_ns.empty() ? 0.0 : stats.search_compute_ns.front() * 1e-6);
   return 0;
 }
 

@@ -228,6 +228,7 @@ int sempose::cli::view(int argc, char** argv) {
       std::printf("view: %d ROI pictures (every %d poses per target): %s/%s ... %s\n", pictures, every, out_dir.c_str(),
                   first.c_str(), last.c_str());
     }
+    if (cli::report_lost("view")) return 4;
     return plot_problem.empty() ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sempose view: %s\n", e.what());

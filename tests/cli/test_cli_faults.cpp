@@ -59,6 +59,7 @@ constexpr int kWhenRunning = -2;
 long g_child_file_size_limit = -1;  // RLIMIT_FSIZE of the child in bytes (-1: unlimited)
 long g_child_open_files_limit = -1;  // RLIMIT_NOFILE of the child (-1: as inherited)
 long g_child_address_space_limit = -1;  // RLIMIT_AS of the child in bytes (-1: as inherited)
+std::string g_child_stdout;  // the child's standard output instead of the capture file ("": captured)
 Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int signal_after_ms = -1, int sig = SIGTERM) {
   const std::string dir = work_dir();
   const std::string out_path = dir + "/stdout.txt", err_path = dir + "/stderr.txt";
@@ -69,7 +70,7 @@ Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int sig
   const auto t0 = std::chrono::steady_clock::now();
   const pid_t pid = fork();
   if (pid == 0) {
-    const int o = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int o = ::open(g_child_stdout.empty() ? out_path.c_str() : g_child_stdout.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     const int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     dup2(o, 1);
     dup2(e, 2);
@@ -463,6 +464,30 @@ TEST(CliFaults, AnOutputThatIsTheStandardStreamItselfIsNotWrittenOver) {
   r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "/dev/stderr"});
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("--out '/dev/stderr' is this process's standard error"), std::string::npos) << r.err;
+}
+
+// A report lost on standard output (a full disk; /dev/full here) is said on stderr and the exit
+// is 4 (found probing: replay's truth and summary lines, pattern's and view's lines were lost
+// with nothing on stderr and exit 0); replay repeats its report there.
+TEST(CliFaults, AReportLostOnStandardOutputIsSaid) {
+  const std::string dir = work_dir() + "/stdout_full";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 4));
+  std::ofstream(dir + "/poses.csv") << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,160,120,0,0.9,TRACKING\n";
+  g_child_stdout = "/dev/full";
+  const Outcome rp = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/out.csv"});
+  const Outcome pt = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--out", dir + "/p2.pgm"});
+  const Outcome vw = run({"view", "--poses", dir + "/poses.csv", "--out", dir + "/v"});
+  g_child_stdout.clear();
+  EXPECT_EQ(rp.code, 4) << rp.err;
+  EXPECT_NE(rp.err.find("sempose replay: standard output: the report could not be written (No space left on device)"),
+            std::string::npos) << rp.err;
+  EXPECT_NE(rp.err.find("summary: frames=4"), std::string::npos) << "the report repeated on stderr: " << rp.err;
+  EXPECT_EQ(pt.code, 4) << pt.err;
+  EXPECT_NE(pt.err.find("sempose pattern: standard output: the report could not be written"), std::string::npos) << pt.err;
+  EXPECT_EQ(vw.code, 4) << vw.err;
+  EXPECT_NE(vw.err.find("sempose view: standard output: the report could not be written"), std::string::npos) << vw.err;
 }
 
 // "-" as --out: replay writes its poses' CSV to standard output (the report to stderr, so a
