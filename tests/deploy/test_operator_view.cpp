@@ -189,6 +189,11 @@ TEST(PoseCsv, ErrorsNameFileLineAndCell) {
   for (const auto& [row, message] : cells) {
     expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status\n" + row + "\n", p + ":2: " + message);
   }
+  // At most 4 targets (hal::kMaxTargets), by index (run) or name (replay): found probing, a file
+  // of 30,000 distinct targets ran for minutes.
+  std::string many = "frame,t_ns,x_px,y_px,phi_deg,score,status,target\n";
+  for (int t = 0; t < 6; ++t) many += "0,0,1,2,3,0.5,TRACKING,t" + std::to_string(t) + "\n";
+  expect_read_error(p, many, p + ":6: target 't4' is a 5th target; sempose tracks at most 4");
   std::ofstream(p) << "x,y\n1,2\n";
   EXPECT_THROW(read_pose_csv(p), std::runtime_error);
   fs::remove(p);

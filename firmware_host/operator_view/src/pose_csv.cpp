@@ -1,4 +1,5 @@
 #include "sempose/operator_view/pose_csv.hpp"
+#include "sempose/hal/frame.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -54,6 +55,7 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
   std::vector<PoseRow> rows;
   std::string line;
   int n = 0;
+  std::vector<std::string> names;  // the targets so far
   bool with_target = false;
   std::size_t columns = 7;
   std::size_t order_column = 0;  // 0: the file has none
@@ -105,7 +107,18 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
     r.phi_deg = number_in(cells[4], where, "phi_deg", -360, 360, false);
     r.score = number_in(cells[5], where, "score", -1, 1, false);
     r.status = status(cells[6], where);
-    if (with_target) r.target = cells[7];
+    // The target column: run's index or replay's name, of at most hal::kMaxTargets targets (found
+    // probing: a file of 30,000 distinct targets ran for minutes; each is a line of the plot).
+    if (with_target) {
+      r.target = cells[7];
+      if (std::find(names.begin(), names.end(), r.target) == names.end()) {
+        if (names.size() == static_cast<std::size_t>(hal::kMaxTargets)) {
+          throw std::runtime_error(where + ": target '" + r.target + "' is a " + std::to_string(names.size() + 1) +
+                                   "th target; sempose tracks at most " + std::to_string(hal::kMaxTargets));
+        }
+        names.push_back(r.target);
+      }
+    }
     // The orders a pattern can declare (pose::PatternSymmetry) are 1..6; more is not a file sempose wrote.
     if (order_column != 0) r.angle_order = static_cast<int>(number_in(cells[order_column], where, "angle_order", 1, 6, true));
     rows.push_back(std::move(r));
