@@ -485,7 +485,7 @@ TEST(NoFalseTracking, StaticClutterHoldingThePoseIsNotTracking) {
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
     h.run();
-    int tracking = 0, false_tracking = 0, false_torn = 0, held_off = 0, tracking_near = 0;
+    int tracking = 0, false_tracking = 0, false_torn = 0, held_off = 0, tracking_near = 0, torn_n = 0, tracking_torn = 0;
     for (std::size_t f = 0; f < h.poses().size(); ++f) {
       const auto& e = h.poses()[f];
       const auto& t = h.records()[f].truth;
@@ -497,14 +497,17 @@ TEST(NoFalseTracking, StaticClutterHoldingThePoseIsNotTracking) {
       const bool off = err > sempose::pose::LossPolicy::kFalsePx || err_deg > sempose::pose::LossPolicy::kFalseDeg;
       const bool followed = e.state == TrackState::kTracking || e.state == TrackState::kUncertain;
       held_off += followed && off && !e.searched;
+      torn_n += torn;
       if (e.state != TrackState::kTracking) continue;
       ++tracking;
+      tracking_torn += torn;
       false_tracking += off;
       false_torn += off && torn;
       tracking_near += !off;
     }
-    std::printf("clutter C %.2g B %.2g dose %4.1f: TRACKING %d/60, false %d (%d on a torn frame), followed off the needle %d\n",
-                c.contrast, c.brightness, c.dose, tracking, false_tracking, false_torn, held_off);
+    std::printf("clutter C %.2g B %.2g dose %4.1f: TRACKING %d/60 (%d of the %d torn frames), false %d (%d on a torn frame), "
+                "followed off the needle %d\n",
+                c.contrast, c.brightness, c.dose, tracking, tracking_torn, torn_n, false_tracking, false_torn, held_off);
     if (c.clutter_wins) {
       EXPECT_GE(held_off, 10) << "the case must hold the pose on the clutter, or it tests nothing";
       EXPECT_EQ(false_tracking, 0) << "TRACKING on the clutter while the needle is away";
@@ -513,7 +516,10 @@ TEST(NoFalseTracking, StaticClutterHoldingThePoseIsNotTracking) {
       EXPECT_LE(held_off, 1) << "the control's pose follows the needle";
       // Its torn frame scores as the frames before it (0.80 after 0.79, still): nothing tells it.
       EXPECT_EQ(false_tracking - false_torn, 0);
-      EXPECT_GE(tracking, 54) << "a score that fell with a move is no doubt: the needle followed is TRACKING";
+      // 55 before the scale's σ judged the pose (Tracker::Impl::judge_scale_sigma): the needle
+      // stepping 10 px against the clutter standing in its window pulls the scale's σ above 2.5x
+      // its level on 6 whole frames, now UNCERTAIN (49). The price of that rule, measured here.
+      EXPECT_GE(tracking, 48) << "a score that fell with a move is no doubt: the needle followed is TRACKING";
     }
   }
 }
@@ -933,6 +939,19 @@ TEST(NoFalseTracking, TwinCrossingAtTheTargetsLevelDoesNotTakeThePoseAlong) {
     EXPECT_EQ(n.false_n, 0) << r.target << ": TRACKING on the twin (" << r.before << " before)";
     EXPECT_GE(n.tracked, s.frames / 4) << r.target << ": tracked before the twin came";
   }
+}
+
+// The same twin coming down at 45° onto the procedural lamella (pose_envelope_probe
+// twin_crosses_down_at_45deg, 20 e-/px): its body in the window drew the scale 1.00 -> 1.13 and
+// the pose along, 9 TRACKING poses 3-7.8 px off at scores and χ² near the target's level, while
+// the scale's σ grew from the target's 0.005 to 0.010-0.022 (Tracker::Impl::judge_scale_sigma).
+TEST(NoFalseTracking, TwinPullingTheScaleIsNotTracking) {
+  const pt::Scenario s = twin_scene("lamella", 20, -230, -300, 300, 530);
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  const FalseCount n = run_and_count(h, "lamella with a twin coming down at 45 deg, dose 20");
+  EXPECT_LE(n.false_n, 1) << "TRACKING while the twin pulls the scale (9 before)";
+  EXPECT_GE(n.tracked, s.frames / 2) << "tracked before the twin came and after it left";
 }
 
 // A twin crossing the lamella on post's path at 90° (pose_envelope_probe

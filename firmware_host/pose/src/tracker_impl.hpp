@@ -362,6 +362,14 @@ struct Tracker::Impl {
   // see: widen_for_blur multiplies σ by it (README: Uncertainty, *Sharpness*). Kept across a loss,
   // forgotten with the target, as fit_level.
   FitLevel blur_level;
+  // The target's σ of scale on frames it tracked well (before any widening for blur, times
+  // √dwell so that a governor's dwell step does not read as a change), in a FitLevel: a pose
+  // whose scale the frame determines far worse than the target's frames did is one something
+  // else in the window pulls (judge_scale_sigma). Kept and forgotten as fit_level.
+  FitLevel scale_sigma_level;
+  double frame_scale_sigma = 0;  // this frame's, as learnt (0: not measured)
+  static constexpr double kScaleSigmaJump = 2.5;
+  void judge_scale_sigma(PoseEstimate& e) noexcept;
   double frame_blur = 0;  // this frame's 1 / sharpness (0: not measured)
   bool blur_widened = false;  // this frame's σ was widened: not learnt
   double blur_run = 0, blur_run_var = 1;  // the run's log blur and its variance in frames'
