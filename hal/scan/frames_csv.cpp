@@ -83,6 +83,11 @@ std::vector<std::int64_t> parse_frames_csv(const std::string& text, std::size_t 
     const std::size_t columns = static_cast<std::size_t>(std::count(line.begin(), line.end(), ',')) + 1;
     if (header) {
       header = false;
+      // A UTF-8 byte-order mark (a spreadsheet's "CSV UTF-8") was shown as "'???frame,t_ns'".
+      if (line.rfind("\xEF\xBB\xBF", 0) == 0) {
+        fail("the file begins with a UTF-8 byte-order mark (bytes EF BB BF) before the header 'frame,t_ns': save it "
+             "without one");
+      }
       if (line.rfind("frame", 0) != 0) fail("expected the header 'frame,t_ns', got '" + shown(line) + "'");
       if (columns != 2) {
         fail("the header has " + std::to_string(columns) + " columns, expected 2 (frame,t_ns), got '" + shown(line) + "'");

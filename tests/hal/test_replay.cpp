@@ -160,6 +160,8 @@ TEST(FramesCsv, AnExtraColumnIsRefusedNamingFileLineAndCount) {
       {"frame,t_ns\n0,1000\n1,2000,\n", "rec/frames.csv:3: the row has 3 columns, expected 2 (frame,t_ns)"},
       {"frame,t_ns\r\n0,1000\r\n1,2000,3,4\r\n", "rec/frames.csv:3: the row has 4 columns"},
       {"frame,x_px,y_px,phi_deg\n0,10,20,0\n1,11,20,0\n", "rec/frames.csv:1: the header has 4 columns, expected 2"},
+      // A spreadsheet's "CSV UTF-8" (found probing: shown as '???frame,t_ns').
+      {"\xEF\xBB\xBF" "frame,t_ns\n0,1000\n1,2000\n", "rec/frames.csv:1: the file begins with a UTF-8 byte-order mark"},
   };
   for (const Case& c : cases) {
     try {
