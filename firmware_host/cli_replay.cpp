@@ -291,8 +291,10 @@ int run_replay(int argc, char** argv) {
     }
     // Rows for frames the recording does not hold: the truth of another (longer) recording.
     const long long recorded = static_cast<long long>(hal::list_pgm_frames(frames_dir).size());
-    long long beyond = 0, first_beyond = -1;
+    long long beyond = 0, first_beyond = -1, untracked = 0;
+    const int tracked_targets = static_cast<int>(trackers.trackers.size());
     for (const hal::TruthRow& r : rows) {
+      untracked += r.target >= tracked_targets;
       if (r.frame >= recorded) {
         ++beyond;
         if (first_beyond < 0 || r.frame < first_beyond) first_beyond = r.frame;
@@ -303,6 +305,14 @@ int run_replay(int argc, char** argv) {
       std::fprintf(stderr, "sempose replay: warning: --truth '%s': %lld of its %zu rows name frames the recording does not "
                    "hold (it has frames 0..%lld; the first such row is frame %lld): is it this recording's truth?\n",
                    truth_path.c_str(), beyond, rows.size(), recorded - 1, first_beyond);
+    }
+    // Rows of a target this replay does not track (found probing: a truth all of target 1 beside
+    // one pattern compared nothing, and only tracking_without_truth said so).
+    if (untracked > 0) {
+      const std::string which = tracked_targets > 1 ? "targets 0.." + std::to_string(tracked_targets - 1) : "target 0";
+      std::fprintf(stderr, "sempose replay: warning: --truth '%s': %lld of its %zu rows are of a target this replay does not "
+                   "track (it tracks %s): they are compared with nothing\n",
+                   truth_path.c_str(), untracked, rows.size(), which.c_str());
     }
     // A truth of no usable row (an empty file, a header only — `sempose sim` of a target never
     // in the field —, every row non-finite) says the target is on no frame: every TRACKING pose
