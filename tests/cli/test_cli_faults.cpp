@@ -490,6 +490,30 @@ TEST(CliFaults, AReportLostOnStandardOutputIsSaid) {
   EXPECT_NE(vw.err.find("sempose view: standard output: the report could not be written"), std::string::npos) << vw.err;
 }
 
+// A 16 px pattern was refused naming tracker.refine's fit with refinement off (found probing):
+// the fit template only matters when tracker.refine.enabled is on.
+TEST(CliFaults, ASmallPatternNamesTheRefinementOnlyWhenItIsOn) {
+  const std::string dir = work_dir() + "/tiny_pattern";
+  fs::create_directories(dir);
+  const auto config = [&](bool refine) {
+    const std::string path = dir + (refine ? "/on.yaml" : "/off.yaml");
+    std::ofstream(path) << "scan: {field_w: 64, field_h: 48, max_roi_w: 32, max_roi_h: 32}\n"
+                           "sim:\n  clock: virtual\n  targets:\n    - {texture: {source: lamella}, size: [12, 8], start: [32, 24, 0]}\n"
+                           "tracker: {pattern_size_px: 16, roi_size_px: 32, search_downsample: 1, refine: {enabled: "
+                        << (refine ? "true" : "false")
+                        << "}}\npipeline: {lock_memory: false, hold_dma_latency: false, acquisition: {cpu: -1, priority: 0}, "
+                           "correlation: {cpu: -1, priority: 0}, output: {cpu: -1, priority: 0}, non_rt_cpu: -1}\n"
+                           "output: {poses_csv: "
+                        << dir << "/p.csv}\ncan: {log_file: " << dir << "/c.log}\n";
+    return path;
+  };
+  const Outcome off = run({"run", "--config", config(false), "--duration", "0.2"});
+  EXPECT_EQ(off.code, 0) << off.err;
+  const Outcome on = run({"run", "--config", config(true), "--duration", "0.2"});
+  EXPECT_EQ(on.code, 2) << on.err;
+  EXPECT_NE(on.err.find("too few pixels for tracker.refine's fit (tracker.refine.enabled is on"), std::string::npos) << on.err;
+}
+
 // "-" as --out: replay writes its poses' CSV to standard output (the report to stderr, so a
 // pipe gets CSV only); sim, pattern and view refuse it by name rather than make a file or
 // folder called "-".

@@ -138,8 +138,12 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     std::string why;
     auto bank = PatternBank::build(spec, {t.fine_mask, t.half_mask, t.half, t.coarse_mask, t.coarse, t.coarse_wide.get()}, why);
     if (!bank) return fail("pattern set " + std::to_string(i) + ": " + why);
-    if (!t.refinement.add_set(*bank, spec.pattern, limits.bits))
-      return fail("pattern set " + std::to_string(i) + ": too few pixels for tracker.refine's fit");
+    // The refinement's fit template is built for every set (refine() returns at once while
+    // tracker.refine.enabled is off); too small a pattern for it only matters when it is on
+    // (found probing: pattern_size_px 16 was refused naming tracker.refine with it off).
+    if (!t.refinement.add_set(*bank, spec.pattern, limits.bits) && cfg.refine.enabled)
+      return fail("pattern set " + std::to_string(i) + ": too few pixels for tracker.refine's fit (tracker.refine.enabled is on; "
+                  "a larger tracker.pattern_size_px, or refinement off)");
     // The pattern's own noise as the bank measured it for σ (attainable_score.hpp).
     t.pattern_factor.push_back(cfg.attainable_pattern_noise
                                    ? pattern_attainable_factor(spec.pattern.pixels.data(), spec.pattern.width,
