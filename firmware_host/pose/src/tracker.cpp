@@ -57,6 +57,7 @@ void Tracker::Impl::forget_everything() noexcept {
   anchor.forget();
   flip_open = false;
   search_n = 0;
+  searches_rejected = 0;
   loss.forget_target();
   fit_level.forget();
   blur_level.forget();
@@ -991,6 +992,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     go_lost();
     flip_open = false;
     search_n = 0;
+    searches_rejected = 0;
     // Commanded, or a new magnification: the target's look may have changed; the new
     // pattern set has its own noise floors and is matched at its own size first. sempose's own
     // re-search (a look-alike target on this one's place: same target, same detector) carries
@@ -1037,6 +1039,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // target, and one level at the old size found the best match of the old size, a wrong pose
     // the frames after it kept (pose_envelope_probe scale_step_*: the needle tip 10-11 px off, the
     // lamella on post 24-28 px and 87° off, TRACKING on 21 and 34 of 80 frames at 6 e-/px).
+    //
+    // The last tracked scale is a prior, not a fact: a scale that drifted off while the target
+    // was followed UNCERTAIN (a pattern of another specimen of the target's kind drew it 1.00 ->
+    // 0.90 over 40 frames) finds the target at that scale only, below the level it kept, and
+    // every search after it refused it (~970 in a row, found probing: `run` over a looped
+    // recording). After kScalePriorLapse rejected searches the levels go back around the
+    // expected scale, the SELECT's or the configured one.
+    if (scale_tracked && searches_rejected >= kScalePriorLapse) scale_tracked = false;
     const ScalePrior scale_prior{scale_tracked ? scale : expected_scale.load(std::memory_order_relaxed),
                                  !scale_tracked && scale_told.load(std::memory_order_relaxed)};
     // The other targets' objects, in this frame's coordinates: not to be taken by this one.
@@ -1078,6 +1088,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       scale_held = scale_vouched = false;
       scale_held_frames = 0;
       scale_tracked = true;
+      searches_rejected = 0;
       const bool at_edge = at_field_edge(e, e.scale);
       turned = turned_off_line(m, e, t_mid_s);
       open_flip_check(m, prior_known, at_edge);
@@ -1106,6 +1117,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       check_tear_level(m, e);
     } else {
       e.state = TrackState::kAcquiring;
+      ++searches_rejected;
       // Not found is a low score too when it is only below the field's floor, the attainable
       // score or the target's own level.
       e.reason_bits = m.valid ? static_cast<std::uint8_t>(loss.weak_reasons(m) | kReasonLowScore)

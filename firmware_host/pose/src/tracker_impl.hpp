@@ -154,6 +154,11 @@ struct Tracker::Impl {
   // `scale` was tracked (a search found the target since it was last forgotten): the
   // re-search after a loss is centred on it, narrow (StartSearch: ScalePrior).
   bool scale_tracked = false;
+  // Searches in a row since the last one that found the target. After kScalePriorLapse of
+  // them the re-search forgets the last tracked scale and looks around the expected one again
+  // (tracker.cpp: the scale prior).
+  int searches_rejected = 0;
+  static constexpr int kScalePriorLapse = 3;
   static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
   static constexpr double kScaleMin = kTrackedScaleMin, kScaleMax = kTrackedScaleMax;  // beyond: the ROI cannot hold the target
   // Closer to 1 than this: the raw ROI is loaded as scanned (RoiRescaler::kMinChange).
