@@ -152,12 +152,18 @@ struct Tracker::Impl {
   // expected scale only (one level); else over tracker.search_scale_min…max times it.
   std::atomic<bool> scale_told{false};
   // `scale` was tracked (a search found the target since it was last forgotten): the
-  // re-search after a loss is centred on it, narrow (StartSearch: ScalePrior).
+  // re-search after a loss covers the levels around it (StartSearch: ScalePrior).
   bool scale_tracked = false;
   // Searches in a row since the last one that found the target. After kScalePriorLapse of
   // them the re-search forgets the last tracked scale and looks around the expected one again
   // (tracker.cpp: the scale prior).
   int searches_rejected = 0;
+  // The scale the target was last shown to have: the search's, or a tracked scale the frame
+  // showed clearly better than it (judge_scale_drift).
+  double scale_reference = 1.0;
+  static constexpr double kScaleDriftCheck = 0.025;  // a tracked scale this far from it is checked
+  static constexpr int kDriftPlaceSteps = 6;          // 1 px steps of the place at the reference scale (then ½ px)
+  static constexpr double kDriftShare = 0.35, kDriftZ = 2.0, kDriftPlacePx = 1.0;  // judge_scale_drift
   static constexpr int kScalePriorLapse = 3;
   static constexpr double kScaleGain = 0.5;         // share of a frame's reading taken at once
   static constexpr double kScaleMin = kTrackedScaleMin, kScaleMax = kTrackedScaleMax;  // beyond: the ROI cannot hold the target
@@ -375,6 +381,7 @@ struct Tracker::Impl {
   double frame_scale_sigma = 0;  // this frame's, as learnt (0: not measured)
   static constexpr double kScaleSigmaJump = 2.5;
   void judge_scale_sigma(PoseEstimate& e) noexcept;
+  void judge_scale_drift(const PatternBank& bank, const Measurement& m, double used_scale, PoseEstimate& e) noexcept;
   double frame_blur = 0;  // this frame's 1 / sharpness (0: not measured)
   bool blur_widened = false;  // this frame's σ was widened: not learnt
   double blur_run = 0, blur_run_var = 1;  // the run's log blur and its variance in frames'
