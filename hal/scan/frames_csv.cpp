@@ -171,6 +171,11 @@ std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::
       if (!whole_cell_number(cell, v)) {
         throw std::runtime_error(path + ":" + std::to_string(line_no) + ": '" + shown(cell) + "' is not a number");
       }
+      // A number too large for a double reads as inf, which a truth takes for "not on this frame"
+      // (found probing: 1e400 px warned and dropped its row where 1e308 was refused as out of range).
+      if (std::isinf(v) && cell.find_first_of("iI") == std::string::npos) {
+        throw std::runtime_error(path + ":" + std::to_string(line_no) + ": '" + shown(cell) + "' is beyond a double's range");
+      }
       row.push_back(v);
     }
     if (row.size() < min_cols) {

@@ -227,6 +227,9 @@ TEST(FramesCsv, TruthRowsNameOneWholeFrameAndTargetEach) {
       // Found probing: 1e308 px gave rms_px=inf and a 300-digit max_px.
       {"0,1e308,20,0\n", ":2: x_px 1e+308 is out of range [-10000000, 10000000]"},
       {"0,10,20,1e308\n", ":2: phi_deg 1e+308 is out of range [-1000000, 1000000]"},
+      // Found probing: 1e400 overflowed to inf and was taken for "not on this frame" (a warning).
+      {"0,1e400,20,0\n", ":2: '1e400' is beyond a double's range"},
+      {"0,10,-1e999,0\n", ":2: '-1e999' is beyond a double's range"},
   };
   for (const Case& c : cases) {
     std::ofstream(path) << "frame,x_px,y_px,phi_deg\n" << c.rows;
