@@ -1427,7 +1427,9 @@ void Tracker::Impl::judge_scale_sigma(PoseEstimate& e) noexcept {
 //  - the two scales put the target more than kDriftPlacePx apart: the pose depends on which scale
 //    is right. Every drifted pose ≥ 1.5 px off above had its two places > 1 px apart; the gripper
 //    whose opening jaws drew the scale to 1.10 kept its body's place at either (0.24 px off).
-// Measured: the case above 5 -> 0 false (20 e-/px), 57 -> 17 at contrast 0.2; pose_accuracy_bench
+// Places more than a false pose's 3 px apart need the clear evidence (at contrast 0.2 drifts to
+// 1.18-1.21 with places 4-5 px apart passed the 0.35 bar at 0.30-0.36: 17 -> 11).
+// Measured: the case above 5 -> 0 false (20 e-/px), 57 -> 11 at contrast 0.2; pose_accuracy_bench
 // --quick 0 false either way, TRACKING 5175 -> 5171 of 5580 frames.
 void Tracker::Impl::judge_scale_drift(const PatternBank& bank, const Measurement& m, double used_scale,
                                       PoseEstimate& e) noexcept {
@@ -1462,8 +1464,11 @@ void Tracker::Impl::judge_scale_drift(const PatternBank& bank, const Measurement
     return;
   }
   const double gain = ev.r_away - ev.r_expected;
-  const bool shown = gain + kDriftZ * ev.noise >= kDriftShare * ev.r_away * (1.0 - ev.rho);
   const double place_shift_px = used_scale * std::hypot(at_ref.dx - m.dx, at_ref.dy - m.dy);
+  // Two places farther apart than a false pose's bound: taking the wrong one is a false pose, so
+  // only the clear evidence above vouches for the tracked scale.
+  const bool shown = place_shift_px <= LossPolicy::kFalsePx &&
+                     gain + kDriftZ * ev.noise >= kDriftShare * ev.r_away * (1.0 - ev.rho);
   if (shown || place_shift_px <= kDriftPlacePx || e.state != TrackState::kTracking) return;
   e.state = TrackState::kUncertain;
   e.reason_bits |= kReasonUnexplained;
