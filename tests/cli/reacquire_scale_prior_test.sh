@@ -43,7 +43,9 @@ timeout 120 "$bin" run --config run.yaml --duration 2 >run.out 2>run.err || { ca
 read -r rows longest followed < <(awk -F, 'NR > 1 { n++; if ($7 == "ACQUIRING") { r++; if (r > m) m = r } else r = 0
                                               if ($7 == "TRACKING" || $7 == "UNCERTAIN") f++ } END { print n, m + 0, f + 0 }' poses.csv)
 echo "rows $rows, longest ACQUIRING run $longest, followed (TRACKING or UNCERTAIN) $followed"
-[ "$rows" -ge 500 ] || { echo "FAIL: only $rows poses in 2 s"; exit 1; }
+# ~5000 rows in 2 s in a release build, ~370 under ASan: what matters is that the run got past the
+# loss (the stuck run began at row ~50) by enough rows to show a stuck search.
+[ "$rows" -ge 150 ] || { echo "FAIL: only $rows poses in 2 s"; exit 1; }
 # With the fix the longest run is 3 (a search, then kScalePriorLapse rejected ones); before, ~1200.
 [ "$longest" -le 20 ] || { echo "FAIL: $longest ACQUIRING rows in a row: the search stayed at the drifted scale"; exit 1; }
 [ $((followed * 4)) -ge "$rows" ] || { echo "FAIL: the target was followed on only $followed of $rows rows"; exit 1; }
