@@ -865,6 +865,21 @@ TEST(NoFalseTracking, PoseFollowedAgainAfterALossIsNotTheTurnedLookAlike) {
   }
 }
 
+// The lamella on its post spinning 15° a frame at 20 e-/px (pose_envelope_probe
+// spin_15deg_per_frame): the frame after the first TRACKING pose (0.93) followed a turned
+// neighbour 16 px and 82° off at 0.70, UNCERTAIN; the next took that one's 180° turned copy,
+// 15 px and 175° off at 0.78, TRACKING (the opposite check had ended on the first pose). A pose
+// followed below the target's own level and not reported opens that check again.
+TEST(NoFalseTracking, PoseFollowedBelowTheTargetsLevelIsNotTheTurnedLookAlikeNext) {
+  pt::Scenario s = envelope_scene("lamella_post", "spin", 20.0, 80);
+  s.edit_run = [](sempose::config::SimConfig& sc) { sc.targets[0].trajectory.omega_deg_s = 15.0 / 0.0101; };
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  const FalseCount n = run_and_count(h, "lamella_post spinning 15 deg a frame, dose 20");
+  EXPECT_EQ(n.false_n, 0) << "TRACKING while > 3 px or > 10 deg off (1, 175 deg off, before)";
+  EXPECT_GE(n.tracked, 60) << "the spin is followed once found (68 of 80 frames TRACKING)";
+}
+
 // A second, untracked object of the same pattern passing 30 px from the tracked target (issue 13:
 // several targets; pose_envelope_probe twin_passes_30px): as the two overlap the score falls and
 // the tracker holds, the merged image drags the followed pose onto the twin, which then scores at

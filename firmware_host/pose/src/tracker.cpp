@@ -1254,6 +1254,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         innov = {true, motion.innovation_px(e.x_px, e.y_px), motion.innovation_deg(e.phi_deg)};
       const bool fell = fell_below_search_level(m.score);  // against the level before this frame
       const bool fell_still = fell_while_still(e);          // against the last accepted pose
+      const bool below_level = loss.below_own_level(m.score);  // against the level before this frame
       accept(e, frame, flipped);  // the motion so far was the other hypothesis's
       // A torn frame's scale reading is torn too, and it is not only the rate that must not learn
       // it: a tear across the lines through the target's middle reads as a change of size (the
@@ -1326,6 +1327,14 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         observer->observe(set, scorer.roi(), scorer.roi_w(), scorer.roi_h(), load_px, load_stride, load_bits, m.ux + m.dx + c,
                           m.uy + m.dy + c, (m.j + m.dj) * angles.step_deg, e.x_px, e.y_px);
       }
+      // A pose followed below the target's own level and not reported may have taken the ROI onto
+      // something else, as a hold does: the next TRACKING pose is checked against its opposite
+      // again (judge_against_opposite). pose_envelope_probe spin_15deg_per_frame, the lamella on
+      // its post at 20 e-/px: the frame after the first TRACKING pose (0.93) followed a turned
+      // neighbour 16 px and 82° off at 0.70, UNCERTAIN; the next took that one's 180° turned copy,
+      // 15 px and 175° off at 0.78, TRACKING. Re-armed on every UNCERTAIN frame instead, the
+      // opposite vetoed true poses at 1 e-/px (twin_crosses_over_at_45deg: 27 -> 6 % TRACKING).
+      if (e.state == TrackState::kUncertain && below_level) resumed_unvouched = true;
       break;
     }
     case FrameVerdict::kLost:

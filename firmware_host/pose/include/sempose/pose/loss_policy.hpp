@@ -78,6 +78,9 @@ class LossPolicy {
   bool confirmed(float score) const noexcept;
   // How far below recent_level() a score is still confirmed (the margin above; 0: no level).
   double confirm_margin() const noexcept;
+  // Below the target's own best level (at_own_level): a score the undisturbed target's frames do
+  // not fall to. No level known: false.
+  bool below_own_level(float score) const noexcept { return have_peak_ && !at_own_level(score); }
   // The running mean of the target's recent accepted scores (−1: none yet).
   double recent_level() const noexcept { return have_score_mean_ ? score_mean_ : -1.0; }
   static constexpr double kConfirmSigmas = 3.0;
