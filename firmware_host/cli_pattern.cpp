@@ -18,8 +18,10 @@
 #include "cli_options.hpp"
 #include "pattern_stillness.hpp"
 #include "sempose/config/reader.hpp"
+#include "sempose/config/tracker_config.hpp"
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/replay_source.hpp"
+#include "sempose/pose/pattern_rim.hpp"
 
 namespace {
 
@@ -198,6 +200,10 @@ int sempose::cli::pattern(int argc, char** argv) {
                 "scan's %.2f / sqrt %zu), contrast sigma %.2f: contrast-to-noise %.1f\n",
                 out.c_str(), size, size, cx, cy, used, std::sqrt(noise_var), std::sqrt(first_noise), used,
                 std::sqrt(contrast_var), noise_var > 0 ? std::sqrt(contrast_var / noise_var) : 0.0);
+    // Said here, where the window is chosen (run and replay say it again at setup).
+    const std::string rim = pose::rim_warning(
+        pose::rim_information_share(pat.pixels.data(), pat.width, config::TrackerConfig{}.prefilter_passes));
+    if (!rim.empty()) std::fprintf(stderr, "sempose pattern: warning: %s: %s\n", out.c_str(), rim.c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sempose pattern: %s\n", e.what());
     return 2;  // the frames: missing, unreadable, not PGM

@@ -8,6 +8,7 @@
 
 #include "sempose/pose/attainable_score.hpp"
 #include "sempose/pose/off_pose_score.hpp"
+#include "sempose/pose/pattern_rim.hpp"
 #include "tracker_impl.hpp"
 
 namespace sempose::pose {
@@ -113,6 +114,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   t.measure_tau = !(cfg.detector_tau_ns > 0) && cfg.measure_detector_tau;
   t.check_told_tau = cfg.detector_tau_ns > 0 && cfg.measure_detector_tau;
   std::string told_note;  // the sets whose own noise overrules their told lag (a warning)
+  std::string rim_note;   // the sets whose position information lies at their rim (a warning)
   // Kept for the appearance learner (the bank spec takes the originals).
   std::vector<PatternImage> prior_patterns, prior_shapes;
   if (cfg.appearance.enabled)
@@ -127,6 +129,12 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
     t.prefilter_noise_gain = t.prefilter_noise.white();
   }
   for (std::size_t i = 0; i < sets.size(); ++i) {
+    // A shape mask says which pixels are the target: its rim is the target's own.
+    if (sets[i].mask.empty()) {
+      const std::string rim = rim_warning(
+          rim_information_share(sets[i].image.pixels.data(), sets[i].image.width, cfg.prefilter_passes));
+      if (!rim.empty()) rim_note += (rim_note.empty() ? "" : "; ") + ("pattern set " + std::to_string(i) + ": " + rim);
+    }
     PatternBankSpec spec;
     spec.pattern = std::move(sets[i].image);
     spec.shape = std::move(sets[i].mask);
@@ -226,6 +234,7 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
                      "x" + std::to_string(sizes.roi_fft_px) + " or the coarse size; the loop may call malloc";
   }
   if (!told_note.empty()) status.message += (status.message.empty() ? "tracker: warning: " : "; ") + told_note;
+  if (!rim_note.empty()) status.message += (status.message.empty() ? "tracker: warning: " : "; ") + rim_note;
   return std::unique_ptr<Tracker>(new Tracker(std::move(impl)));
 }
 
