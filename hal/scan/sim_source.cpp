@@ -85,7 +85,7 @@ void SimSource::detect_line(const float* b, int n, double gain, double offset, s
     if (noise) {
       // Detector cascade: Poisson electrons, each with a Gamma(k, 1/k) gain (mean 1):
       // their sum is Gamma(n·k)/k. Then Gaussian read noise.
-      const std::uint32_t ne = rng_.poisson(mean_e);
+      const double ne = rng_.poisson(mean_e);
       e = ne > 0 ? rng_.fast_gamma(ne * k) * inv_k : 0.0;
       if (read_noise > 0) e += read_noise * rng_.fast_normal();
     } else {

@@ -59,6 +59,33 @@ TEST(SimNoise, MeanAndVarianceFollowTheDetectorCascade) {
   }
 }
 
+// A long dwell at a high beam current (in range: 100 nA, yield 10, 0.1 s a pixel) asks for ~6e10
+// electrons a pixel, more than 32 bits hold: the count's cast to an integer was undefined there
+// and the frame came out black (mean 11 of 255 grey levels where 1 ms gave 69). The mean
+// electron count must still be the dose's.
+TEST(SimNoise, DoseBeyondThirtyTwoBitsOfElectronsKeepsItsMean) {
+  ScanLimits lim;
+  lim.field_w = lim.field_h = 64;
+  lim.max_roi_w = lim.max_roi_h = 64;
+  lim.max_dwell_ns = 100'000'000;
+  config::SimConfig c = test::clean_config();
+  c.noise = true;
+  c.background.mean = 0.5;
+  c.beam_current_pa = 100000;
+  c.yield = 10;
+  const std::uint32_t dwell = 100'000'000;
+  const double n_white = c.electrons_per_pixel(dwell);
+  ASSERT_GT(0.5 * n_white, 4.3e9) << "the case needs more electrons than 32 bits hold";
+  SimSource src(lim, c);
+  std::vector<Pixel> px(64 * 64);
+  TargetTruth truth[kMaxTargets];
+  src.render({0, 0, 64, 64}, dwell, SimSource::kVirtualEpochNs, 0, px.data(), truth);
+  const double cpe = c.output_white * 255 / n_white, off = c.output_offset * 255;
+  double s = 0;
+  for (Pixel p : px) s += (p - off) / cpe;
+  EXPECT_NEAR(s / px.size(), 0.5 * n_white, 0.02 * 0.5 * n_white);
+}
+
 TEST(SimNoise, DefaultDoseGivesSingleDigitElectronsAt250ns) {
   const config::SimConfig c;
   const double n = c.electrons_per_pixel(250);

@@ -110,7 +110,10 @@ class SimRng {
 
   // Poisson(mean): sequential inversion of the CDF with one uniform for small means — the
   // SEM regime of a few electrons per pixel — and a rounded normal approximation above 40.
-  std::uint32_t poisson(double mean) noexcept {
+  // A whole number as a double: a long dwell at a high beam current asks for more electrons
+  // than 32 bits hold (100 nA for 0.1 s: ~6e10 a pixel), and the cast to an integer was
+  // undefined there (a 0.1 s frame at 100 nA came out black).
+  double poisson(double mean) noexcept {
     if (!(mean > 0.0)) return 0;
     if (mean < 40.0) {
       const double u = uniform();
@@ -122,10 +125,10 @@ class SimRng {
         p *= mean * table_->inv[k];
         cdf += p;
       }
-      return k;
+      return static_cast<double>(k);
     }
     const double v = std::floor(mean + std::sqrt(mean) * normal() + 0.5);
-    return v <= 0.0 ? 0u : static_cast<std::uint32_t>(v);
+    return v <= 0.0 ? 0.0 : v;
   }
 
   // Gamma(shape, scale 1) by Marsaglia–Tsang; shape < 1 via the u^(1/shape) boost.
