@@ -100,6 +100,8 @@ inline void add_recording(std::vector<NamedPath>& inputs, const std::string& wha
   if (dir.empty()) return;
   std::error_code ec;
   inputs.push_back({"the time stamps of " + what, dir + "/frames.csv"});
+  // The truth `sempose sim` records beside the frames: the next `replay --truth` reads it.
+  inputs.push_back({"the ground truth of " + what, dir + "/ground_truth.csv"});
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     if (hal::is_pgm_name(it->path().string())) inputs.push_back({"a frame of " + what, it->path().string()});
   }
