@@ -797,7 +797,7 @@ TEST(CliFaults, HostileOptionValuesAreRefusedByName) {
 // the input (found probing: replay's CSV over its pattern, the recording's frames.csv or a
 // frame, its --truth; run's CAN log over its config; the CAN log and the poses into one file;
 // the poses or the CAN log named like a histogram file in the histogram folder; view's poses
-// named like a file view writes into its --out).
+// named like a file view writes into its --out; the recording's ground_truth.csv).
 TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
   const std::string dir = work_dir() + "/out_is_in";
   fs::create_directories(dir);
@@ -817,6 +817,8 @@ TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
       {{"replay", "--frames", rec, "--pattern", pat, "--truth", rec + "/ground_truth.csv", "--out", rec + "/../rec/ground_truth.csv"},
        "is --truth"},
       {{"replay", "--frames", rec, "--pattern", pat, "--out", rec + "/poses.pgm"}, "is a PGM in the frames folder"},
+      // The recording's own truth, not given as --truth: the next `replay --truth` read poses.
+      {{"replay", "--frames", rec, "--pattern", pat, "--out", rec + "/ground_truth.csv"}, "is the ground truth of --frames"},
       {{"run", "--config", cfg, "--duration", "0.2", "--can-log", cfg}, "--can-log '" + cfg + "' is the config"},
       {{"run", "--config", self, "--duration", "0.2"}, "output.poses_csv '" + self + "' is the config"},
       {{"run", "--config", small_config(dir, "output: {poses_csv: " + dir + "/both.txt}\ncan: {log_file: " + dir + "/both.txt}\n"),
@@ -1058,6 +1060,41 @@ TEST(CliFaults, ViewWithoutGnuplotSaysSoOnStandardError) {
 // field —, only non-finite rows) compared nothing and counted nothing: poses_compared=0
 // false_tracking=0 tracking_without_truth=0, a clean-looking pass. Now it says so, and every
 // TRACKING pose is one without truth.
+// A truth angle is compared whatever its turns: φ + 720° read 361° off (fmod of a negative
+// difference), 6 false poses (found probing); and modulo the turn the pose declares its target
+// to look the same at (the procedural lamella: 180°), as the benchmark counts it.
+TEST(CliFaults, ReplayTruthAnglesAreComparedWhateverTheirTurns) {
+  const std::string dir = work_dir() + "/truth_turns";
+  fs::create_directories(dir);
+  Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "12", "--dwell", "2000", "--config", small_config(dir, "")}, 120);
+  ASSERT_EQ(made.code, 0) << made.err;
+  made = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "10", "--out",
+              dir + "/p.pgm"},
+             60);
+  ASSERT_EQ(made.code, 0) << made.err;
+  const std::string truth = slurp(dir + "/rec/ground_truth.csv");
+  std::string base_rms;
+  for (const double turn : {0.0, 720.0, -720.0, 540.0, -900.0}) {
+    std::istringstream in(truth);
+    std::ostringstream turned;
+    std::string line;
+    std::getline(in, line);
+    turned << line << "\n";
+    while (std::getline(in, line)) {
+      const std::size_t c = line.rfind(',');
+      turned << line.substr(0, c + 1) << std::stod(line.substr(c + 1)) + turn << "\n";
+    }
+    const std::string t = dir + "/t.csv";
+    std::ofstream(t) << turned.str();
+    const Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--truth", t, "--out", dir + "/o.csv"}, 60);
+    ASSERT_EQ(r.code, 0) << r.err;
+    ASSERT_NE(field(r.out, "poses_compared"), "0") << r.out;
+    if (turn == 0.0) base_rms = field(r.out, "rms_deg");
+    EXPECT_EQ(field(r.out, "rms_deg"), base_rms) << "truth turned " << turn << ": " << r.out;
+    EXPECT_EQ(field(r.out, "false_tracking"), "0") << "truth turned " << turn << ": " << r.out;
+  }
+}
+
 TEST(CliFaults, ReplayTruthWithoutAUsableRowCountsEveryTrackingPose) {
   const std::string dir = work_dir() + "/empty_truth";
   fs::create_directories(dir);
