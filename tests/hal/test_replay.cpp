@@ -269,7 +269,8 @@ TEST(FramesCsv, TruthRowsNameOneWholeFrameAndTargetEach) {
 
 // A frame file missing from a numbered recording (frame_000001.pgm deleted) shifted every later
 // frame onto the one before it, times and truth compared against the wrong frames without a word
-// (found probing). Named; a recording of other names is taken in name order as before.
+// (found probing); so did one whose first frames were deleted, and a stray PGM among numbered
+// frames was replayed as one more. Named; a recording of other names is taken in name order.
 TEST(Replay, AFrameMissingFromANumberedRecordingIsNamed) {
   const auto dir = test::temp_dir("replay_gap");
   write_sequence(dir, 4, false, false);
@@ -283,8 +284,26 @@ TEST(Replay, AFrameMissingFromANumberedRecordingIsNamed) {
   }
   std::filesystem::rename(dir / "frame_000003.pgm", dir / "frame_000002.pgm");
   EXPECT_EQ(list_pgm_frames(dir.string()).size(), 3u) << "numbered without a gap again";
+  // The first frames deleted: the rest were replayed from frame 0 on, their truth shifted.
+  std::filesystem::rename(dir / "frame_000000.pgm", dir / "first.tmp");
+  try {
+    list_pgm_frames(dir.string());
+    ADD_FAILURE() << "a recording without frame 0 was taken";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 0 is missing (the first is frame_000001.pgm)"), std::string::npos) << e.what();
+  }
+  std::filesystem::rename(dir / "first.tmp", dir / "frame_000000.pgm");
+  // Another PGM among numbered frames was replayed as one more frame.
   std::filesystem::rename(dir / "frame_000002.pgm", dir / "zz_last.pgm");
+  try {
+    list_pgm_frames(dir.string());
+    ADD_FAILURE() << "a stray PGM among numbered frames was taken";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("zz_last.pgm: not named frame_N.pgm like the 2 other frames"), std::string::npos)
+        << e.what();
+  }
   std::filesystem::rename(dir / "frame_000000.pgm", dir / "a_first.pgm");
+  std::filesystem::rename(dir / "frame_000001.pgm", dir / "m_mid.pgm");
   EXPECT_EQ(list_pgm_frames(dir.string()).size(), 3u) << "names of another kind: in name order";
 }
 
