@@ -210,9 +210,15 @@ int sempose::cli::view(int argc, char** argv) {
         const int side = pattern_images.empty() ? pattern_size : pattern_images[t].width;
         static const std::vector<std::pair<float, float>> kNoEdges;
         const auto img = operator_view::render_roi(frame, r, roi, side, edges.empty() ? kNoEdges : edges[t], scale);
-        char name[96];
-        std::snprintf(name, sizeof name, "roi_%06llu%s%s.png", static_cast<unsigned long long>(r.frame),
-                      r.target.empty() ? "" : "_", r.target.c_str());
+        // A target's name may hold '/' (the config's rule allows it): escaped, with '%' itself, so
+        // that every name gives a file of its own in --out (found probing: "a/b" failed after the
+        // plot was written).
+        char number[24];
+        std::snprintf(number, sizeof number, "roi_%06llu", static_cast<unsigned long long>(r.frame));
+        std::string name = number;
+        if (!r.target.empty()) name += "_";
+        for (const char ch : r.target) name += ch == '/' ? std::string("%2F") : ch == '%' ? std::string("%25") : std::string(1, ch);
+        name += ".png";
         operator_view::write_png(out_dir + "/" + name, img);
         written.push_back(out_dir + "/" + name);
         if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);

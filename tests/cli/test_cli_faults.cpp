@@ -466,6 +466,21 @@ TEST(CliFaults, AnOutputThatIsTheStandardStreamItselfIsNotWrittenOver) {
   EXPECT_NE(r.err.find("--out '/dev/stderr' is this process's standard error"), std::string::npos) << r.err;
 }
 
+// A target's name with '/' (the config's rule allows it) as view's ROI file name: exit 2 after the
+// plot was written (found probing). Escaped now, every name a file of its own.
+TEST(CliFaults, ViewNamesRoiPicturesOfATargetNamedWithASlash) {
+  const std::string dir = work_dir() + "/view_slash";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 2));
+  std::ofstream(dir + "/poses.csv") << "frame,t_ns,x_px,y_px,phi_deg,score,status,target\n0,0,160,120,0,0.9,TRACKING,a/b\n"
+                                       "0,0,160,120,0,0.9,TRACKING,a%2Fb\n";
+  const Outcome vw = run({"view", "--poses", dir + "/poses.csv", "--out", dir + "/v", "--frames", dir + "/rec"});
+  EXPECT_EQ(vw.code, 0) << vw.err;
+  EXPECT_TRUE(fs::exists(dir + "/v/roi_000000_a%2Fb.png")) << vw.out;
+  EXPECT_TRUE(fs::exists(dir + "/v/roi_000000_a%252Fb.png")) << vw.out;
+}
+
 // A report lost on standard output (a full disk; /dev/full here) is said on stderr and the exit
 // is 4 (found probing: replay's truth and summary lines, pattern's and view's lines were lost
 // with nothing on stderr and exit 0); replay repeats its report there.

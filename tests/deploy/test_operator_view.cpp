@@ -194,6 +194,13 @@ TEST(PoseCsv, ErrorsNameFileLineAndCell) {
   std::string many = "frame,t_ns,x_px,y_px,phi_deg,score,status,target\n";
   for (int t = 0; t < 6; ++t) many += "0,0,1,2,3,0.5,TRACKING,t" + std::to_string(t) + "\n";
   expect_read_error(p, many, p + ":6: target 't4' is a 5th target; sempose tracks at most 4");
+  // A target name out of the config's rule (view makes file names of it: two 100-byte names were
+  // cut to one file name, found probing), the shown value cut.
+  const std::string long_name(100, 'x');
+  expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status,target\n0,0,1,2,3,0.5,TRACKING," + long_name + "\n",
+                    p + ":2: target '" + long_name.substr(0, 80) + "...' is not a target name (1..64 bytes");
+  expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status,target\n0,0,1,2,3,0.5,TRACKING,a b\n",
+                    p + ":2: target 'a b' is not a target name");
   std::ofstream(p) << "x,y\n1,2\n";
   EXPECT_THROW(read_pose_csv(p), std::runtime_error);
   fs::remove(p);

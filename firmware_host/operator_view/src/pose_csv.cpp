@@ -1,4 +1,5 @@
 #include "sempose/operator_view/pose_csv.hpp"
+#include "sempose/config/target_name.hpp"
 #include "sempose/hal/frame.hpp"
 
 #include <algorithm>
@@ -111,6 +112,14 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
     // probing: a file of 30,000 distinct targets ran for minutes; each is a line of the plot).
     if (with_target) {
       r.target = cells[7];
+      // A name sempose writes keeps the config's rule; view makes file names of it (found probing:
+      // two 100-byte names cut to one file name, "6 ROI pictures" and 3 files).
+      if (!config::is_target_name(r.target)) {
+        const std::string shown = r.target.size() > 80 ? r.target.substr(0, 80) + "..." : r.target;
+        throw std::runtime_error(where + ": target '" + shown + "' is not a target name (1.." +
+                                 std::to_string(config::kMaxTargetNameLength) +
+                                 " bytes of UTF-8, no spaces or control characters)");
+      }
       if (std::find(names.begin(), names.end(), r.target) == names.end()) {
         if (names.size() == static_cast<std::size_t>(hal::kMaxTargets)) {
           throw std::runtime_error(where + ": target '" + r.target + "' is a " + std::to_string(names.size() + 1) +
