@@ -154,9 +154,15 @@ ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig&
 
   const fs::path csv = fs::path(cfg.frames_dir) / "frames.csv";
   std::error_code ec;
+  // A link to nowhere was taken for "no frames.csv" (synthetic time stamps, found probing), where
+  // a frame's dangling link is refused: the recording's files are there or named.
+  for (const fs::path& f : {csv, fs::path(cfg.frames_dir) / "ground_truth.csv"}) {
+    if (fs::is_symlink(fs::symlink_status(f, ec)) && !fs::exists(f, ec))
+      throw std::runtime_error(f.string() + ": a dangling link, not a file of the recording");
+  }
   if (fs::exists(csv, ec)) t_ns_ = read_frames_csv(csv.string(), frames_.size());
   const fs::path gt = fs::path(cfg.frames_dir) / "ground_truth.csv";
-  if (fs::exists(gt)) {
+  if (fs::exists(gt, ec)) {
     truth_.assign(frames_.size(), {});
     for (const TruthRow& row : read_truth_csv(gt.string(), kMaxTargets)) {
       if (row.frame >= static_cast<long long>(frames_.size())) continue;  // a frame this recording does not hold

@@ -354,5 +354,21 @@ TEST(Replay, AFifoNamedLikeAFrameIsRefusedByName) {
   EXPECT_EQ(list_pgm_frames(dir.string()).size(), 2u);
 }
 
+// A frames.csv or ground_truth.csv that is a link to nowhere was taken for none (synthetic time
+// stamps, no truth; found probing) where a frame's dangling link is refused.
+TEST(Replay, ADanglingFramesCsvOrTruthIsRefusedByName) {
+  for (const char* file : {"frames.csv", "ground_truth.csv"}) {
+    const auto dir = test::temp_dir(std::string("replay_dangling_") + file);
+    write_sequence(dir, 2, false, false);
+    std::filesystem::remove(dir / file);
+    std::filesystem::create_symlink(dir / "nowhere.csv", dir / file);
+    config::ReplayConfig rc;
+    rc.frames_dir = dir.string();
+    rt::Status st;
+    EXPECT_EQ(make_scan_source("replay", limits(), {}, rc, st), nullptr) << file;
+    EXPECT_NE(st.message.find(std::string(file) + ": a dangling link"), std::string::npos) << st.message;
+  }
+}
+
 }  // namespace
 }  // namespace sempose::hal
