@@ -50,9 +50,15 @@ namespace {
 void read_crop(Section& s, std::int32_t& x, std::int32_t& y, std::int32_t& w, std::int32_t& h) {
   std::vector<std::int32_t> crop;
   s.opt_list("crop", crop, std::int32_t{0}, std::int32_t{16384});
-  if (crop.empty()) return;
+  // Given empty, or of no width or height, it used to crop nothing (the whole image) unsaid.
+  if (crop.empty() && !s.has("crop")) return;
   if (crop.size() != 4) {
     s.error("crop", "expected [x, y, w, h] (4 numbers), got " + std::to_string(crop.size()));
+    return;
+  }
+  if (crop[2] < 1 || crop[3] < 1) {
+    s.error("crop", "w and h must be at least 1 (got " + std::to_string(crop[2]) + " x " + std::to_string(crop[3]) +
+                        "); leave crop out for the whole image");
     return;
   }
   x = crop[0], y = crop[1], w = crop[2], h = crop[3];
@@ -80,6 +86,9 @@ void read_profile(Section& parent, const char* key, TimeProfile& p, double lo, d
   Section s = parent.child(key);
   if (!s.present()) return;
   double value = p.from;
+  // `value` is a constant: with from or to beside it one of them was silently not used.
+  if (s.has("value") && (s.has("from") || s.has("to")))
+    s.error("value", "value (a constant) and from / to (a change) exclude each other: give one of them");
   if (s.has("value")) {
     s.opt("value", value, lo, hi);
     p.from = p.to = value;
@@ -111,16 +120,19 @@ void read_target(Section& s, SimTargetConfig& t) {
   if (t.texture.source == "image" && t.texture.path.empty()) {
     tex.error("path", "texture source 'image' needs a PGM path");
   }
+  // A path (or crop) beside a procedural source was read and never used.
+  if (t.texture.source != "image" && (tex.has("path") || tex.has("crop")))
+    tex.error(tex.has("path") ? "path" : "crop", "applies to texture source 'image' only, not '" + t.texture.source + "'");
   std::vector<std::int32_t> size;
   s.opt_list("size", size, std::int32_t{4}, std::int32_t{4096});
-  if (!size.empty()) {
+  if (!size.empty() || s.has("size")) {  // given empty, it kept the default unsaid
     if (size.size() != 2) s.error("size", "expected [width_px, height_px]");
     else t.width_px = size[0], t.height_px = size[1];
   }
   s.opt("brightness", t.brightness, 0.0, 4.0);
   std::vector<double> start;
   s.opt_list("start", start, -16384.0, 16384.0);
-  if (!start.empty()) {
+  if (!start.empty() || s.has("start")) {  // given empty, it kept the default unsaid
     if (start.size() != 3) s.error("start", "expected [x_px, y_px, phi_deg]");
     else t.x_px = start[0], t.y_px = start[1], t.phi_deg = start[2];
   }
@@ -192,7 +204,11 @@ void read_sim(Section& s, SimConfig& c) {
     std::vector<Section> list = s.children("targets");
     if (list.size() > 4) s.error("targets", std::to_string(list.size()) + " targets; at most 4 are allowed");
     c.targets.clear();
-    for (Section& ts : list) {
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      Section& ts = list[i];
+      // An empty item (`- ~`) added a default target unsaid.
+      if (!ts.present())
+        s.error("targets", "item " + std::to_string(i) + " is empty (~ or nothing): give its keys, or leave the item out");
       SimTargetConfig t;  // a listed target starts from a static, enabled, untextured default
       t.texture.source = "lamella";
       read_target(ts, t);

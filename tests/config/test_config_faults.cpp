@@ -216,6 +216,33 @@ TEST(ConfigFaults, DuplicateAndNonScalarKeysAreErrors) {
   EXPECT_NE(e.find("a key must be a plain name"), std::string::npos) << e;
 }
 
+// Values read and then not used, each accepted without a word (found probing): an empty start,
+// size or crop kept the default; a crop of no width cropped nothing; `value` beside from / to of
+// a profile lost to them; a path beside a procedural texture was never opened; an empty target
+// item added the default target.
+TEST(ConfigFaults, SimValuesThatWouldBeIgnoredAreNamed) {
+  const std::string dir = temp_dir(), base = base_yaml(dir);
+  const std::pair<std::string, std::string> cases[][2] = {
+      {{"sim.targets[0].start", "[]"}, {"sim.targets[0].start", "expected [x_px, y_px, phi_deg]"}},
+      {{"sim.targets[0].size", "[]"}, {"sim.targets[0].size", "expected [width_px, height_px]"}},
+      {{"sim.targets[0].scale", "{value: 1, from: 0.5, to: 2}"}, {"sim.targets[0].scale.value", "exclude each other"}},
+      {{"sim.targets[0].texture", "{source: lamella, path: /nonexistent.pgm}"},
+       {"sim.targets[0].texture.path", "applies to texture source 'image' only, not 'lamella'"}},
+      {{"sim.targets[0].texture", "{source: image, path: " + kPattern + ", crop: [0, 0, 0, 50]}"},
+       {"sim.targets[0].texture.crop", "w and h must be at least 1"}},
+      {{"sim.targets[0].texture", "{source: image, path: " + kPattern + ", crop: []}"},
+       {"sim.targets[0].texture.crop", "expected [x, y, w, h] (4 numbers), got 0"}},
+      {{"sim.targets[0]", "~"}, {"sim.targets", "item 0 is empty"}},
+  };
+  for (const auto& c : cases) {
+    AppConfig cfg;
+    std::string e;
+    EXPECT_FALSE(parse_app_config(with(base, c[0].first, c[0].second), "s.yaml", cfg, e)) << c[0].first << ": " << c[0].second;
+    EXPECT_NE(e.find(c[1].first + ": "), std::string::npos) << e;
+    EXPECT_NE(e.find(c[1].second), std::string::npos) << e;
+  }
+}
+
 // A second YAML document (`---`, two configs concatenated) was dropped without a word: the
 // first one ran. Refused naming its line; an empty trailing document is harmless.
 TEST(ConfigFaults, ASecondYamlDocumentIsRefused) {
