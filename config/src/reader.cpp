@@ -19,11 +19,28 @@
 
 namespace sempose::config {
 
+namespace {
+// One message line at most kMaxMessage bytes (cut at a UTF-8 character's start): a 10 MB value
+// came back as a 10 MB error line (found probing). Its start names file, line, key and the
+// problem; the cut says how much was left out.
+std::string bounded(std::string m) {
+  constexpr std::size_t kMaxMessage = 1024, kKept = 900;
+  if (m.size() <= kMaxMessage) return m;
+  std::size_t cut = kKept;
+  while (cut > 0 && (static_cast<unsigned char>(m[cut]) & 0xC0) == 0x80) --cut;
+  const std::size_t left = m.size() - cut;
+  m.resize(cut);
+  return m + "... (" + std::to_string(left) + " more bytes)";
+}
+}  // namespace
+
 void Errors::add(const YAML::Mark& mark, const std::string& key, const std::string& what) {
   std::string where = file_;
   if (!mark.is_null()) where += ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
-  messages_.push_back(where + ": " + key + ": " + what);
+  messages_.push_back(bounded(where + ": " + key + ": " + what));
 }
+
+void Errors::add(const std::string& what) { messages_.push_back(bounded(file_ + ": " + what)); }
 
 std::string Errors::joined() const {
   // Bounded: a file of 100k misspelt keys gave 81 MB of errors (found probing); the first ones

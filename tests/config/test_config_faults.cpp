@@ -216,6 +216,16 @@ TEST(ConfigFaults, DuplicateAndNonScalarKeysAreErrors) {
   EXPECT_NE(e.find("a key must be a plain name"), std::string::npos) << e;
 }
 
+// A 10 MB value came back as a 10 MB error line (found probing): each message is cut, saying so.
+TEST(ConfigFaults, AnErrorAboutAHugeValueIsCut) {
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config("sim:\n  clock: " + std::string(100000, 'x') + "\n", "h.yaml", c, e));
+  EXPECT_NE(e.find("h.yaml:2:10: sim.clock: 'xxx"), std::string::npos) << e.substr(0, 200);
+  EXPECT_NE(e.find(" more bytes)"), std::string::npos) << e.substr(0, 200);
+  EXPECT_LT(e.size(), 1200u);
+}
+
 // Values read and then not used, each accepted without a word (found probing): an empty start,
 // size or crop kept the default; a crop of no width cropped nothing; `value` beside from / to of
 // a profile lost to them; a path beside a procedural texture was never opened; an empty target

@@ -30,7 +30,7 @@ class Errors {
  public:
   explicit Errors(std::string file) : file_(std::move(file)) {}
   void add(const YAML::Mark& mark, const std::string& key, const std::string& what);
-  void add(const std::string& what) { messages_.push_back(file_ + ": " + what); }
+  void add(const std::string& what);
   bool empty() const noexcept { return messages_.empty(); }
   const std::vector<std::string>& messages() const noexcept { return messages_; }
   std::string joined() const;  // one message per line
