@@ -216,6 +216,18 @@ TEST(ConfigFaults, DuplicateAndNonScalarKeysAreErrors) {
   EXPECT_NE(e.find("a key must be a plain name"), std::string::npos) << e;
 }
 
+// An output named like a folder ("x.csv/") passed while nothing of that name existed and failed
+// at open, after the work (found probing: pattern --out p.pgm/ once the frames were averaged).
+TEST(ConfigFaults, AnOutputEndingInASlashIsRefusedBeforeAnyWork) {
+  const std::string dir = temp_dir();
+  EXPECT_NE(output_path_problem(dir + "/x.csv/").find("a folder's name, ending in '/'"), std::string::npos);
+  EXPECT_EQ(output_path_problem(dir + "/x.csv"), "");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config(with(base_yaml(dir), "output.poses_csv", dir + "/p.csv/"), "o.yaml", c, e));
+  EXPECT_NE(e.find("output.poses_csv: '" + dir + "/p.csv/' cannot be written: it is a folder's name"), std::string::npos) << e;
+}
+
 // A 10 MB value came back as a 10 MB error line (found probing): each message is cut, saying so.
 TEST(ConfigFaults, AnErrorAboutAHugeValueIsCut) {
   AppConfig c;
