@@ -125,7 +125,22 @@ int sempose::cli::view(int argc, char** argv) {
     }
     // Inputs are read before anything is written: a bad pattern or frame folder leaves no half output.
     std::vector<hal::Image> pattern_images;
-    for (const auto& p : patterns) pattern_images.push_back(hal::read_pgm(p));
+    for (const auto& p : patterns) {
+      pattern_images.push_back(hal::read_pgm(p));
+      // What run and replay refuse is no pattern of a run to draw (found probing: a 64x32 one
+      // was drawn as a 64 px square).
+      const hal::Image& im = pattern_images.back();
+      if (im.width != im.height) {
+        std::fprintf(stderr, "sempose view: --pattern '%s' is %dx%d: a pattern is square (run and replay refuse it)\n",
+                     p.c_str(), im.width, im.height);
+        return 2;
+      }
+      if (std::all_of(im.pixels.begin(), im.pixels.end(), [&](auto v) { return v == im.pixels[0]; })) {
+        std::fprintf(stderr, "sempose view: --pattern '%s' is flat (every sample %u): no edges to draw (run and replay "
+                     "refuse it)\n", p.c_str(), static_cast<unsigned>(im.pixels[0]));
+        return 2;
+      }
+    }
     std::vector<std::string> frame_files;
     if (!frames_dir.empty()) frame_files = hal::list_pgm_frames(frames_dir);
     // The rows a picture is drawn of (every `every`-th pose of each target, up to the last frame

@@ -467,7 +467,8 @@ TEST(CliFaults, AnOutputThatIsTheStandardStreamItselfIsNotWrittenOver) {
 }
 
 // A target's name with '/' (the config's rule allows it) as view's ROI file name: exit 2 after the
-// plot was written (found probing). Escaped now, every name a file of its own.
+// plot was written (found probing). Escaped now, every name a file of its own. And a pattern
+// run and replay refuse is refused here too.
 TEST(CliFaults, ViewNamesRoiPicturesOfATargetNamedWithASlash) {
   const std::string dir = work_dir() + "/view_slash";
   fs::remove_all(dir);
@@ -479,6 +480,18 @@ TEST(CliFaults, ViewNamesRoiPicturesOfATargetNamedWithASlash) {
   EXPECT_EQ(vw.code, 0) << vw.err;
   EXPECT_TRUE(fs::exists(dir + "/v/roi_000000_a%2Fb.png")) << vw.out;
   EXPECT_TRUE(fs::exists(dir + "/v/roi_000000_a%252Fb.png")) << vw.out;
+  // A pattern run and replay refuse (not square, flat) was drawn: refused, nothing written.
+  std::ofstream(dir + "/rect.pgm", std::ios::binary) << "P5\n64 32\n255\n" << std::string(64 * 32, '\x40');
+  std::ofstream(dir + "/flat.pgm", std::ios::binary) << "P5\n64 64\n255\n" << std::string(64 * 64, '\x09');
+  for (const char* bad : {"rect", "flat"}) {
+    fs::remove_all(dir + "/w");
+    const Outcome r = run({"view", "--poses", dir + "/poses.csv", "--out", dir + "/w", "--frames", dir + "/rec", "--pattern",
+                           dir + "/" + bad + ".pgm", "--pattern", dir + "/p.pgm"});
+    EXPECT_EQ(r.code, 2) << bad << ": " << r.err;
+    EXPECT_NE(r.err.find(std::string(bad) == "rect" ? "is 64x32: a pattern is square" : "is flat (every sample 9)"),
+              std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir + "/w/track.dat")) << bad;
+  }
 }
 
 // A report lost on standard output (a full disk; /dev/full here) is said on stderr and the exit
