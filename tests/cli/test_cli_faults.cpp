@@ -1084,22 +1084,25 @@ TEST(CliFaults, ViewWithoutGnuplotSaysSoOnStandardError) {
   EXPECT_TRUE(fs::exists(dir + "/out/track.gp")) << "the script to draw it by hand";
 }
 
-// A --truth of no usable row (empty, a header only — sim's truth for a target never in the
-// field —, only non-finite rows) compared nothing and counted nothing: poses_compared=0
-// false_tracking=0 tracking_without_truth=0, a clean-looking pass. Now it says so, and every
-// TRACKING pose is one without truth.
+// A standing lamella at 2000 ns (`sim`, frames frames in dir/rec) and its 10-frame pattern dir/p.pgm.
+::testing::AssertionResult record_standing_lamella(const std::string& dir, int frames) {
+  fs::create_directories(dir);
+  Outcome made =
+      run({"sim", "--out", dir + "/rec", "--frames", std::to_string(frames), "--dwell", "2000", "--config", small_config(dir, "")}, 120);
+  if (made.code != 0) return ::testing::AssertionFailure() << "sim: " << made.err;
+  made = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "10", "--out",
+              dir + "/p.pgm"},
+             60);
+  if (made.code != 0) return ::testing::AssertionFailure() << "pattern: " << made.err;
+  return ::testing::AssertionSuccess();
+}
+
 // A truth angle is compared whatever its turns: φ + 720° read 361° off (fmod of a negative
 // difference), 6 false poses (found probing); and modulo the turn the pose declares its target
 // to look the same at (the procedural lamella: 180°), as the benchmark counts it.
 TEST(CliFaults, ReplayTruthAnglesAreComparedWhateverTheirTurns) {
   const std::string dir = work_dir() + "/truth_turns";
-  fs::create_directories(dir);
-  Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "12", "--dwell", "2000", "--config", small_config(dir, "")}, 120);
-  ASSERT_EQ(made.code, 0) << made.err;
-  made = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "10", "--out",
-              dir + "/p.pgm"},
-             60);
-  ASSERT_EQ(made.code, 0) << made.err;
+  ASSERT_TRUE(record_standing_lamella(dir, 12));
   const std::string truth = slurp(dir + "/rec/ground_truth.csv");
   std::string base_rms;
   for (const double turn : {0.0, 720.0, -720.0, 540.0, -900.0}) {
@@ -1123,16 +1126,14 @@ TEST(CliFaults, ReplayTruthAnglesAreComparedWhateverTheirTurns) {
   }
 }
 
+// A --truth of no usable row (empty, a header only — sim's truth for a target never in the
+// field —, only non-finite rows) compared nothing and counted nothing: poses_compared=0
+// false_tracking=0 tracking_without_truth=0, a clean-looking pass. Now it says so, and every
+// TRACKING pose is one without truth.
 TEST(CliFaults, ReplayTruthWithoutAUsableRowCountsEveryTrackingPose) {
   const std::string dir = work_dir() + "/empty_truth";
-  fs::create_directories(dir);
   // A standing lamella at 2000 ns and a 10-frame pattern: tracked (17 of 20 TRACKING here).
-  Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "20", "--dwell", "2000", "--config", small_config(dir, "")}, 120);
-  ASSERT_EQ(made.code, 0) << made.err;
-  made = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "10", "--out",
-              dir + "/p.pgm"},
-             60);
-  ASSERT_EQ(made.code, 0) << made.err;
+  ASSERT_TRUE(record_standing_lamella(dir, 20));
   int n = 0;
   for (const char* text : {"", "frame,x_px,y_px,phi_deg\n", "frame,x_px,y_px,phi_deg\n0,nan,1,2\n1,inf,1,2\n"}) {
     const std::string truth = dir + "/truth" + std::to_string(++n) + ".csv", out = dir + "/o" + std::to_string(n) + ".csv";
