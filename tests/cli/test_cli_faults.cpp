@@ -365,13 +365,16 @@ TEST(CliFaults, SimAndPatternNameBadInputBeforeMakingOutputs) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/p.pgm"));
 }
 
-// small_config's scene recorded by `sim` into DIR/rec (n frames) and its pattern averaged from
-// 2 of them into DIR/p.pgm, as an operator would make them.
-::testing::AssertionResult record_with_pattern(const std::string& dir, const std::string& cfg, int frames) {
-  Outcome r = run({"sim", "--out", dir + "/rec", "--frames", std::to_string(frames), "--config", cfg}, 120);
+// small_config's scene recorded by `sim` into DIR/rec (n frames, at dwell_ns when given) and its
+// pattern averaged from `average` of them into DIR/p.pgm, as an operator would make them.
+::testing::AssertionResult record_with_pattern(const std::string& dir, const std::string& cfg, int frames,
+                                               const std::string& dwell_ns = "", int average = 2) {
+  std::vector<std::string> sim = {"sim", "--out", dir + "/rec", "--frames", std::to_string(frames), "--config", cfg};
+  if (!dwell_ns.empty()) sim.insert(sim.end(), {"--dwell", dwell_ns});
+  Outcome r = run(sim, 120);
   if (r.code != 0) return ::testing::AssertionFailure() << "sim: " << r.err;
-  r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "2", "--out",
-           dir + "/p.pgm"},
+  r = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", std::to_string(average),
+           "--out", dir + "/p.pgm"},
           60);
   if (r.code != 0) return ::testing::AssertionFailure() << "pattern: " << r.err;
   return ::testing::AssertionSuccess();
@@ -1084,25 +1087,13 @@ TEST(CliFaults, ViewWithoutGnuplotSaysSoOnStandardError) {
   EXPECT_TRUE(fs::exists(dir + "/out/track.gp")) << "the script to draw it by hand";
 }
 
-// A standing lamella at 2000 ns (`sim`, frames frames in dir/rec) and its 10-frame pattern dir/p.pgm.
-::testing::AssertionResult record_standing_lamella(const std::string& dir, int frames) {
-  fs::create_directories(dir);
-  Outcome made =
-      run({"sim", "--out", dir + "/rec", "--frames", std::to_string(frames), "--dwell", "2000", "--config", small_config(dir, "")}, 120);
-  if (made.code != 0) return ::testing::AssertionFailure() << "sim: " << made.err;
-  made = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--average", "10", "--out",
-              dir + "/p.pgm"},
-             60);
-  if (made.code != 0) return ::testing::AssertionFailure() << "pattern: " << made.err;
-  return ::testing::AssertionSuccess();
-}
-
 // A truth angle is compared whatever its turns: φ + 720° read 361° off (fmod of a negative
 // difference), 6 false poses (found probing); and modulo the turn the pose declares its target
 // to look the same at (the procedural lamella: 180°), as the benchmark counts it.
 TEST(CliFaults, ReplayTruthAnglesAreComparedWhateverTheirTurns) {
   const std::string dir = work_dir() + "/truth_turns";
-  ASSERT_TRUE(record_standing_lamella(dir, 12));
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 12, "2000", 10));  // a standing lamella
   const std::string truth = slurp(dir + "/rec/ground_truth.csv");
   std::string base_rms;
   for (const double turn : {0.0, 720.0, -720.0, 540.0, -900.0}) {
@@ -1132,8 +1123,9 @@ TEST(CliFaults, ReplayTruthAnglesAreComparedWhateverTheirTurns) {
 // TRACKING pose is one without truth.
 TEST(CliFaults, ReplayTruthWithoutAUsableRowCountsEveryTrackingPose) {
   const std::string dir = work_dir() + "/empty_truth";
+  fs::create_directories(dir);
   // A standing lamella at 2000 ns and a 10-frame pattern: tracked (17 of 20 TRACKING here).
-  ASSERT_TRUE(record_standing_lamella(dir, 20));
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 20, "2000", 10));
   int n = 0;
   for (const char* text : {"", "frame,x_px,y_px,phi_deg\n", "frame,x_px,y_px,phi_deg\n0,nan,1,2\n1,inf,1,2\n"}) {
     const std::string truth = dir + "/truth" + std::to_string(++n) + ".csv", out = dir + "/o" + std::to_string(n) + ".csv";
