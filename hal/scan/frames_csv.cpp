@@ -230,14 +230,16 @@ std::vector<double> check_truth_header(const std::string& path) {
 }
 }  // namespace
 
-std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows) {
+std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows,
+                                     std::size_t* widest_row) {
   std::vector<std::size_t> lines;
   const std::vector<std::vector<double>> rows = read_numeric_csv(path, 4, &lines);
   const std::vector<double> first_row = check_truth_header(path);  // a file without a header: its first line is a row
   std::vector<TruthRow> truth;
   std::map<std::pair<long long, int>, std::size_t> line_of;  // (frame, target) -> its line
-  std::size_t non_finite = 0;
+  std::size_t non_finite = 0, widest = 0;
   auto take = [&](const std::vector<double>& r, std::size_t line) {
+    widest = std::max(widest, r.size());
     const std::string at = path + ":" + std::to_string(line) + ": ";
     auto whole = [](double v, double below) { return v >= 0 && v < below && v == std::floor(v); };
     if (!whole(r[0], 1e15)) {
@@ -269,6 +271,7 @@ std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, s
   if (!first_row.empty()) take(first_row, 1);
   for (std::size_t i = 0; i < rows.size(); ++i) take(rows[i], lines[i]);
   if (non_finite_rows) *non_finite_rows = non_finite;
+  if (widest_row) *widest_row = widest;
   return truth;
 }
 

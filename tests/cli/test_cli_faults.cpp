@@ -1117,6 +1117,36 @@ TEST(CliFaults, ReplayTruthAnglesAreComparedWhateverTheirTurns) {
   }
 }
 
+// Columns after the target (a hand-made truth with a scale column) were read and dropped without
+// a word (noticed last round): replay says they are not compared, and compares the rest as before.
+TEST(CliFaults, ReplayTruthColumnsPastTheTargetAreNamedAsNotCompared) {
+  const std::string dir = work_dir() + "/truth_wide";
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 12, "2000", 10));
+  const auto replay = [&](const std::string& truth) {
+    return run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--truth", truth, "--out", dir + "/o.csv"}, 60);
+  };
+  const Outcome plain = replay(dir + "/rec/ground_truth.csv");
+  ASSERT_EQ(plain.code, 0) << plain.err;
+  EXPECT_EQ(plain.err.find("are not read"), std::string::npos) << plain.err;
+  std::istringstream in(slurp(dir + "/rec/ground_truth.csv"));
+  std::ostringstream wide;
+  std::string line;
+  std::getline(in, line);
+  wide << line << (line.find("target") == std::string::npos ? ",target" : "") << ",scale,note\n";
+  while (std::getline(in, line)) {
+    wide << line << (std::count(line.begin(), line.end(), ',') == 3 ? ",0" : "") << ",1.25,7\n";
+  }
+  const std::string t = dir + "/wide.csv";
+  std::ofstream(t) << wide.str();
+  const Outcome r = replay(t);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("has rows of 7 columns: only frame,x_px,y_px,phi_deg,target are compared, columns 6..7 are not read"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(field(r.out, "poses_compared"), field(plain.out, "poses_compared")) << r.out;
+  EXPECT_EQ(field(r.out, "rms_px"), field(plain.out, "rms_px")) << r.out;
+}
+
 // A --truth of no usable row (empty, a header only — sim's truth for a target never in the
 // field —, only non-finite rows) compared nothing and counted nothing: poses_compared=0
 // false_tracking=0 tracking_without_truth=0, a clean-looking pass. Now it says so, and every

@@ -37,7 +37,9 @@ struct TruthRow {
 // silently. Each of these throws naming the file, the line and the cell (a second row: both
 // lines). A row whose pose is not finite is skipped (no truth on that frame), counted in
 // non_finite_rows; a pose beyond ±1e7 px or ±1e6° throws. The header is checked (a column named
-// in another place throws) and a first line of numbers is read as a row.
-std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows = nullptr);
+// in another place throws) and a first line of numbers is read as a row. widest_row: the most
+// cells of any row, so the caller can say that columns past the target are not compared.
+std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows = nullptr,
+                                     std::size_t* widest_row = nullptr);
 
 }  // namespace sempose::hal
