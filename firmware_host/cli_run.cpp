@@ -37,6 +37,7 @@
 #include "sempose/rt/clock.hpp"
 #include "sempose/rt/latency_histogram.hpp"
 #include "sempose/rt/memory_lock.hpp"
+#include "sempose/rt/thread_room.hpp"
 #include "sempose/service/pipeline_watchdog.hpp"
 #include "sempose/service/systemd_notify.hpp"
 
@@ -258,6 +259,22 @@ int sempose::cli::run(int argc, char** argv) {
         }
       }
     }
+    // The histogram folder named as the CSV or the CAN log, or inside one (a path through a
+    // file): the file is made at start and the folder cannot be made there at exit (found
+    // probing: the whole run went, then "histograms: NOT written", exit 4).
+    if (!hist_dir.empty()) {
+      const std::filesystem::path folder = cli::resolved_output(hist_dir);
+      for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
+                                      {can_log_key, can_log}}) {
+        if (path.empty() || path == "-" || cli::is_null_device(path)) continue;
+        const std::filesystem::path file = cli::resolved_output(path);
+        if (std::mismatch(file.begin(), file.end(), folder.begin(), folder.end()).first == file.end()) {
+          bad += std::string("  ") + (opt.hist_dir.empty() ? "output.hist_dir" : "--hist-dir") + ": '" + hist_dir + "' " +
+                 (folder == file ? "is" : "lies inside") + " " + key + " '" + path +
+                 "', a file the run writes: the histograms need a folder there; name another folder\n";
+        }
+      }
+    }
     if (!bad.empty()) {
       std::fprintf(stderr, "sempose run: invalid output:\n%s", bad.c_str());
       return 2;
@@ -285,7 +302,14 @@ int sempose::cli::run(int argc, char** argv) {
     std::printf("stopped by %s during setup (no output written)\n", stop_signal_name(sig));
     return 0;
   }
-  st = session::build_outputs(cfg, opt.can_log, run);
+  // The stages' threads are tried before any output is touched: under a thread limit their
+  // creation failed only after the CSV and the candump log had been emptied (found probing).
+  st = rt::try_thread_room(cfg.pipeline.output_on_correlation_thread ? 2 : 3, "the pipeline");
+  if (!st) {
+    std::fprintf(stderr, "sempose run: %s (no output touched)\n", st.message.c_str());
+    return 3;
+  }
+  st = session::build_outputs(cfg, opt.can_log, hist_dir, run);
   if (!st) {
     std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
     return 2;

@@ -1,6 +1,9 @@
 // sempose: hard-real-time vision controller for robotic nanohandling in an SEM.
+#include <fcntl.h>
 #include <signal.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -33,7 +36,26 @@ int usage(std::FILE* out) {
 
 }  // namespace
 
+namespace {
+// A standard stream started closed (a wrapper's `>&-`, a supervisor that closes them) left its
+// number free, the first file opened took it, and the status lines and warnings went into the
+// candump log or the poses CSV (found probing: run with stdout closed, 10 status lines among the
+// candump lines; replay's CSV began with its report). Each closed one is put on /dev/null: what
+// would have been written there is dropped, as the caller asked by closing it.
+void keep_standard_streams_open() {
+  for (int fd = 0; fd <= 2; ++fd) {
+    if (::fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+    const int null = ::open("/dev/null", fd == 0 ? O_RDONLY : O_WRONLY);
+    if (null >= 0 && null != fd) {  // the lowest free number is fd (those below are open): not expected
+      ::dup2(null, fd);
+      ::close(null);
+    }
+  }
+}
+}  // namespace
+
 int main(int argc, char** argv) {
+  keep_standard_streams_open();
   // A file-size limit (`ulimit -f`, RLIMIT_FSIZE) reached by an output: the default action of
   // SIGXFSZ killed the process mid-line (run: a cut CSV line, no summary, exit 153). Ignored,
   // the write fails with EFBIG and is reported like a full disk (run: exit 4, counted).

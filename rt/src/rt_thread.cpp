@@ -8,6 +8,7 @@
 #include <string>
 
 #include "sempose/rt/alloc_counter.hpp"
+#include "sempose/rt/thread_room.hpp"
 
 namespace sempose::rt {
 
@@ -116,7 +117,8 @@ Status RtThread::start(const RtThreadConfig& config, std::function<void()> body)
     rc = try_create(realtime, pin);
   }
   if (rc != 0) {
-    return Status::failure("thread '" + config.name + "': pthread_create failed: " + errno_text(rc));
+    return Status::failure("thread '" + config.name + "': pthread_create failed: " + errno_text(rc) +
+                           (rc == EAGAIN ? std::string(": ") + kThreadLimitHint : std::string()));
   }
   started_ = true;
   pthread_setname_np(handle_, config.name.substr(0, 15).c_str());

@@ -4,6 +4,7 @@
 // (no hang: a watchdog kills it and fails the test), never by a crash signal, with the exit
 // code and the message the README promises.
 #include <fcntl.h>
+#include <grp.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/file.h>
@@ -19,6 +20,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -59,6 +61,9 @@ constexpr int kWhenRunning = -2;
 long g_child_file_size_limit = -1;  // RLIMIT_FSIZE of the child in bytes (-1: unlimited)
 long g_child_open_files_limit = -1;  // RLIMIT_NOFILE of the child (-1: as inherited)
 long g_child_address_space_limit = -1;  // RLIMIT_AS of the child in bytes (-1: as inherited)
+long g_child_process_limit = -1;  // RLIMIT_NPROC of the child: its user's threads (-1: as inherited)
+int g_child_closed_fd = -1;  // a standard stream the child starts with closed (-1: none)
+long g_child_uid = -1;  // the child runs as this user and group (-1: as this process; root ignores RLIMIT_NPROC)
 std::string g_child_stdout;  // the child's standard output instead of the capture file ("": captured)
 Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int signal_after_ms = -1, int sig = SIGTERM) {
   const std::string dir = work_dir();
@@ -83,6 +88,15 @@ Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int sig
     if (g_child_address_space_limit >= 0) {
       const rlimit lim{static_cast<rlim_t>(g_child_address_space_limit), static_cast<rlim_t>(g_child_address_space_limit)};
       setrlimit(RLIMIT_AS, &lim);
+    }
+    if (g_child_closed_fd >= 0) ::close(g_child_closed_fd);
+    if (g_child_uid >= 0 && (setgroups(0, nullptr) != 0 || setgid(static_cast<gid_t>(g_child_uid)) != 0 ||
+                             setuid(static_cast<uid_t>(g_child_uid)) != 0)) {
+      _exit(126);
+    }
+    if (g_child_process_limit >= 0) {
+      const rlimit lim{static_cast<rlim_t>(g_child_process_limit), static_cast<rlim_t>(g_child_process_limit)};
+      setrlimit(RLIMIT_NPROC, &lim);
     }
     if (g_child_open_files_limit >= 0) {
       const rlimit lim{static_cast<rlim_t>(g_child_open_files_limit), static_cast<rlim_t>(g_child_open_files_limit)};
@@ -863,6 +877,13 @@ TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
        "output.poses_csv: '" + dir + "/h/latency_hist.txt' is the histogram file"},
       {{"run", "--config", cfg, "--duration", "0.2", "--hist-dir", dir + "/h", "--can-log", dir + "/h/latency_hist.json"},
        "--can-log: '" + dir + "/h/latency_hist.json' is the histogram file"},
+      // The histogram folder named as the CSV, or inside the CAN log: made at start, the folder
+      // could not be made at exit (the whole run went, then "histograms: NOT written", exit 4).
+      {{"run", "--config", small_config(dir, "output: {poses_csv: " + dir + "/hp.csv}\n"), "--duration", "0.2", "--hist-dir",
+        dir + "/hp.csv"},
+       "--hist-dir: '" + dir + "/hp.csv' is output.poses_csv"},
+      {{"run", "--config", cfg, "--duration", "0.2", "--can-log", dir + "/hc.log", "--hist-dir", dir + "/hc.log/h"},
+       "--hist-dir: '" + dir + "/hc.log/h' lies inside --can-log"},
       // view's own output names in --out: the poses CSV became the plot's data.
       {{"view", "--poses", dir + "/track.dat", "--out", dir}, "--poses '" + dir + "/track.dat' is in --out"},
       {{"view", "--poses", dir + "/roi_000000.png", "--out", dir + "/."}, "under a name view writes (roi_000000.png)"},
@@ -885,6 +906,8 @@ TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
   EXPECT_EQ(slurp(self), self_text);
   EXPECT_FALSE(fs::exists(rec + "/poses.pgm"));
   EXPECT_FALSE(fs::exists(dir + "/both.txt"));
+  EXPECT_FALSE(fs::exists(dir + "/hp.csv"));
+  EXPECT_FALSE(fs::exists(dir + "/hc.log"));
   // A CSV beside the recording (not one of its files) is fine.
   const Outcome ok = run({"replay", "--frames", rec, "--pattern", pat, "--out", rec + "/poses.csv"}, 120);
   EXPECT_EQ(ok.code, 0) << ok.err;
@@ -1619,6 +1642,105 @@ TEST(CliFaults, ARunRefusedOnOneOutputLeavesTheOtherUntouched) {
   EXPECT_EQ(r.code, 2) << r.out << r.err;
   EXPECT_NE(r.err.find("is being written by another process"), std::string::npos) << r.err;
   EXPECT_EQ(slurp(can_log), "OLD\n") << "the refused run emptied its CAN log";
+}
+
+// Started with a standard stream closed (a wrapper's `>&-`), the first file opened took its
+// number and the status lines went into it: run's candump log held 10 status lines, replay's CSV
+// began with its report (found probing). Now a closed stream is put on /dev/null first.
+TEST(CliFaults, AClosedStandardStreamIsNotWrittenIntoAnOutput) {
+  const std::string dir = work_dir() + "/closed_stdio";
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 4));
+  const std::string csv = dir + "/poses.csv", can_log = dir + "/can.log";
+  const auto only = [](const std::string& text, const std::regex& line) {
+    std::istringstream in(text);
+    std::string l, first_bad;
+    int n = 0;
+    while (std::getline(in, l)) {
+      ++n;
+      if (first_bad.empty() && !std::regex_match(l, line)) first_bad = l;
+    }
+    return n > 0 && first_bad.empty() ? std::string() : "line '" + first_bad + "' of " + std::to_string(n);
+  };
+  const std::regex candump(R"(\(\d+\.\d{6}\) can0 [0-9A-F]{3}#[0-9A-F]*)"), csv_line(R"((frame,|\d).*)");
+  for (const int fd : {1, 2}) {
+    g_child_closed_fd = fd;
+    const Outcome r = run({"run", "--config", small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + can_log + "}\n"),
+                           "--duration", "0.3"});
+    const Outcome p = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/r.csv"});
+    g_child_closed_fd = -1;
+    EXPECT_EQ(r.code, 0) << "fd " << fd << " closed: " << r.err;
+    EXPECT_EQ(only(slurp(can_log), candump), "") << "fd " << fd << " closed: the candump log holds other lines";
+    EXPECT_EQ(only(slurp(csv), csv_line), "") << "fd " << fd << " closed: the poses CSV holds other lines";
+    EXPECT_EQ(p.code, 0) << "fd " << fd << " closed: " << p.err;
+    EXPECT_EQ(slurp(dir + "/r.csv").rfind("frame,", 0), 0u) << "fd " << fd << " closed: replay's CSV does not begin with its header";
+    EXPECT_EQ(only(slurp(dir + "/r.csv"), csv_line), "") << "fd " << fd << " closed: replay's CSV holds other lines";
+  }
+}
+
+// Two runs on one histogram folder each said they wrote their histograms there, while one had
+// renamed the other's away (found probing). The folder is locked like the files: a run refused on
+// it names it, and leaves its CAN log as it was. The other writer here is this test.
+TEST(CliFaults, AHistogramFolderAnotherRunWritesIsRefused) {
+  const std::string dir = work_dir() + "/hist_lock";
+  fs::create_directories(dir + "/h");
+  const std::string can_log = dir + "/can.log";
+  std::ofstream(can_log) << "OLD\n";
+  const int held = ::open((dir + "/h").c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  ASSERT_GE(held, 0);
+  ASSERT_EQ(::flock(held, LOCK_EX | LOCK_NB), 0);
+  const Outcome r = run({"run", "--config", small_config(dir, "can: {log_file: " + can_log + "}\n"), "--duration", "0.2",
+                         "--hist-dir", dir + "/h"});
+  ::close(held);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("histograms: '" + dir + "/h' is being written by another process"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(can_log), "OLD\n") << "the refused run emptied its CAN log";
+  EXPECT_TRUE(fs::is_empty(dir + "/h"));
+  // Free again: the run writes its histograms there.
+  const Outcome ok = run({"run", "--config", small_config(dir, "can: {log_file: " + can_log + "}\n"), "--duration", "0.2",
+                          "--hist-dir", dir + "/h"});
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_TRUE(fs::exists(dir + "/h/latency_hist.txt"));
+}
+
+// Under a thread limit (a unit's TasksMax=, `prlimit --nproc`) the stages' threads failed only
+// after the poses CSV and the candump log had been emptied (exit 3, the last run's outputs gone),
+// and the learned appearance's worker failed as a bare "Resource temporarily unavailable" (found
+// probing). The threads are tried before any output is touched, and both name the limit.
+TEST(CliFaults, AThreadLimitIsNamedBeforeAnyOutputIsTouched) {
+  const std::string dir = work_dir() + "/nproc";
+  fs::create_directories(dir);
+  const std::string csv = dir + "/poses.csv", can_log = dir + "/can.log";
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + can_log + "}\n");
+  std::string text = slurp(cfg);
+  const std::string tracker = "tracker: {pattern_size_px: 64, roi_size_px: 96}";
+  ASSERT_NE(text.find(tracker), std::string::npos);
+  text.replace(text.find(tracker), tracker.size(), "tracker: {pattern_size_px: 64, roi_size_px: 96, appearance: {enabled: true}}");
+  const std::string learning = dir + "/learning.yaml";
+  std::ofstream(learning) << text;
+  // Root is not held to RLIMIT_NPROC: the run is made as nobody then, in a folder it may write.
+  const long uid = ::geteuid() == 0 ? 65534 : -1;
+  for (const std::string& c : {cfg, learning}) {
+    std::ofstream(can_log) << "OLD LOG\n";
+    std::ofstream(csv) << "OLD CSV\n";
+    if (uid >= 0) {
+      for (const std::string& f : {dir, csv, can_log}) ASSERT_EQ(::chown(f.c_str(), uid, uid), 0) << f;
+      fs::permissions(dir, fs::perms::all);
+    }
+    g_child_process_limit = 1;  // every thread of this user counts: none can be made
+    g_child_uid = uid;
+    const Outcome r = run({"run", "--config", c, "--duration", "0.2"});
+    g_child_process_limit = g_child_uid = -1;
+    if (r.code == 126 || r.code == 127) GTEST_SKIP() << "cannot run sempose as nobody here: " << r.err;
+    if (r.code == 0) GTEST_SKIP() << "RLIMIT_NPROC is not enforced for this user here";
+    EXPECT_EQ(r.code, c == cfg ? 3 : 2) << c << "\n" << r.err;
+    EXPECT_NE(r.err.find(c == cfg ? "the pipeline: cannot create its 2 threads" : "the learned appearance's worker thread"),
+              std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("thread limit (ulimit -u, RLIMIT_NPROC; a systemd unit's TasksMax= or LimitNPROC=)"), std::string::npos)
+        << r.err;
+    EXPECT_EQ(slurp(can_log), "OLD LOG\n") << c << ": the refused run emptied the CAN log";
+    EXPECT_EQ(slurp(csv), "OLD CSV\n") << c << ": the refused run emptied the CSV";
+  }
 }
 
 // Every output opened before any is emptied (found probing: under `ulimit -n 6` a run whose CSV

@@ -126,7 +126,8 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
     }
     // Learned appearance: its rebuilds run on a non-RT worker thread (created here, on the
     // main thread, so it inherits main's placement off the RT cores).
-    tracker->start_appearance_worker();
+    if (rt::Status started = tracker->start_appearance_worker(); !started)
+      return rt::Status::failure("target " + out.names[i] + ": " + started.message);
     out.trackers.push_back(std::move(tracker));
   }
   return rt::Status::success();

@@ -7,8 +7,10 @@
 #include <cstdlib>
 #include <ctime>
 #include <string>
+#include <system_error>
 #include <thread>
 
+#include "sempose/rt/thread_room.hpp"
 #include "tracker_impl.hpp"
 
 namespace sempose::pose {
@@ -87,16 +89,24 @@ bool Tracker::Impl::maintain_appearance() {
 
 bool Tracker::maintain_appearance() { return impl_->maintain_appearance(); }
 
-void Tracker::start_appearance_worker() {
+rt::Status Tracker::start_appearance_worker() {
   Impl& t = *impl_;
-  if (!t.observer || t.worker.joinable()) return;
-  t.worker = std::thread([&t] {
-    const timespec period{0, 20'000'000};
-    while (!t.worker_stop.load(std::memory_order_relaxed)) {
-      t.maintain_appearance();
-      nanosleep(&period, nullptr);
-    }
-  });
+  if (!t.observer || t.worker.joinable()) return rt::Status::success();
+  try {
+    t.worker = std::thread([&t] {
+      const timespec period{0, 20'000'000};
+      while (!t.worker_stop.load(std::memory_order_relaxed)) {
+        t.maintain_appearance();
+        nanosleep(&period, nullptr);
+      }
+    });
+  } catch (const std::system_error& e) {
+    std::string why = std::string("the learned appearance's worker thread (tracker.appearance.enabled) cannot be created (") +
+                      e.what() + ")";
+    if (e.code() == std::errc::resource_unavailable_try_again) why += std::string(": ") + rt::kThreadLimitHint;
+    return rt::Status::failure(why);
+  }
+  return rt::Status::success();
 }
 
 Tracker::AppearanceStatus Tracker::appearance_status() const noexcept {

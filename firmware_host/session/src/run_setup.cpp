@@ -44,6 +44,27 @@ rt::Status OutputLock::acquire(const std::string& what, const std::string& path)
   return {};
 }
 
+rt::Status OutputLock::acquire_folder(const std::string& what, const std::string& path) {
+  if (path.empty()) return {};
+  std::error_code ec;
+  std::filesystem::create_directories(path, ec);
+  const int fd = ::open(path.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return rt::Status::failure(what + ": cannot open the folder '" + path + "' (" + std::strerror(errno) + ")");
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int err = errno;
+    ::close(fd);
+    if (err == EWOULDBLOCK) {
+      return rt::Status::failure(what + ": '" + path + "' is being written by another process (another sempose run " +
+                                 "holds a lock on it); the two runs' histograms would replace each other: name " +
+                                 "another folder or stop the other one");
+    }
+    return rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
+  }
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = fd;
+  return {};
+}
+
 rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out) {
   rt::Status st;
   out.source = hal::make_scan_source(cfg.source, cfg.scan, cfg.sim, cfg.replay, st, cfg.comedi);
@@ -72,7 +93,8 @@ config::AppConfig replay_config(const config::AppConfig& cfg, const std::string&
   return out;
 }
 
-rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, RunSetup& out) {
+rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, const std::string& hist_dir,
+                         RunSetup& out) {
   // A closed standard output (`sempose run … | head -1`, a reader that went away) must not
   // kill the controller with SIGPIPE (measured: killed by signal 13 at the first status
   // flush; CSV and candump log cut, no summary, CAN output gone): writes to it fail with
@@ -117,6 +139,11 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
   const std::size_t log_lock = out.output_locks.size();
   if (rt::Status locked = lock(can_log_override.empty() ? "can.log_file" : "--can-log", can_log); !locked) return refuse(locked);
   if (rt::Status locked = lock("output.poses_csv", cfg.output.poses_csv); !locked) return refuse(locked);
+  if (!hist_dir.empty()) {
+    OutputLock folder;
+    if (rt::Status locked = folder.acquire_folder("histograms", hist_dir); !locked) return refuse(locked);
+    out.output_locks.push_back(std::move(folder));
+  }
   rt::Status st = can_output::make_can_output(cfg.can, can_log_override, out.can, true);
   if (!st) return refuse(rt::Status::failure("can: " + st.message));
   st = can_output::make_gpio_outputs(cfg.gpio, out.gpio_out);

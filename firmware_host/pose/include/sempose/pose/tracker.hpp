@@ -132,8 +132,10 @@ class Tracker {
   // thread (start_appearance_worker). True when a new bank was published.
   bool maintain_appearance();
   // Starts a non-RT thread calling maintain_appearance() every 20 ms until the tracker is
-  // destroyed (it inherits the caller's CPU placement and scheduling). No-op when off.
-  void start_appearance_worker();
+  // destroyed (it inherits the caller's CPU placement and scheduling). No-op when off. Fails
+  // naming the thread limit when the thread cannot be created (it was a bare "Resource
+  // temporarily unavailable" from std::thread, found probing under `prlimit --nproc`).
+  rt::Status start_appearance_worker();
   struct AppearanceStatus {
     std::uint32_t accepted = 0;  // updates swapped in
     std::uint32_t rejected = 0;  // batches the drift or support check refused

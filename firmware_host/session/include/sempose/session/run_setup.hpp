@@ -40,6 +40,10 @@ class OutputLock {
   // missing one, created here without truncating anything) is locked; a device (/dev/null,
   // /dev/full) or "-" is not. Fails naming `what` when another process holds the lock.
   rt::Status acquire(const std::string& what, const std::string& path);
+  // The same for a folder the run writes fixed file names into (the histograms), made when
+  // missing: two runs on one folder renamed each other's files away, each saying it wrote its
+  // own (found probing).
+  rt::Status acquire_folder(const std::string& what, const std::string& path);
   // Empties the locked file (opened without truncating: the run empties its outputs once every
   // one of them has opened); true when emptied or nothing is locked (a device, "-").
   bool empty_file() const noexcept;
@@ -62,7 +66,7 @@ struct RunSetup {
   std::unique_ptr<pipeline::CsvPoseSink> csv;   // output.poses_csv, or null
   std::unique_ptr<pipeline::TeePoseSink> tee;
   std::unique_ptr<can_output::GpioPoseSink> gpio_sink;
-  std::vector<OutputLock> output_locks;         // the CSV's and the candump log's, held to the end
+  std::vector<OutputLock> output_locks;         // the CSV's, the candump log's and the histogram folder's, held to the end
   pipeline::PoseSink* sink = nullptr;           // the head of the chain the pipeline publishes to
   std::unique_ptr<pipeline::Pipeline> pipeline;
 
@@ -78,7 +82,9 @@ rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out);
 // the virtual clock, played once, without a GPIO frame sync (offline there is no scan
 // generator) — the inputs `sempose run` would build for the same recording.
 config::AppConfig replay_config(const config::AppConfig& cfg, const std::string& frames_dir);
-// can_log_override: `--can-log FILE` (empty: the config's CAN output).
-rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, RunSetup& out);
+// can_log_override: `--can-log FILE` (empty: the config's CAN output); hist_dir: the folder the
+// histograms go to (--hist-dir or output.hist_dir; empty: none), locked like the files.
+rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_log_override, const std::string& hist_dir,
+                         RunSetup& out);
 
 }  // namespace sempose::session
