@@ -354,7 +354,9 @@ int run_replay(int argc, char** argv) {
     return 2;
   }
   g_csv = &csv;
-  g_out_path = out_path;
+  // The file itself: through a link, removing the link left its target cut, whole lines that
+  // look like a shorter replay (found probing).
+  g_out_path = out_path == "-" ? out_path : cli::resolved_output(out_path).string();
   TruthCheckSink sink(csv, truth, !truth_path.empty());
   sink.on_stop_ = stop_replay;
   std::vector<pose::Tracker*> raw;
@@ -364,7 +366,7 @@ int run_replay(int argc, char** argv) {
   const rt::Status ran = runner.run(0, stats);
   if (!ran.ok) {
     std::fprintf(stderr, "sempose replay: %s%s\n", ran.message.c_str(),
-                 remove_incomplete_csv() ? ("; removed the incomplete " + out_path).c_str() : "");
+                 remove_incomplete_csv() ? ("; removed the incomplete " + g_out_path).c_str() : "");
     return 2;
   }
   // Lines lost to a full disk or a file-size limit: the CSV's whole lines would look like the
@@ -374,7 +376,7 @@ int run_replay(int argc, char** argv) {
     const unsigned long long lost = csv.lost_lines() + csv.dropped();
     const int err = csv.last_errno();
     std::fprintf(stderr, "sempose replay: %s: %llu pose lines not written (%s)%s\n", out_path.c_str(), lost, std::strerror(err),
-                 remove_incomplete_csv() ? "; removed the incomplete file" : "");
+                 remove_incomplete_csv() ? ("; removed the incomplete file " + g_out_path).c_str() : "");
     return 4;
   }
   // With the poses on standard output (--out -) the report goes to stderr, so a pipe gets CSV only.

@@ -135,6 +135,21 @@ int pending_stop_signal(const sigset_t& signals) {
   return 0;
 }
 
+// The main loop and the threads setup makes (the learned appearance's worker) are not RT: a
+// launcher's real-time policy (`chrt -f 5`, a unit's CPUSchedulingPolicy=) was inherited by all
+// of them, while the placement lines said SCHED_OTHER (found probing). Said and dropped; the
+// stages take their own policy from pipeline.*.priority.
+void drop_inherited_rt_policy() {
+  int policy = SCHED_OTHER;
+  sched_param param{};
+  if (pthread_getschedparam(pthread_self(), &policy, &param) != 0 || (policy != SCHED_FIFO && policy != SCHED_RR)) return;
+  const sched_param normal{};
+  const int rc = pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
+  std::printf("note: started under %s %d: the main loop and setup's threads %s SCHED_OTHER (the stages' policies are "
+              "pipeline.*.priority)\n", policy == SCHED_FIFO ? "SCHED_FIFO" : "SCHED_RR", param.sched_priority,
+              rc == 0 ? "run" : "could not be set to");
+}
+
 void pin_non_rt_thread(int cpu) {
   if (cpu < 0) return;
   cpu_set_t set;
@@ -288,6 +303,7 @@ int sempose::cli::run(int argc, char** argv) {
   // The main thread on its core before setup: the threads setup creates (the learned
   // appearance's worker) inherit its placement, off the RT cores. It used to be pinned after
   // setup, so the worker could run on any core, an RT stage's included.
+  drop_inherited_rt_policy();
   pin_non_rt_thread(cfg.pipeline.non_rt_cpu);
   // ---- setup: everything that allocates (session::RunSetup), inputs first
   session::RunSetup run;

@@ -83,6 +83,13 @@ Status RtThread::start(const RtThreadConfig& config, std::function<void()> body)
       pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
       pthread_attr_setschedpolicy(&attr, SCHED_FIFO);
       pthread_attr_setschedparam(&attr, &param);
+    } else {
+      // A normal thread says so explicitly: inherited, a launcher's policy (`chrt -f 5`, a unit's
+      // CPUSchedulingPolicy=) made a priority-0 stage SCHED_FIFO while its line said SCHED_OTHER.
+      sched_param param{};
+      pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
+      pthread_attr_setschedpolicy(&attr, SCHED_OTHER);
+      pthread_attr_setschedparam(&attr, &param);
     }
     if (pin) {
       cpu_set_t set;

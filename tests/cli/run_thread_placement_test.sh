@@ -56,3 +56,25 @@ if ! grep -q 'warning: pipeline.non_rt_cpu: cannot pin the main thread to cpu 10
   echo "FAIL non_rt_cpu 1000 not said:"; cat "$work/err.txt"; exit 1
 fi
 echo "ok   non_rt_cpu 1000: said"
+# Launched under a real-time policy (`chrt -f 5`, a unit's CPUSchedulingPolicy=): every thread
+# inherited SCHED_FIFO 5 — the main loop, the appearance worker and the priority-0 stages —
+# while the placement lines said SCHED_OTHER (found probing). Each is SCHED_OTHER now, as its
+# config says, and the run says it dropped the launcher's policy.
+sed -i 's/non_rt_cpu: 1000}/non_rt_cpu: 1}/' "$work/run.yaml"
+if ! chrt -f 5 true 2>/dev/null; then echo "skip: chrt -f 5 not permitted here"; exit 0; fi
+chrt -f 5 "$bin" run --config "$work/run.yaml" --duration 30 >"$work/out.txt" 2>"$work/err.txt" &
+pid=$!
+for _ in $(seq 1 600); do grep -q '^t=' "$work/out.txt" 2>/dev/null && break; sleep 0.05; done
+fail=0
+for task in /proc/$pid/task/*; do
+  name=$(cat "$task/comm"); policy=$(python3 -c "import os; print(os.sched_getscheduler(${task##*/}))")
+  echo "thread $name: policy $policy (want 0, SCHED_OTHER)"
+  [[ $policy == 0 ]] || fail=1
+done
+kill $pid; code=0; wait $pid || code=$?; pid=""
+if [[ $code != 0 ]]; then echo "FAIL exit $code"; cat "$work/err.txt"; exit 1; fi
+if (( fail )); then echo "FAIL a thread runs the launcher's real-time policy"; exit 1; fi
+if ! grep -q '^note: started under SCHED_FIFO 5: the main loop and setup.s threads run SCHED_OTHER' "$work/out.txt"; then
+  echo "FAIL the launcher's policy not said:"; grep -E '^note|^thread' "$work/out.txt"; exit 1
+fi
+echo "ok   under chrt -f 5: every thread SCHED_OTHER as configured, said"

@@ -1045,6 +1045,15 @@ TEST(CliFaults, AFileSizeLimitIsAWriteErrorNotADeath) {
   // 19 rows left): removed, as a stopped replay's CSV is.
   EXPECT_NE(rp.err.find("removed the incomplete file"), std::string::npos) << rp.err;
   EXPECT_FALSE(fs::exists(replay_csv)) << slurp(replay_csv);
+  // Through a link the file it leads to is the one cut: removing the link left it (found probing).
+  const std::string target = dir + "/dated.csv", link = dir + "/latest.csv";
+  fs::create_symlink(target, link);
+  g_child_file_size_limit = 600;
+  const Outcome rl = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", link}, 60);
+  g_child_file_size_limit = -1;
+  EXPECT_EQ(rl.code, 4) << rl.err;
+  EXPECT_NE(rl.err.find("removed the incomplete file " + target), std::string::npos) << rl.err;
+  EXPECT_FALSE(fs::exists(target)) << "the cut file behind the link is left: " << slurp(target);
 }
 
 // The candump log under the same limit ends in whole lines (found probing, on a full tmpfs: the
