@@ -37,6 +37,7 @@
 #include "sempose/rt/clock.hpp"
 #include "sempose/rt/latency_histogram.hpp"
 #include "sempose/rt/memory_lock.hpp"
+#include "sempose/rt/rt_thread.hpp"
 #include "sempose/rt/thread_room.hpp"
 #include "sempose/service/pipeline_watchdog.hpp"
 #include "sempose/service/systemd_notify.hpp"
@@ -207,6 +208,8 @@ int sempose::cli::run(int argc, char** argv) {
     std::string bad;
     if (const std::string ctl = config::control_character_problem(opt.can_log); !ctl.empty()) {
       bad += "  --can-log: " + ctl + "\n";
+    } else if (opt.can_log == "-") {
+      bad += "  --can-log: '-' (standard output) is not supported here: stdout carries the run's status lines; name a file\n";
     } else if (!opt.can_log.empty()) {
       if (const std::string why = config::output_path_problem(opt.can_log); !why.empty())
         bad += "  --can-log: '" + opt.can_log + "' cannot be written: it is " + why + "\n";
@@ -263,9 +266,19 @@ int sempose::cli::run(int argc, char** argv) {
     }
     // The histograms are written at exit (and on SIGUSR1) into hist_dir under fixed names: a
     // CSV or CAN log of such a name there was overwritten by them, the whole run's poses gone.
-    for (const char* name : {kHistogramTxt, kHistogramJson}) {
+    // The same for the names the dump writes first and renames (found probing: a CSV named
+    // latency_hist.txt.part was truncated by the dump, then renamed away: no CSV anywhere), and
+    // for this process's standard streams (`run --hist-dir h > h/latency_hist.txt`: the captured
+    // status lines and summary renamed over at exit).
+    for (const std::string& name : {std::string(kHistogramTxt), std::string(kHistogramJson),
+                                    std::string(kHistogramTxt) + ".part", std::string(kHistogramJson) + ".part"}) {
       if (hist_dir.empty()) break;
       const std::string hist = hist_dir + "/" + name;
+      if (const char* stream = cli::standard_stream_named(hist)) {
+        bad += std::string("  ") + (opt.hist_dir.empty() ? "output.hist_dir" : "--hist-dir") + ": the histogram file " + hist +
+               " is this process's " + stream + ", which carries the run's status lines: it would be written over at exit; " +
+               "name another folder\n";
+      }
       for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
                                       {can_log_key, can_log}}) {
         if (cli::same_output(path, hist)) {
@@ -320,7 +333,7 @@ int sempose::cli::run(int argc, char** argv) {
   }
   // The stages' threads are tried before any output is touched: under a thread limit their
   // creation failed only after the CSV and the candump log had been emptied (found probing).
-  st = rt::try_thread_room(cfg.pipeline.output_on_correlation_thread ? 2 : 3, "the pipeline");
+  st = rt::try_thread_room(cfg.pipeline.output_on_correlation_thread ? 2 : 3, rt::RtThreadConfig{}.stack_bytes, "the pipeline");
   if (!st) {
     std::fprintf(stderr, "sempose run: %s (no output touched)\n", st.message.c_str());
     return 3;
@@ -391,8 +404,12 @@ int sempose::cli::run(int argc, char** argv) {
   if (!notifier.problem().empty()) std::printf("warning: %s\n", notifier.problem().c_str());
   service::PipelineWatchdog watchdog(*pipe, notifier, static_cast<std::int64_t>(cfg.service.stall_timeout_ms) * rt::kNsPerMs,
                                      rt::now_ns());
-  if (notifier.enabled()) {
-    notifier.ready("running");
+  if (notifier.enabled() && !notifier.ready("running")) {
+    // A NOTIFY_SOCKET nobody listens on (a missing path, a regular file): "READY sent" was
+    // printed regardless (found probing), while systemd would time the start out.
+    std::printf("warning: systemd: READY could not be sent to NOTIFY_SOCKET '%s' (%s): a Type=notify unit will time "
+                "this start out\n", std::getenv("NOTIFY_SOCKET"), std::strerror(errno));
+  } else if (notifier.enabled()) {
     std::printf("systemd: READY sent%s\n", notifier.watchdog_interval_ns() > 0
                                               ? (", watchdog every " + std::to_string(notifier.watchdog_interval_ns() / 2'000'000) +
                                                  " ms while every stage progresses").c_str()

@@ -5,7 +5,12 @@
 // in the README's conventions; a full field takes ~78 ms at 640x480, 250 ns, so mid-scan
 // would be px off for a moving target).
 // Runs on the virtual clock: as fast as the CPU allows and reproducible from the seed.
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -172,19 +177,21 @@ int sempose::cli::sim(int argc, char** argv) {
     // then fails on a frame without a time stamp, or a pattern averages both): an existing
     // recording is not written over.
     std::error_code ec;
-    std::size_t old_frames = 0;
-    bool old_csv = false;
-    if (std::filesystem::is_directory(out_dir, ec)) {
-      for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
-        old_frames += hal::is_pgm_name(e.path().string()) ? 1 : 0;
-        old_csv = old_csv || e.path().filename() == "frames.csv" || e.path().filename() == "ground_truth.csv";
+    const auto holds_a_recording = [&] {
+      std::size_t old_frames = 0;
+      bool old_csv = false;
+      if (std::filesystem::is_directory(out_dir, ec)) {
+        for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
+          old_frames += hal::is_pgm_name(e.path().string()) ? 1 : 0;
+          old_csv = old_csv || e.path().filename() == "frames.csv" || e.path().filename() == "ground_truth.csv";
+        }
       }
-    }
-    if (old_frames > 0 || old_csv) {
+      if (old_frames == 0 && !old_csv) return false;
       std::fprintf(stderr, "sempose sim: --out '%s' already holds a recording (%zu PGM frames%s); remove it or choose another folder\n",
                    out_dir.c_str(), old_frames, old_csv ? ", frames.csv / ground_truth.csv" : "");
-      return 2;
-    }
+      return true;
+    };
+    if (holds_a_recording()) return 2;
     made_dir = !std::filesystem::exists(out_dir, ec);
     std::filesystem::create_directories(out_dir, ec);
     if (ec || !std::filesystem::is_directory(out_dir)) {
@@ -192,6 +199,19 @@ int sempose::cli::sim(int argc, char** argv) {
                    ec ? ec.message().c_str() : "it exists and is not a directory");
       return 1;
     }
+    // Two sims into one folder at once both passed the check above and mixed their frames under
+    // one run's frames.csv and truth (found probing). The folder is locked for the recording
+    // (held to the process's end) and checked again under the lock: a sim that finished
+    // meanwhile left frames there.
+    const int lock = ::open(out_dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (lock < 0 || ::flock(lock, LOCK_EX | LOCK_NB) != 0) {
+      const int err = errno;
+      std::fprintf(stderr, "sempose sim: --out '%s' %s\n", out_dir.c_str(),
+                   err == EWOULDBLOCK ? "is being recorded by another sim; choose another folder"
+                                      : ("cannot be locked for the recording (" + std::string(std::strerror(err)) + ")").c_str());
+      return 2;
+    }
+    if (holds_a_recording()) return 2;
   }
   unsigned long long frames_started = 0;  // frame files this run may have begun
   try {

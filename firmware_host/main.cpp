@@ -69,7 +69,10 @@ int main(int argc, char** argv) {
     try {
       return c.fn(argc - 1, argv + 1);
     } catch (const std::bad_alloc&) {
-      std::fprintf(stderr, "sempose %s: error: out of memory during setup\n", c.name);
+      // Not only during setup: under `ulimit -v` a run could go its whole length and fail at the
+      // end (found probing), where "during setup" misled.
+      std::fprintf(stderr, "sempose %s: error: out of memory (the machine's, or an address-space limit: ulimit -v, "
+                   "RLIMIT_AS)\n", c.name);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "sempose %s: error: %s\n", c.name, e.what());
     } catch (...) {

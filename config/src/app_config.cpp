@@ -84,8 +84,13 @@ void cross_check(Section& root, const AppConfig& c) {
              !c.output.poses_csv.empty() && !why.empty()) {
     root.errors().add(root.mark(), "output.poses_csv", "'" + c.output.poses_csv + "' cannot be written: it is " + why);
   }
-  if (const std::string why = output_path_problem(c.can.log_file);
-      c.can.interface.empty() && !c.can.log_file.empty() && !why.empty()) {
+  if (c.can.interface.empty() && c.can.log_file == "-") {
+    // As for the poses: '-' reads as "standard output" elsewhere, but a file named '-' was made
+    // in the working folder (found probing).
+    root.errors().add(root.mark(), "can.log_file",
+                      "'-' (standard output) is not supported here: stdout carries the run's status lines; name a file");
+  } else if (const std::string why = output_path_problem(c.can.log_file);
+             c.can.interface.empty() && !c.can.log_file.empty() && !why.empty()) {
     root.errors().add(root.mark(), "can.log_file", "'" + c.can.log_file + "' cannot be written: it is " + why);
   }
   if (const std::string why = output_dir_problem(c.output.hist_dir); !c.output.hist_dir.empty() && !why.empty()) {

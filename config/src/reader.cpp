@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <limits>
 #include <sstream>
+#include <vector>
 
 #include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/eventhandler.h>
@@ -378,9 +379,10 @@ YAML::Node load_file(const std::string& path, Errors& errors) {
     return {};
   }
   std::string text;
-  char buf[65536];
-  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
-    text.append(buf, static_cast<std::size_t>(in.gcount()));
+  // On the heap: 64 KiB on the stack was a SIGSEGV under `ulimit -s 64` (found probing).
+  std::vector<char> buf(65536);
+  while (in.read(buf.data(), static_cast<std::streamsize>(buf.size())) || in.gcount() > 0) {
+    text.append(buf.data(), static_cast<std::size_t>(in.gcount()));
     if (static_cast<long long>(text.size()) > kMaxConfigBytes) {
       errors.add("the config is larger than " + std::to_string(kMaxConfigBytes >> 20) + " MiB");
       return {};

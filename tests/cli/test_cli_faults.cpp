@@ -877,6 +877,13 @@ TEST(CliFaults, AnOutputThatIsAnInputIsRefused) {
        "output.poses_csv: '" + dir + "/h/latency_hist.txt' is the histogram file"},
       {{"run", "--config", cfg, "--duration", "0.2", "--hist-dir", dir + "/h", "--can-log", dir + "/h/latency_hist.json"},
        "--can-log: '" + dir + "/h/latency_hist.json' is the histogram file"},
+      // The name the dump writes first: truncated by it, then renamed away (found probing).
+      {{"run", "--config", cfg, "--duration", "0.2", "--hist-dir", dir + "/h", "--can-log", dir + "/h/latency_hist.txt.part"},
+       "--can-log: '" + dir + "/h/latency_hist.txt.part' is the histogram file"},
+      // '-' as the CAN log made a file named '-' (the poses' '-' was refused by name).
+      {{"run", "--config", cfg, "--duration", "0.2", "--can-log", "-"}, "--can-log: '-' (standard output) is not supported"},
+      {{"run", "--config", small_config(dir, "can: {log_file: '-'}\n"), "--duration", "0.2"},
+       "can.log_file: '-' (standard output) is not supported"},
       // The histogram folder named as the CSV, or inside the CAN log: made at start, the folder
       // could not be made at exit (the whole run went, then "histograms: NOT written", exit 4).
       {{"run", "--config", small_config(dir, "output: {poses_csv: " + dir + "/hp.csv}\n"), "--duration", "0.2", "--hist-dir",
@@ -923,6 +930,24 @@ TEST(CliFaults, SimRefusesASectionGivenTwice) {
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("dup.yaml:2:1: scan: duplicate key (first given on line 1)"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir + "/rec"));
+}
+
+// Two sims into one folder at once both passed the "already holds a recording" check and mixed
+// their frames under one run's frames.csv and truth (found probing). The folder is locked while
+// recorded: the second is refused by name. The other recorder here is this test.
+TEST(CliFaults, SimIntoAFolderAnotherSimRecordsIsRefused) {
+  const std::string dir = work_dir() + "/sim_lock";
+  fs::create_directories(dir + "/rec");
+  const int held = ::open((dir + "/rec").c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  ASSERT_GE(held, 0);
+  ASSERT_EQ(::flock(held, LOCK_EX | LOCK_NB), 0);
+  const Outcome r = run({"sim", "--out", dir + "/rec", "--frames", "2", "--config", small_config(dir, "")}, 60);
+  ::close(held);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--out '" + dir + "/rec' is being recorded by another sim"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::is_empty(dir + "/rec"));
+  const Outcome ok = run({"sim", "--out", dir + "/rec", "--frames", "2", "--config", small_config(dir, "")}, 60);
+  EXPECT_EQ(ok.code, 0) << ok.err;
 }
 
 // A FIFO where replay writes its CSV or reads its truth, or where view reads its poses: each
@@ -1045,6 +1070,13 @@ TEST(CliFaults, AFileSizeLimitIsAWriteErrorNotADeath) {
   // 19 rows left): removed, as a stopped replay's CSV is.
   EXPECT_NE(rp.err.find("removed the incomplete file"), std::string::npos) << rp.err;
   EXPECT_FALSE(fs::exists(replay_csv)) << slurp(replay_csv);
+  // pattern's PGM cut by the limit was left (found probing: 2048 bytes that look like a pattern).
+  g_child_file_size_limit = 1024;
+  const Outcome pt = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--out", dir + "/cut.pgm"}, 60);
+  g_child_file_size_limit = -1;
+  EXPECT_NE(pt.code, 0) << pt.err;
+  EXPECT_NE(pt.err.find("removed the cut file"), std::string::npos) << pt.err;
+  EXPECT_FALSE(fs::exists(dir + "/cut.pgm")) << "a cut pattern is left";
   // Through a link the file it leads to is the one cut: removing the link left it (found probing).
   const std::string target = dir + "/dated.csv", link = dir + "/latest.csv";
   fs::create_symlink(target, link);
@@ -1685,6 +1717,19 @@ TEST(CliFaults, AClosedStandardStreamIsNotWrittenIntoAnOutput) {
     EXPECT_EQ(slurp(dir + "/r.csv").rfind("frame,", 0), 0u) << "fd " << fd << " closed: replay's CSV does not begin with its header";
     EXPECT_EQ(only(slurp(dir + "/r.csv"), csv_line), "") << "fd " << fd << " closed: replay's CSV holds other lines";
   }
+}
+
+// `run --hist-dir h > h/latency_hist.txt`: the dump at exit was renamed over the captured status
+// lines and summary, exit 0 (found probing). Refused like a CSV on standard output.
+TEST(CliFaults, AHistogramFileThatIsStandardOutputIsRefused) {
+  const std::string dir = work_dir() + "/hist_stdout";
+  fs::create_directories(dir + "/h");
+  g_child_stdout = dir + "/h/latency_hist.txt";
+  const Outcome r = run({"run", "--config", small_config(dir, ""), "--duration", "0.2", "--hist-dir", dir + "/h"});
+  g_child_stdout.clear();
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--hist-dir: the histogram file " + dir + "/h/latency_hist.txt is this process's standard output"),
+            std::string::npos) << r.err;
 }
 
 // Two runs on one histogram folder each said they wrote their histograms there, while one had

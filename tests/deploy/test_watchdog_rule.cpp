@@ -120,6 +120,31 @@ TEST_F(NotifySocket, BadAddressIsReported) {
   EXPECT_NE(n.problem().find("relative/socket"), std::string::npos);
 }
 
+// WATCHDOG_USEC=1 had the main loop send ~95,000 pings in 2.5 s; beyond ~9.2e15 µs the
+// nanoseconds overflowed (no pings, no word). Bounded to 20 ms .. 1e12 µs, each end said.
+TEST_F(NotifySocket, WatchdogIntervalIsBoundedAndTheBoundSaid) {
+  ::setenv("NOTIFY_SOCKET", path.c_str(), 1);
+  ::setenv("WATCHDOG_PID", std::to_string(::getpid()).c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "1", 1);
+  SystemdNotifier low = SystemdNotifier::from_environment();
+  EXPECT_EQ(low.watchdog_interval_ns(), 20'000'000);
+  EXPECT_NE(low.problem().find("WATCHDOG_USEC 1 is below 20000"), std::string::npos) << low.problem();
+  ::setenv("WATCHDOG_USEC", "9300000000000000", 1);
+  SystemdNotifier high = SystemdNotifier::from_environment();
+  EXPECT_EQ(high.watchdog_interval_ns(), 1'000'000'000'000'000);
+  EXPECT_NE(high.problem().find("beyond 1e12"), std::string::npos) << high.problem();
+}
+
+// A NOTIFY_SOCKET nobody listens on: READY cannot be sent, and the caller is told (run said
+// "READY sent" regardless, found probing).
+TEST_F(NotifySocket, ReadyToASocketNobodyListensOnFails) {
+  const std::string gone = path + ".gone";
+  ::setenv("NOTIFY_SOCKET", gone.c_str(), 1);
+  SystemdNotifier n = SystemdNotifier::from_environment();
+  ASSERT_TRUE(n.enabled()) << n.problem();
+  EXPECT_FALSE(n.ready("running"));
+}
+
 // The heartbeat carries the stall to the bus: bit 7 of byte 0, as ipc/sempose.dbc declares.
 TEST(HeartbeatStalledBit, EncodedAtBitSevenAndDeclaredInTheDbc) {
   sempose::ipc::Heartbeat h;

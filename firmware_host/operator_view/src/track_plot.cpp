@@ -105,7 +105,11 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
       }
       dat << "\n\n";
     }
-    if (!dat) throw std::runtime_error(stem + ".dat: cannot write");
+    dat.close();  // flushed here, so a full disk or a file-size limit shows (it was left cut, found probing)
+    if (!dat) {
+      std::remove((stem + ".dat").c_str());
+      throw std::runtime_error(stem + ".dat: cannot write (disk full or a file-size limit?); removed the cut file");
+    }
   }
   // Recordings without timestamps (t_ns all 0) are plotted over the frame number.
   bool timed = false;
@@ -140,7 +144,11 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
       gp << "\n";
     }
     gp << "unset multiplot\n";
-    if (!gp) throw std::runtime_error(stem + ".gp: cannot write");
+    gp.close();
+    if (!gp) {
+      std::remove((stem + ".gp").c_str());
+      throw std::runtime_error(stem + ".gp: cannot write (disk full or a file-size limit?); removed the cut file");
+    }
   }
   const std::string cmd = "cd " + shell_quoted(dir) + " && gnuplot " + shell_quoted(leaf + ".gp");
   const pid_t pid = fork();
