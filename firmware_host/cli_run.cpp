@@ -19,6 +19,7 @@
 #include <fstream>
 #include <memory>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "cli.hpp"
@@ -260,6 +261,21 @@ int sempose::cli::run(int argc, char** argv) {
                ", which carries the run's status lines and warnings: the two would be written over each other; name a file\n";
       }
     }
+    // output.keep_previous copies each over NAME.1: that must not be an input or the other output.
+    if (cfg.output.keep_previous) {
+      for (const auto& [key, path, other] : {std::tuple<const char*, std::string, std::string>{"output.poses_csv", cfg.output.poses_csv, can_log},
+                                             {can_log_key, can_log, cfg.output.poses_csv}}) {
+        if (path.empty() || path == "-" || cli::is_null_device(path)) continue;
+        const std::string kept = path + ".1";
+        if (const std::string why = output_overwrites_input(std::string(key) + "'s kept copy (output.keep_previous)", kept, inputs);
+            !why.empty()) {
+          bad += "  " + why + "\n";
+        } else if (cli::same_output(kept, other)) {
+          bad += std::string("  ") + key + "'s kept copy '" + kept + "' (output.keep_previous) is the other output '" + other +
+                 "': name the files otherwise\n";
+        }
+      }
+    }
     if (cli::same_output(can_log, cfg.output.poses_csv)) {  // the same path, a hard or symbolic link
       bad += std::string("  ") + can_log_key + ": '" + can_log + "' is also output.poses_csv: the CAN log and the poses " +
              "would be written into one file; name two files\n";
@@ -364,6 +380,7 @@ int sempose::cli::run(int argc, char** argv) {
               pipe->frame_pool_bytes() / 1048576.0);
   std::printf("output: %s%s%s\n", run.can.description.c_str(), run.csv ? ", CSV " : "",
               run.csv ? cfg.output.poses_csv.c_str() : "");
+  for (const std::string& note : run.output_notes) std::printf("%s\n", note.c_str());
 
   // ---- RT memory and latency setup, then start
   if (cfg.pipeline.lock_memory) {

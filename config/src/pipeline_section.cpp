@@ -70,6 +70,7 @@ void read_output(Section& s, OutputConfig& c) {
   s.opt("hist_dir", c.hist_dir);
   s.opt("csv_buffer_poses", c.csv_buffer_poses, 16u, 16'777'216u);
   s.opt("print_status", c.print_status);
+  s.opt("keep_previous", c.keep_previous);
 }
 
 }  // namespace sempose::config

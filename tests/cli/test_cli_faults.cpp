@@ -1732,6 +1732,41 @@ TEST(CliFaults, AHistogramFileThatIsStandardOutputIsRefused) {
             std::string::npos) << r.err;
 }
 
+// A restart (the packaged unit's Restart=on-failure after a watchdog kill or a crash) emptied the
+// candump log and CSV of the run that failed, 2 s later (found probing). output.keep_previous
+// keeps the last run's files as NAME.1; a kept copy that would be the other output is refused.
+TEST(CliFaults, KeepPreviousKeepsTheLastRunsOutputs) {
+  const std::string dir = work_dir() + "/keep_previous";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string csv = dir + "/poses.csv", can_log = dir + "/can.log";
+  const std::string cfg =
+      small_config(dir, "output: {poses_csv: " + csv + ", keep_previous: true}\ncan: {log_file: " + can_log + "}\n");
+  Outcome r = run({"run", "--config", cfg, "--duration", "0.3"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(csv + ".1")) << "a first run has nothing to keep";
+  const std::string first_csv = slurp(csv), first_log = slurp(can_log);
+  ASSERT_FALSE(first_log.empty());
+  r = run({"run", "--config", cfg, "--duration", "0.3"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(slurp(csv + ".1"), first_csv);
+  EXPECT_EQ(slurp(can_log + ".1"), first_log);
+  EXPECT_NE(slurp(can_log), first_log) << "the second run's own log";
+  EXPECT_NE(r.out.find("output.keep_previous: the last run's " + can_log + " kept as " + can_log + ".1"), std::string::npos) << r.out;
+  // Off (the default): nothing kept beside the outputs.
+  fs::remove(csv + ".1");
+  r = run({"run", "--config", small_config(dir, "output: {poses_csv: " + csv + "}\ncan: {log_file: " + can_log + "}\n"),
+           "--duration", "0.3"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(csv + ".1"));
+  r = run({"run", "--config",
+           small_config(dir, "output: {poses_csv: " + can_log + ".1, keep_previous: true}\ncan: {log_file: " + can_log + "}\n"),
+           "--duration", "0.3"});
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("can.log_file's kept copy '" + can_log + ".1' (output.keep_previous) is the other output"),
+            std::string::npos) << r.err;
+}
+
 // Two runs on one histogram folder each said they wrote their histograms there, while one had
 // renamed the other's away (found probing). The folder is locked like the files: a run refused on
 // it names it, and leaves its CAN log as it was. The other writer here is this test.

@@ -174,6 +174,21 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     out.gpio_sink.reset();
     return refuse(rt::Status::failure(e.what()));
   }
+  // output.keep_previous: the last run's files kept as NAME.1 before they are emptied (a unit
+  // restarted after a watchdog kill or a crash erased the record of the run that failed, 2 s
+  // later; found probing). A copy, so the locks and open files stay on the outputs themselves. A
+  // copy that fails is said and the run goes on: the new run's poses matter more than the old.
+  if (cfg.output.keep_previous) {
+    for (const std::string& file : {can_log, cfg.output.poses_csv}) {
+      struct stat last {};
+      if (file.empty() || file == "-" || ::stat(file.c_str(), &last) != 0 || !S_ISREG(last.st_mode) || last.st_size == 0) continue;
+      std::error_code ec;
+      std::filesystem::copy_file(file, file + ".1", std::filesystem::copy_options::overwrite_existing, ec);
+      out.output_notes.push_back(ec ? "warning: output.keep_previous: the last run's " + file + " could not be kept as " + file +
+                                          ".1 (" + ec.message() + "): it is emptied now"
+                                    : "output.keep_previous: the last run's " + file + " kept as " + file + ".1");
+    }
+  }
   // Every output open: now the candump log (a regular file; SocketCAN has none) and the CSV are
   // emptied, and the CSV's header written.
   if (!out.output_locks[log_lock].empty_file())

@@ -45,6 +45,9 @@ struct OutputConfig {
   std::string hist_dir;           // "" = no histogram dump at exit (overridden by --hist-dir)
   std::uint32_t csv_buffer_poses = 65536;  // RT-side ring of poses waiting for the CSV writer
   bool print_status = true;       // one status line per stats period on stdout
+  // Each start keeps the last run's poses CSV and candump log as NAME.1 before emptying them: a
+  // restarted service (a watchdog kill, a crash) no longer erases the record of the run that failed.
+  bool keep_previous = false;
 };
 
 // Reads `pipeline:` (config/src/pipeline_section.cpp).

@@ -68,6 +68,7 @@ struct RunSetup {
   std::unique_ptr<can_output::GpioPoseSink> gpio_sink;
   std::vector<OutputLock> output_locks;         // the CSV's, the candump log's and the histogram folder's, held to the end
   pipeline::PoseSink* sink = nullptr;           // the head of the chain the pipeline publishes to
+  std::vector<std::string> output_notes;        // what setup did to the outputs (output.keep_previous), for the log
   std::unique_ptr<pipeline::Pipeline> pipeline;
 
   // Failed writes of the file outputs so far (CSV, candump log).
