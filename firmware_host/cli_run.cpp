@@ -8,6 +8,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <iterator>
@@ -318,6 +319,17 @@ int sempose::cli::run(int argc, char** argv) {
                  "', a file the run writes: the histograms need a folder there; name another folder\n";
         }
       }
+    }
+    // A umask that takes the owner's write bit (0777, 0200): each output is created (to lock it)
+    // and opened again, and the second open was refused — "cannot create: Permission denied" in
+    // a folder the user may write (found probing). Root is not refused the second open.
+    const mode_t mask = ::umask(0);  // read it: umask() only reads by setting
+    ::umask(mask);
+    if ((mask & S_IWUSR) != 0 && ::geteuid() != 0) {
+      char text[16];
+      std::snprintf(text, sizeof text, "%04o", static_cast<unsigned>(mask & 0777));
+      bad += std::string("  the process's umask ") + text + " leaves the owner no write permission on the files the run " +
+             "creates, and it opens each of them twice: run it with umask 022 or 077 (a unit's UMask=)\n";
     }
     if (!bad.empty()) {
       std::fprintf(stderr, "sempose run: invalid output:\n%s", bad.c_str());

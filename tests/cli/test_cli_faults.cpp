@@ -1832,6 +1832,30 @@ TEST(CliFaults, AThreadLimitIsNamedBeforeAnyOutputIsTouched) {
   }
 }
 
+// A reader's shared lock (a backup or log shipper copying the CAN log under `flock -s`) was
+// reported as another sempose writing it (found probing). The holder and the lock's kind are
+// named from /proc/locks; the writer's message names the process too.
+TEST(CliFaults, TheProcessHoldingAnOutputsLockIsNamed) {
+  const std::string dir = work_dir() + "/lock_holder";
+  fs::create_directories(dir);
+  const std::string can_log = dir + "/can.log";
+  std::ofstream(can_log) << "OLD\n";
+  const std::string me = "process " + std::to_string(::getpid());
+  for (const int kind : {LOCK_SH, LOCK_EX}) {
+    const int held = ::open(can_log.c_str(), O_RDONLY | O_CLOEXEC);
+    ASSERT_GE(held, 0);
+    ASSERT_EQ(::flock(held, kind | LOCK_NB), 0);
+    const Outcome r = run({"run", "--config", small_config(dir, "can: {log_file: " + can_log + "}\n"), "--duration", "0.2"});
+    ::close(held);
+    EXPECT_EQ(r.code, 2) << r.err;
+    const std::string said = kind == LOCK_SH ? "can.log_file: '" + can_log + "' is locked by " + me + " with a reader's shared lock"
+                                             : "can.log_file: '" + can_log + "' is being written by another process (" + me +
+                                                   " holds a lock on it";
+    EXPECT_NE(r.err.find(said), std::string::npos) << r.err;
+    EXPECT_EQ(slurp(can_log), "OLD\n");
+  }
+}
+
 // Every output opened before any is emptied (found probing: under `ulimit -n 6` a run whose CSV
 // could not be opened, "Too many open files", had already emptied the last run's CAN log). For
 // each limit on open files that refuses the run: the last run's outputs are as they were, and

@@ -4,18 +4,63 @@
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "sempose/hal/can_candump_log.hpp"
 #include "sempose/hal/source_factory.hpp"
 #include "sempose/pose/tracker.hpp"
 
 namespace sempose::session {
+
+namespace {
+// Who holds the flock that refused us on the file open at fd, from /proc/locks ("N: FLOCK
+// ADVISORY WRITE|READ PID MAJ:MIN:INODE 0 EOF", device numbers in hex): a reader's shared lock
+// (a backup or log shipper copying the file under `flock -s`) was reported as another writer
+// (found probing). Empty when not found.
+struct LockHolder {
+  long pid = 0;
+  bool shared = false;
+};
+LockHolder lock_holder(int fd) {
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) return {};
+  std::ifstream locks("/proc/locks");
+  for (std::string line; std::getline(locks, line);) {
+    std::istringstream in(line);
+    std::string n, kind, advisory, mode, dev;
+    long pid = 0;
+    if (!(in >> n >> kind) || kind != "FLOCK" || !(in >> advisory >> mode >> pid >> dev)) continue;  // "->": a waiter
+    unsigned maj = 0, min = 0;
+    unsigned long long ino = 0;
+    if (std::sscanf(dev.c_str(), "%x:%x:%llu", &maj, &min, &ino) != 3) continue;
+    if (maj == major(st.st_dev) && min == minor(st.st_dev) && ino == st.st_ino) return {pid, mode == "READ"};
+  }
+  return {};
+}
+
+// The refusal for a file or folder another process holds a lock on.
+rt::Status held_elsewhere(const std::string& what, const std::string& path, int fd, const std::string& writers_clash) {
+  const LockHolder h = lock_holder(fd);
+  const std::string who = h.pid > 0 ? "process " + std::to_string(h.pid) : "another process";
+  if (h.shared) {
+    return rt::Status::failure(what + ": '" + path + "' is locked by " + who + " with a reader's shared lock (a backup or " +
+                               "log shipper copying it?); it would be emptied under the reader: start again when it is " +
+                               "done, or name another file");
+  }
+  return rt::Status::failure(what + ": '" + path + "' is being written by another process (" +
+                             (h.pid > 0 ? who : std::string("it")) + " holds a lock on it: another sempose run or replay); " +
+                             writers_clash);
+}
+}  // namespace
 
 OutputLock::~OutputLock() {
   if (fd_ >= 0) ::close(fd_);
@@ -31,13 +76,11 @@ rt::Status OutputLock::acquire(const std::string& what, const std::string& path)
   if (fd < 0) return rt::Status::failure(what + ": cannot open '" + path + "' (" + std::strerror(errno) + ")");
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
     const int err = errno;
+    rt::Status refused = err == EWOULDBLOCK
+                             ? held_elsewhere(what, path, fd, "two writers would mix their lines: name another file or stop the other one")
+                             : rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
     ::close(fd);
-    if (err == EWOULDBLOCK) {
-      return rt::Status::failure(what + ": '" + path + "' is being written by another process (it holds a lock on " +
-                                 "it: another sempose run or replay); two writers would mix their lines: name another " +
-                                 "file or stop the other one");
-    }
-    return rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
+    return refused;
   }
   if (fd_ >= 0) ::close(fd_);
   fd_ = fd;
@@ -52,13 +95,12 @@ rt::Status OutputLock::acquire_folder(const std::string& what, const std::string
   if (fd < 0) return rt::Status::failure(what + ": cannot open the folder '" + path + "' (" + std::strerror(errno) + ")");
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
     const int err = errno;
+    rt::Status refused =
+        err == EWOULDBLOCK
+            ? held_elsewhere(what, path, fd, "the two runs' histograms would replace each other: name another folder or stop the other one")
+            : rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
     ::close(fd);
-    if (err == EWOULDBLOCK) {
-      return rt::Status::failure(what + ": '" + path + "' is being written by another process (another sempose run " +
-                                 "holds a lock on it); the two runs' histograms would replace each other: name " +
-                                 "another folder or stop the other one");
-    }
-    return rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
+    return refused;
   }
   if (fd_ >= 0) ::close(fd_);
   fd_ = fd;
