@@ -523,7 +523,6 @@ int sempose::cli::run(int argc, char** argv) {
       }
     }
   }
-  const double run_s = (rt::now_ns() - t0) * 1e-9;
   // What follows (stop line, histograms, summary) may wait a little for a slow reader, in all
   // at most 2 s: the run has stopped, and a reader that never reads must not keep it alive.
   session::set_stdio_patience_ms(2000);
@@ -541,6 +540,10 @@ int sempose::cli::run(int argc, char** argv) {
     std::_Exit(6);  // joining would wait for the stuck stage forever
   }
   pipe->join();
+  // The run's time up to the stages' end, their drain included: the poses they make draining are
+  // counted, and a stop already pending as the loop began gave `poses=2 poses_per_s=394633.0
+  // duration_s=0.00` over the microseconds before the drain (found probing).
+  const double run_s = (rt::now_ns() - t0) * 1e-9;
   run.sink->flush();
   const bool csv_ok = run.csv ? run.csv->close() : true;
   if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal_name(stop_signal));
