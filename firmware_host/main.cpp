@@ -29,7 +29,7 @@ constexpr Command kCommands[] = {
 };
 
 int usage(std::FILE* out) {
-  std::fprintf(out, "usage: sempose <command> [options]   (sempose <command> --help)\n\ncommands:\n");
+  std::fprintf(out, "usage: sempose <command> [options]   (sempose <command> --help; sempose --version)\n\ncommands:\n");
   for (const auto& c : kCommands) std::fprintf(out, "  %-9s %s\n", c.name, c.help);
   return out == stdout ? 0 : 2;
 }
@@ -62,6 +62,11 @@ int main(int argc, char** argv) {
   ::signal(SIGXFSZ, SIG_IGN);
   if (argc < 2) return usage(stderr);
   if (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) return usage(stdout);
+  // Which build a lab runs (a bug report, the package against the binary): the package's version.
+  if (std::strcmp(argv[1], "--version") == 0) {
+    std::printf("sempose %s\n", SEMPOSE_VERSION);
+    return 0;
+  }
   for (const auto& c : kCommands) {
     if (std::strcmp(argv[1], c.name) != 0) continue;
     // Every command handles its own expected errors; anything that still escapes (a library

@@ -181,6 +181,14 @@ std::string field(const std::string& text, const std::string& key) {
   return text.substr(a, text.find_first_of(" \n", a) - a);
 }
 
+// Which build a lab runs (a bug report, the package against the binary): `sempose --version`
+// prints the project's version (there was none, found probing).
+TEST(CliFaults, VersionIsPrinted) {
+  const Outcome r = run({"--version"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(std::regex_match(r.out, std::regex(R"(sempose \d+\.\d+\.\d+\n)"))) << r.out;
+}
+
 TEST(CliFaults, CsvOnAFullDiskIsReportedAndFailsTheRun) {
   const std::string dir = work_dir();
   const std::string cfg = small_config(dir, "output: {poses_csv: /dev/full}\ncan: {log_file: " + dir + "/can.log}\n");
