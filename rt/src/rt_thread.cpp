@@ -106,6 +106,12 @@ Status RtThread::start(const RtThreadConfig& config, std::function<void()> body)
 
   bool realtime = config.priority > 0;
   bool pin = config.cpu >= 0 && config.cpu < cpus;
+  // Pinned where the config says, also outside the cores the process was started on (taskset, a
+  // unit's CPUAffinity=): said, since whoever started it meant to keep it there (it went unsaid).
+  if (pin && !CPU_ISSET(config.cpu, &g_process_cpus)) {
+    warning_ += "thread '" + config.name + "': pinned to cpu " + std::to_string(config.cpu) +
+                " as configured, outside the cores the process was started on (taskset, a unit's CPUAffinity=). ";
+  }
   int rc = try_create(realtime, pin);
   if (rc == EPERM && realtime) {
     const std::string msg = "thread '" + config.name + "': SCHED_FIFO priority " +

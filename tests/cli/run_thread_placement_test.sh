@@ -56,6 +56,14 @@ if ! grep -q 'warning: pipeline.non_rt_cpu: cannot pin the main thread to cpu 10
   echo "FAIL non_rt_cpu 1000 not said:"; cat "$work/err.txt"; exit 1
 fi
 echo "ok   non_rt_cpu 1000: said"
+# Started on core 1 only (taskset, a unit's CPUAffinity=) with the stages pinned to core 0: they
+# run where the config says, and the run says it is outside the cores it was started on (it went
+# unsaid, found probing).
+taskset -c 1 "$bin" run --config "$work/run.yaml" --duration 0.3 >"$work/out.txt" 2>"$work/err.txt" || { echo "FAIL exit $?"; exit 1; }
+if ! grep -q "thread 'sp-acquire': pinned to cpu 0 as configured, outside the cores the process was started on" "$work/out.txt"; then
+  echo "FAIL a stage pinned outside the process's start cores not said:"; grep -E '^warning|^thread' "$work/out.txt"; exit 1
+fi
+echo "ok   taskset -c 1 with the stages on core 0: said"
 # Launched under a real-time policy (`chrt -f 5`, a unit's CPUSchedulingPolicy=): every thread
 # inherited SCHED_FIFO 5 — the main loop, the appearance worker and the priority-0 stages —
 # while the placement lines said SCHED_OTHER (found probing). Each is SCHED_OTHER now, as its
