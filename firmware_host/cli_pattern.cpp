@@ -159,6 +159,18 @@ int sempose::cli::pattern(int argc, char** argv) {
     pat.bits = first.bits;
     pat.pixels.resize(static_cast<std::size_t>(size) * size);
     const double maxv = first.bits > 8 ? 65535.0 : 255.0;
+    // Frames of few grey levels (a PGM of maxval 1 or 3, a dim 8-bit scan): their mean's fractions
+    // are what averaging gained, and rounding it back to those levels threw them away — the
+    // pattern of a maxval-3 recording came out 0/1/2 and tracked nothing (found probing). The
+    // mean is written stretched by a whole factor into the sample range; the tracker's
+    // correlation does not see a gain, and the note says so.
+    const double brightest = *std::max_element(mean.begin(), mean.end());
+    const double stretch = brightest > 0 && brightest < maxv / 4 ? std::floor(maxv / std::ceil(brightest)) : 1.0;
+    for (auto& m : mean) m *= stretch;
+    if (stretch > 1) {
+      std::printf("sempose pattern: the frames use grey levels up to %g only: the mean written x%g (%g of %g) to keep the "
+                  "precision averaging gained\n", std::ceil(brightest), stretch, std::ceil(brightest) * stretch, maxv);
+    }
     for (long y = 0; y < size; ++y) {
       for (long x = 0; x < size; ++x) {
         const double fx = x0 + x, fy = y0 + y;

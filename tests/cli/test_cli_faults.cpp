@@ -15,12 +15,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -400,6 +402,41 @@ TEST(CliFaults, SimAndPatternNameBadInputBeforeMakingOutputs) {
           60);
   if (r.code != 0) return ::testing::AssertionFailure() << "pattern: " << r.err;
   return ::testing::AssertionSuccess();
+}
+
+// A recording of few grey levels (a PGM of maxval 3: a 2-bit detector, a heavily binned ADC):
+// `pattern` rounded the frames' mean back to those levels (samples 0/1/2 written under maxval
+// 255) and the replay with it tracked nothing (found probing). The mean is written stretched,
+// its fractions kept, and said.
+TEST(CliFaults, APatternOfFewGreyLevelsKeepsWhatAveragingGained) {
+  const std::string dir = work_dir() + "/few_levels";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 20));
+  fs::create_directories(dir + "/rec3");
+  for (const auto& e : fs::directory_iterator(dir + "/rec")) {
+    const std::string name = e.path().filename().string();
+    if (e.path().extension() != ".pgm") {
+      fs::copy_file(e.path(), dir + "/rec3/" + name);
+      continue;
+    }
+    const sempose::hal::Image img = sempose::hal::read_pgm(e.path().string());
+    std::ofstream out(dir + "/rec3/" + name, std::ios::binary);
+    out << "P5\n" << img.width << " " << img.height << "\n3\n";
+    for (const std::uint16_t v : img.pixels) out.put(static_cast<char>(std::lround(v * 3.0 / 255.0)));
+  }
+  const Outcome p = run({"pattern", "--frames", dir + "/rec3", "--center", "160,120", "--size", "64", "--average", "10", "--out",
+                         dir + "/p3.pgm"});
+  ASSERT_EQ(p.code, 0) << p.err;
+  EXPECT_NE(p.out.find("the frames use grey levels up to 3 only: the mean written x85"), std::string::npos) << p.out;
+  const sempose::hal::Image pat = sempose::hal::read_pgm(dir + "/p3.pgm");
+  const std::set<std::uint16_t> levels(pat.pixels.begin(), pat.pixels.end());
+  EXPECT_GT(levels.size(), 20u) << "the mean of 10 frames rounded back to the frames' 4 levels";
+  const Outcome r = run({"replay", "--frames", dir + "/rec3", "--pattern", dir + "/p3.pgm", "--truth",
+                         dir + "/rec3/ground_truth.csv", "--out", dir + "/o.csv"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(field(r.out, "poses_compared"), "0") << "nothing tracked with the pattern of the recording's own frames: " << r.out;
+  EXPECT_EQ(field(r.out, "false_tracking"), "0") << r.out;
 }
 
 // A recording larger than an address-space limit (ulimit -v) leaves room for is refused at once
