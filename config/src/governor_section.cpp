@@ -43,8 +43,23 @@ void check_governor_against_scan(Section& root, const GovernorConfig& c, const S
                           ": no dwell could keep to it" + scan_range);
     return;
   }
-  // Both ranges overlap; the governor's dwells are multiples of the scan's step inside both.
+  // The first dwell (the start search's, and with the governor off every ROI's) was moved to the
+  // scan's limits or its step without a word: 50 ran at 100, 10001 at 10000, 125 at 150 (found
+  // probing). The scan generator cannot run it as given: named, as `sim --dwell` names it.
   const std::uint64_t step = scan.dwell_step_ns == 0 ? 1 : scan.dwell_step_ns;
+  if (c.initial_dwell_ns < scan.min_dwell_ns || c.initial_dwell_ns > scan.max_dwell_ns) {
+    root.errors().add(root.mark(), "governor.initial_dwell_ns",
+                      std::to_string(c.initial_dwell_ns) + " is outside scan.min_dwell_ns..scan.max_dwell_ns [" +
+                          std::to_string(scan.min_dwell_ns) + ", " + std::to_string(scan.max_dwell_ns) +
+                          "]: the scan generator cannot run it");
+  } else if (c.initial_dwell_ns % step != 0) {
+    const std::uint64_t below = c.initial_dwell_ns / step * step, above = below + step;
+    root.errors().add(root.mark(), "governor.initial_dwell_ns",
+                      std::to_string(c.initial_dwell_ns) + " is not a multiple of scan.dwell_step_ns " + std::to_string(step) +
+                          ": the scan generator would run " + std::to_string(scan.round_dwell_ns(c.initial_dwell_ns)) +
+                          "; give " + std::to_string(below) + " or " + std::to_string(above));
+  }
+  // Both ranges overlap; the governor's dwells are multiples of the scan's step inside both.
   const std::uint64_t lo = std::max(scan.min_dwell_ns, c.min_dwell_ns);
   const std::uint64_t hi = c.max_dwell_ns == 0 ? scan.max_dwell_ns : std::min(scan.max_dwell_ns, c.max_dwell_ns);
   const bool scan_has_one = (scan.min_dwell_ns + step - 1) / step * step <= scan.max_dwell_ns;  // else scan's error

@@ -340,6 +340,19 @@ TEST(AppConfig, GovernorDwellLimitsMustOverlapTheScans) {
   EXPECT_NE(e.find("governor.min_dwell_ns: 210 and governor.max_dwell_ns 240 leave [210, 240] within the scan's limits: no "
                        "multiple of scan.dwell_step_ns 50"), std::string::npos)
       << e;
+  // The first dwell the scan generator cannot run as given was moved without a word (50 ran at
+  // 100, 125 at 150; found probing): named with the scan's limits or step.
+  e.clear();
+  EXPECT_FALSE(parse_app_config(scan + "governor: {enabled: false, initial_dwell_ns: 50}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("governor.initial_dwell_ns: 50 is outside scan.min_dwell_ns..scan.max_dwell_ns [100, 10000]"),
+            std::string::npos) << e;
+  e.clear();
+  EXPECT_FALSE(parse_app_config(scan + "governor: {enabled: false, initial_dwell_ns: 125}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("governor.initial_dwell_ns: 125 is not a multiple of scan.dwell_step_ns 50: the scan generator would run "
+                   "150; give 100 or 150"),
+            std::string::npos) << e;
+  e.clear();
+  EXPECT_TRUE(parse_app_config(scan + "governor: {enabled: false, initial_dwell_ns: 150}\n", "g.yaml", c, e)) << e;
 }
 
 TEST(AppConfig, MissingFileIsAnError) {
