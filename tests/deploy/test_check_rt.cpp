@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -27,6 +28,8 @@ class FakeProbe : public check_rt::LiveProbe {
     auto it = lines.find(line);
     return it == lines.end() ? check_rt::GpioLineUse{} : it->second;
   }
+  std::string comedi;  // what the node is not (empty: a Comedi device)
+  std::string comedi_problem(const std::string&) override { return comedi; }
 };
 
 // A tuned 4-core PREEMPT_RT box: cores 2,3 isolated, throttling off, performance governor,
@@ -295,6 +298,24 @@ TEST_F(FakeTree, ComediSourceNeedsItsDevice) {
   only(r, "scan-device");
   put("dev/comedi0", "");
   EXPECT_EQ(find(run(), "scan-device").level, Level::kPass);
+  // A node that is no Comedi device (a regular file, /dev/null, a folder): FAIL, as `run` refuses it.
+  probe.comedi = "is not a Comedi device (COMEDI_DEVINFO: Inappropriate ioctl for device)";
+  r = run();
+  EXPECT_EQ(find(r, "scan-device").level, Level::kFail);
+  EXPECT_NE(find(r, "scan-device").detail.find("comedi.device '/dev/comedi0' is not a Comedi device"), std::string::npos);
+}
+
+// The live probe asks the node what `run` asks it: a regular file, /dev/null and a folder are no
+// Comedi device (check-rt passed them as "present and writable"; found probing).
+TEST(LinuxProbe, NodesThatAreNoComediDeviceAreNamed) {
+  check_rt::LinuxProbe probe;
+  const std::string file = ::testing::TempDir() + "not_comedi_" + std::to_string(::getpid());
+  std::ofstream(file) << "x";
+  for (const std::string& path : {file, std::string("/dev/null")}) {
+    EXPECT_NE(probe.comedi_problem(path).find("is not a Comedi device"), std::string::npos) << path;
+  }
+  EXPECT_NE(probe.comedi_problem("/").find("cannot be opened"), std::string::npos);
+  std::remove(file.c_str());
 }
 
 TEST(CpuLists, ParseKernelFormats) {

@@ -367,7 +367,7 @@ void check_gpio(const config::GpioConfig& g, LiveProbe& probe, std::vector<Check
   if (!any) out.push_back(pass("gpio", "no GPIO lines configured"));
 }
 
-void check_scan_source(const SystemTree& tree, const config::AppConfig& cfg, std::vector<CheckResult>& out) {
+void check_scan_source(const SystemTree& tree, const config::AppConfig& cfg, LiveProbe& probe, std::vector<CheckResult>& out) {
   if (cfg.source == "comedi") {
     // The card's device node must exist and be read/writable by this user (the package's
     // udev rule gives the sempose group /dev/comedi*); the card itself is probed at start.
@@ -379,8 +379,11 @@ void check_scan_source(const SystemTree& tree, const config::AppConfig& cfg, std
     } else if (!tree.writable(rel)) {
       out.push_back(fail("scan-device", "Comedi device '" + dev + "' not writable by this user",
                          "add the user to the sempose group (package udev rule) or fix the node's permissions"));
+    } else if (const std::string why = probe.comedi_problem(tree.path(rel)); !why.empty()) {
+      out.push_back(fail("scan-device", "comedi.device '" + dev + "' " + why,
+                         "check comedi.device against /dev/comedi* (comedi_config; the card's driver loaded)"));
     } else {
-      out.push_back(pass("scan-device", "Comedi device " + dev + " present and writable"));
+      out.push_back(pass("scan-device", "Comedi device " + dev + " present, writable, answers COMEDI_DEVINFO"));
     }
   } else if (cfg.source == "sim") {
     out.push_back(pass("scan-device", "simulated SEM: no scan device needed"));
@@ -423,7 +426,7 @@ std::vector<CheckResult> run_checks(const SystemTree& tree, const config::AppCon
   check_limits(tree, p, out);
   check_can(tree, cfg.can, probe, out);
   check_gpio(cfg.gpio, probe, out);
-  check_scan_source(tree, cfg, out);
+  check_scan_source(tree, cfg, probe, out);
   return out;
 }
 

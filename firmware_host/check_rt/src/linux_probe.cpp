@@ -1,12 +1,15 @@
 // LinuxProbe: RTM_GETLINK for one interface (IFLA_LINKINFO -> kind, and for real CAN
 // controllers IFLA_CAN_BITTIMING / IFLA_CAN_STATE, as `ip -details link show` prints them),
 // and libgpiod v1 for a line's owner (as `gpioinfo` prints it).
+#include <fcntl.h>
 #include <gpiod.h>
+#include <linux/comedi.h>
 #include <linux/can/netlink.h>
 #include <linux/if_link.h>
 #include <linux/netlink.h>
 #include <linux/rtnetlink.h>
 #include <net/if.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -109,6 +112,17 @@ GpioLineUse LinuxProbe::gpio_line(const std::string& chip_name, int offset) {
   }
   gpiod_chip_close(chip);
   return u;
+}
+
+std::string LinuxProbe::comedi_problem(const std::string& path) {
+  // As `run` opens it (hal/comedi: ComediDevice), without blocking on a FIFO.
+  const int fd = ::open(path.c_str(), O_RDWR | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return std::string("cannot be opened (") + std::strerror(errno) + ")";
+  comedi_devinfo info{};
+  const bool comedi = ::ioctl(fd, COMEDI_DEVINFO, &info) == 0;
+  const int err = errno;
+  ::close(fd);
+  return comedi ? std::string() : std::string("is not a Comedi device (COMEDI_DEVINFO: ") + std::strerror(err) + ")";
 }
 
 }  // namespace sempose::check_rt

@@ -1,5 +1,6 @@
 // What the checks cannot read from /proc or /sys: a CAN link's kind, bitrate and controller
-// state (rtnetlink) and whether a GPIO line is already held (the GPIO character device).
+// state (rtnetlink), whether a GPIO line is already held (the GPIO character device) and
+// whether a device node is a Comedi card (its ioctl).
 // LinuxProbe asks the running kernel; tests pass their own LiveProbe.
 #pragma once
 
@@ -28,12 +29,17 @@ class LiveProbe {
   virtual ~LiveProbe() = default;
   virtual std::optional<CanLinkDetails> can_link(const std::string& interface) = 0;
   virtual GpioLineUse gpio_line(const std::string& chip, int line) = 0;
+  // Why the node at `path` is not a Comedi device the run could open (empty: it is one). A
+  // folder, a FIFO or /dev/null passed as "present and writable" where `run` then refused it
+  // (found probing): the node is asked what `run` asks it, COMEDI_DEVINFO.
+  virtual std::string comedi_problem(const std::string& path) = 0;
 };
 
 class LinuxProbe final : public LiveProbe {
  public:
   std::optional<CanLinkDetails> can_link(const std::string& interface) override;
   GpioLineUse gpio_line(const std::string& chip, int line) override;
+  std::string comedi_problem(const std::string& path) override;
 };
 
 }  // namespace sempose::check_rt
