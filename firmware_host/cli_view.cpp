@@ -242,6 +242,23 @@ int sempose::cli::view(int argc, char** argv) {
         ++pictures;
       }
     }
+    // ROI pictures an earlier view left in --out (a longer run, another --every): they stayed among
+    // this view's, a picture of frame 15 that is not this run's frame 15 (found probing). View's
+    // own names only (an input of such a name in --out was refused above).
+    {
+      std::vector<std::filesystem::path> earlier;  // listed first, removed after
+      std::error_code ec;
+      for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
+        const std::string name = e.path().filename().string();
+        if (name.rfind("roi_", 0) != 0 || e.path().extension() != ".png" || !e.is_regular_file(ec)) continue;
+        if (std::find(written.begin(), written.end(), out_dir + "/" + name) == written.end()) earlier.push_back(e.path());
+      }
+      std::sort(earlier.begin(), earlier.end());
+      std::size_t stale = 0;
+      for (const auto& f : earlier) stale += std::filesystem::remove(f, ec) ? 1 : 0;
+      const std::string example = earlier.empty() ? "" : earlier.front().filename().string();
+      if (stale > 0) std::printf("view: removed %zu ROI picture(s) an earlier view left in %s (%s ...)\n", stale, out_dir.c_str(), example.c_str());
+    }
     std::printf("view: %zu poses, %zu target(s), %.1f%% TRACKING\n", rows.size(), targets.size(), 100.0 * tracked / rows.size());
     if (plot_problem.empty()) std::printf("view: %s/track.png (x, y, phi, score over %s)\n", out_dir.c_str(), "time");
     else std::fprintf(stderr, "sempose view: plot not drawn: %s\n", plot_problem.c_str());  // exit 1: an error, on stderr

@@ -40,6 +40,14 @@ n=$(ls "$work/view"/roi_*.png 2>/dev/null | wc -l)
 dims=$(od -An -tu1 -j16 -N8 "$work/view/roi_000000.png" | awk '{print $3*256+$4 "x" $7*256+$8}')
 [ "$dims" = 320x320 ] && ok "ROI picture 320x320 (160 px ROI, scale 2)" || bad "ROI picture $dims"
 
+# The same folder again with fewer pictures (every 20th): the earlier view's third picture is
+# not this view's and is removed, said (it stayed among the new ones, found probing).
+rc=0; "$bin" view --poses "$work/poses.csv" --frames "$work/rec" --pattern "$work/gripper.pgm" --every 20 --roi 160 \
+  --out "$work/view" >"$work/view_again.txt" 2>&1 || rc=$?
+n=$(ls "$work/view"/roi_*.png 2>/dev/null | wc -l)
+[ "$rc" -eq 0 ] && [ "$n" -eq 2 ] && grep -q "removed 1 ROI picture(s) an earlier view left" "$work/view_again.txt" \
+  && ok "an earlier view's extra ROI picture removed, said" || { cat "$work/view_again.txt"; bad "view again: rc $rc, $n pictures"; }
+
 # A run's CSV (two targets, target index column): the plot alone, one line per target.
 cat >"$work/run.yaml" <<YAML
 sim: {clock: virtual, targets: [{texture: {source: gripper}, size: [96, 72], start: [300, 300, 0]},
