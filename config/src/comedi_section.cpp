@@ -7,12 +7,18 @@ namespace sempose::config {
 namespace {
 
 // A [a, b] pair of volts within a DAQ card's possible output (no card goes beyond ±100 V).
-void volts_pair(Section& s, const char* key, std::vector<double>& v, bool may_be_empty) {
+// True when the pair was read whole: an item out of range is read as 0, so [1e300, -1e300] was
+// also called "equal" after its two range errors (found probing); the callers compare only a
+// pair read whole.
+bool volts_pair(Section& s, const char* key, std::vector<double>& v, bool may_be_empty) {
+  const std::size_t errors_before = s.errors().messages().size();
   s.opt_list(key, v, -100.0, 100.0);
-  if (v.empty() && may_be_empty) return;
+  if (v.empty() && may_be_empty) return false;
   if (v.size() != 2) {
     s.error(key, std::to_string(v.size()) + " value(s) given; expected two, e.g. [-5, 5]");
+    return false;
   }
+  return s.errors().messages().size() == errors_before;
 }
 
 }  // namespace
@@ -36,17 +42,17 @@ void read_comedi(Section& s, ComediConfig& out) {
     s.error("y_channel", std::to_string(out.y_channel) + " is the same AO channel as comedi.x_channel");
   }
   s.opt("ao_range", out.ao_range, 0, 255);
-  volts_pair(s, "x_volts", out.x_volts, false);
-  volts_pair(s, "y_volts", out.y_volts, false);
+  const bool x_whole = volts_pair(s, "x_volts", out.x_volts, false);
+  const bool y_whole = volts_pair(s, "y_volts", out.y_volts, false);
   volts_pair(s, "park_volts", out.park_volts, false);
-  volts_pair(s, "detector_volts", out.detector_volts, true);
-  if (out.x_volts.size() == 2 && out.x_volts[0] == out.x_volts[1]) {
+  const bool detector_whole = volts_pair(s, "detector_volts", out.detector_volts, true);
+  if (x_whole && out.x_volts[0] == out.x_volts[1]) {
     s.error("x_volts", "left and right are equal: the field would have no width");
   }
-  if (out.y_volts.size() == 2 && out.y_volts[0] == out.y_volts[1]) {
+  if (y_whole && out.y_volts[0] == out.y_volts[1]) {
     s.error("y_volts", "top and bottom are equal: the field would have no height");
   }
-  if (out.detector_volts.size() == 2 && out.detector_volts[0] == out.detector_volts[1]) {
+  if (detector_whole && out.detector_volts[0] == out.detector_volts[1]) {
     s.error("detector_volts", "black and white are equal");
   }
   s.opt("settle_samples", out.settle_samples, 0, 100'000);

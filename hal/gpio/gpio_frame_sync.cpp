@@ -9,15 +9,17 @@
 #include <cstring>
 
 #include "sempose/rt/clock.hpp"
+#include "gpio_chip_open.hpp"
 
 namespace sempose::hal {
 
 std::unique_ptr<GpioFrameSync> GpioFrameSync::open(const GpioLineOptions& o, rt::Status& status) {
   const std::string where = "gpio.chip '" + o.chip + "' gpio.frame_sync_line " + std::to_string(o.line) + ": ";
   std::unique_ptr<GpioFrameSync> s(new GpioFrameSync());
-  s->chip_ = gpiod_chip_open_lookup(o.chip.c_str());
+  std::string why;
+  s->chip_ = open_gpio_chip(o.chip, why);
   if (s->chip_ == nullptr) {
-    status = rt::Status::failure(where + "cannot open the chip: " + std::strerror(errno) +
+    status = rt::Status::failure(where + "cannot open the chip: " + why +
                                  " (`gpiodetect` lists chips; this kernel may have no GPIO support)");
     return nullptr;
   }

@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <cstring>
 
+#include "gpio_chip_open.hpp"
+
 namespace sempose::hal {
 namespace {
 
@@ -31,9 +33,10 @@ gpiod_line* request_output(gpiod_chip* chip, int offset, const GpioOutputOptions
 
 std::unique_ptr<GpioOutputs> GpioOutputs::open(const GpioOutputOptions& o, rt::Status& status) {
   std::unique_ptr<GpioOutputs> g(new GpioOutputs());
-  g->chip_ = gpiod_chip_open_lookup(o.chip.c_str());
+  std::string why;
+  g->chip_ = open_gpio_chip(o.chip, why);
   if (g->chip_ == nullptr) {
-    status = rt::Status::failure("gpio.chip '" + o.chip + "': cannot open the chip: " + std::strerror(errno) +
+    status = rt::Status::failure("gpio.chip '" + o.chip + "': cannot open the chip: " + why +
                                  " (`gpiodetect` lists chips)");
     return nullptr;
   }

@@ -139,3 +139,13 @@ TEST(GpioOpen, MissingChipIsNamedInTheError) {
   EXPECT_FALSE(sync);
   EXPECT_NE(st.message.find("nosuchchip7"), std::string::npos) << st.message;
 }
+
+// A path that exists and is no chip (a folder) was reported as "No such file or directory"
+// (found probing): said as what it is.
+TEST(GpioOpen, APathThatIsNoChipIsSaidAsSuch) {
+  sempose::rt::Status st;
+  auto sync = hal::GpioFrameSync::open({"/tmp", 0, false, "sempose-test"}, st);
+  EXPECT_FALSE(sync);
+  EXPECT_NE(st.message.find("gpio.chip '/tmp'"), std::string::npos) << st.message;
+  EXPECT_NE(st.message.find("it is a folder, not a GPIO chip"), std::string::npos) << st.message;
+}

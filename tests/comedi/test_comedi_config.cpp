@@ -74,6 +74,14 @@ TEST(ComediSection, RefusalsNameKeyValueAndRange) {
   }
 }
 
+// Two volts out of range were read as 0 each and then also called "equal" (found probing).
+TEST(ComediSection, AVoltsPairOutOfRangeIsNotAlsoCalledEqual) {
+  cfg::ComediConfig c;
+  const std::string e = read("{x_volts: [1e300, -1e300]}", c);
+  EXPECT_NE(e.find("comedi.x_volts[0]: 1e300 is outside the allowed range"), std::string::npos) << e;
+  EXPECT_EQ(e.find("equal"), std::string::npos) << e;
+}
+
 TEST(ComediSection, SourceComediIsAcceptedByTheAppConfig) {
   const std::string path = ::testing::TempDir() + "comedi_app.yaml";
   std::ofstream(path) << "source: comedi\ncomedi: {device: /dev/comedi1, trigger: ai_start}\n";
