@@ -325,7 +325,8 @@ int sempose::cli::run(int argc, char** argv) {
     // a folder the user may write (found probing). Root is not refused the second open.
     const mode_t mask = ::umask(0);  // read it: umask() only reads by setting
     ::umask(mask);
-    if ((mask & S_IWUSR) != 0 && ::geteuid() != 0) {
+    const bool makes_files = (!cfg.output.poses_csv.empty() && cfg.output.poses_csv != "-") || !can_log.empty();
+    if ((mask & S_IWUSR) != 0 && ::geteuid() != 0 && makes_files) {
       char text[16];
       std::snprintf(text, sizeof text, "%04o", static_cast<unsigned>(mask & 0777));
       bad += std::string("  the process's umask ") + text + " leaves the owner no write permission on the files the run " +
