@@ -238,16 +238,16 @@ int sempose::cli::run(int argc, char** argv) {
     if (cfg.source == "replay") add_recording(inputs, "replay.frames_dir", cfg.replay.frames_dir);
     const std::string can_log = opt.can_log.empty() && cfg.can.interface.empty() ? cfg.can.log_file : opt.can_log;
     const char* can_log_key = opt.can_log.empty() ? "can.log_file" : "--can-log";
-    for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
-                                    {can_log_key, can_log}}) {
+    // The two files a run writes, by the key that names them.
+    const std::pair<const char*, std::string> file_outputs[] = {{"output.poses_csv", cfg.output.poses_csv}, {can_log_key, can_log}};
+    for (const auto& [key, path] : file_outputs) {
       if (const std::string why = output_overwrites_input(key, path, inputs); !why.empty()) bad += "  " + why + "\n";
     }
     // A new .pgm in the recording's frames folder is read as a frame by the next replay or run
     // of it (found probing: output.poses_csv REC/frame_999999.pgm, or --can-log REC/zz.pgm, ran
     // and every replay of REC after failed on its "wrong magic"). Through a link too.
     if (cfg.source == "replay") {
-      for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
-                                      {can_log_key, can_log}}) {
+      for (const auto& [key, path] : file_outputs) {
         if (!path.empty() && path != "-" && hal::is_pgm_name(cli::resolved_output(path).string()) &&
             cli::output_in_folder(path, cfg.replay.frames_dir)) {
           bad += std::string("  ") + key + ": '" + path + "' is a PGM in the recording's frames folder " + cfg.replay.frames_dir +
@@ -255,8 +255,7 @@ int sempose::cli::run(int argc, char** argv) {
         }
       }
     }
-    for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
-                                    {can_log_key, can_log}}) {
+    for (const auto& [key, path] : file_outputs) {
       if (const char* stream = cli::standard_stream_named(path)) {
         bad += std::string("  ") + key + ": '" + path + "' is this process's " + stream +
                ", which carries the run's status lines and warnings: the two would be written over each other; name a file\n";
@@ -296,8 +295,7 @@ int sempose::cli::run(int argc, char** argv) {
                " is this process's " + stream + ", which carries the run's status lines: it would be written over at exit; " +
                "name another folder\n";
       }
-      for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
-                                      {can_log_key, can_log}}) {
+      for (const auto& [key, path] : file_outputs) {
         if (cli::same_output(path, hist)) {
           bad += std::string("  ") + key + ": '" + path + "' is the histogram file " + hist + " (" +
                  (opt.hist_dir.empty() ? "output.hist_dir" : "--hist-dir") + "), written over it at exit; name another file\n";
@@ -309,8 +307,7 @@ int sempose::cli::run(int argc, char** argv) {
     // probing: the whole run went, then "histograms: NOT written", exit 4).
     if (!hist_dir.empty()) {
       const std::filesystem::path folder = cli::resolved_output(hist_dir);
-      for (const auto& [key, path] : {std::pair<const char*, std::string>{"output.poses_csv", cfg.output.poses_csv},
-                                      {can_log_key, can_log}}) {
+      for (const auto& [key, path] : file_outputs) {
         if (path.empty() || path == "-" || cli::is_null_device(path)) continue;
         const std::filesystem::path file = cli::resolved_output(path);
         if (std::mismatch(file.begin(), file.end(), folder.begin(), folder.end()).first == file.end()) {

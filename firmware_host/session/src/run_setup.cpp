@@ -74,17 +74,7 @@ rt::Status OutputLock::acquire(const std::string& what, const std::string& path)
   if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) return {};  // a device: nothing to mix up
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
   if (fd < 0) return rt::Status::failure(what + ": cannot open '" + path + "' (" + std::strerror(errno) + ")");
-  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
-    const int err = errno;
-    rt::Status refused = err == EWOULDBLOCK
-                             ? held_elsewhere(what, path, fd, "two writers would mix their lines: name another file or stop the other one")
-                             : rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
-    ::close(fd);
-    return refused;
-  }
-  if (fd_ >= 0) ::close(fd_);
-  fd_ = fd;
-  return {};
+  return hold(fd, what, path, "two writers would mix their lines: name another file or stop the other one");
 }
 
 rt::Status OutputLock::acquire_folder(const std::string& what, const std::string& path) {
@@ -93,12 +83,14 @@ rt::Status OutputLock::acquire_folder(const std::string& what, const std::string
   std::filesystem::create_directories(path, ec);
   const int fd = ::open(path.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) return rt::Status::failure(what + ": cannot open the folder '" + path + "' (" + std::strerror(errno) + ")");
+  return hold(fd, what, path, "the two runs' histograms would replace each other: name another folder or stop the other one");
+}
+
+rt::Status OutputLock::hold(int fd, const std::string& what, const std::string& path, const std::string& writers_clash) {
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
     const int err = errno;
-    rt::Status refused =
-        err == EWOULDBLOCK
-            ? held_elsewhere(what, path, fd, "the two runs' histograms would replace each other: name another folder or stop the other one")
-            : rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
+    rt::Status refused = err == EWOULDBLOCK ? held_elsewhere(what, path, fd, writers_clash)
+                                            : rt::Status::failure(what + ": cannot lock '" + path + "' (" + std::strerror(err) + ")");
     ::close(fd);
     return refused;
   }

@@ -49,6 +49,8 @@ class OutputLock {
   bool empty_file() const noexcept;
 
  private:
+  // Takes the exclusive lock on the opened fd and keeps it (closes it when refused).
+  rt::Status hold(int fd, const std::string& what, const std::string& path, const std::string& writers_clash);
   int fd_ = -1;
 };
 
