@@ -17,7 +17,7 @@ constexpr int kMaxTrackedTargets = 4;  // hal::kMaxTargets (config does not depe
 // Checks that need more than one section (run after every section is read).
 void cross_check(Section& root, const AppConfig& c) {
   if (c.source == "replay" && c.replay.frames_dir.empty()) {
-    root.errors().add(root.mark(), "replay.frames_dir", "required when source is replay");
+    root.error_at("replay.frames_dir", "required when source is replay");
   }
   // The simulator's own enabled targets are tracked when no targets: list is given.
   int targets = static_cast<int>(c.targets.size());
@@ -26,9 +26,9 @@ void cross_check(Section& root, const AppConfig& c) {
                                              [](const SimTargetConfig& t) { return t.enabled; }));
   }
   if (targets > kMaxTrackedTargets) {
-    root.errors().add(root.mark(), c.targets.empty() ? "sim.targets" : "targets",
-                      std::to_string(targets) + " targets; at most " + std::to_string(kMaxTrackedTargets) +
-                          " can be tracked");
+    root.error_at(c.targets.empty() ? "sim.targets" : "targets",
+                  std::to_string(targets) + " targets; at most " +
+                      std::to_string(kMaxTrackedTargets) + " can be tracked");
   }
   // A tracking ROI the scan generator refuses would stall after the first pose: the ROI
   // (square, its side clamped to the field's shorter side, as the tracker does:
@@ -38,20 +38,21 @@ void cross_check(Section& root, const AppConfig& c) {
   const int roi_h = roi_w;
   const bool whole_field = roi_w == c.scan.field_w && roi_h == c.scan.field_h;
   if (c.source == "sim" && !whole_field && (roi_w > c.scan.max_roi_w || roi_h > c.scan.max_roi_h)) {
-    root.errors().add(root.mark(), "tracker.roi_size_px",
-                      std::to_string(c.tracker.roi_size_px) + " gives a " + std::to_string(roi_w) + "x" +
-                          std::to_string(roi_h) + " ROI, larger than scan.max_roi_w/h " +
-                          std::to_string(c.scan.max_roi_w) + "x" + std::to_string(c.scan.max_roi_h) +
-                          " (allowed: at most the scan limits, or the whole field)");
+    root.error_at("tracker.roi_size_px",
+                  std::to_string(c.tracker.roi_size_px) + " gives a " + std::to_string(roi_w) +
+                      "x" + std::to_string(roi_h) + " ROI, larger than scan.max_roi_w/h " +
+                      std::to_string(c.scan.max_roi_w) + "x" + std::to_string(c.scan.max_roi_h) +
+                      " (allowed: at most the scan limits, or the whole field)");
   }
   // A pattern larger than the field cannot be found in it (found probing: a 16x16 field failed
   // in setup with "render_sim_pattern: size 128 does not fit the field", no key named). A
   // replay's field is its frames' size, checked when they are read.
   if (c.source != "replay" && c.tracker.pattern_size_px > std::min(c.scan.field_w, c.scan.field_h)) {
-    root.errors().add(root.mark(), "tracker.pattern_size_px",
-                      std::to_string(c.tracker.pattern_size_px) + " px does not fit the " + std::to_string(c.scan.field_w) +
-                          "x" + std::to_string(c.scan.field_h) + " scan field (scan.field_w, scan.field_h): at most " +
-                          std::to_string(std::min(c.scan.field_w, c.scan.field_h)));
+    root.error_at("tracker.pattern_size_px",
+                  std::to_string(c.tracker.pattern_size_px) + " px does not fit the " +
+                      std::to_string(c.scan.field_w) + "x" + std::to_string(c.scan.field_h) +
+                      " scan field (scan.field_w, scan.field_h): at most " +
+                      std::to_string(std::min(c.scan.field_w, c.scan.field_h)));
   }
   // Files: checked for their kind before anything opens them (a directory reads as empty, a
   // FIFO blocks in open(), a device never ends), so a wrong path is a message, not a hang.
@@ -60,10 +61,10 @@ void cross_check(Section& root, const AppConfig& c) {
       const auto& ps = c.targets[i].pattern_sets[j];
       const std::string key = "targets[" + std::to_string(i) + "].pattern_sets[" + std::to_string(j) + "].";
       if (const std::string why = path_kind_problem(ps.file); !ps.file.empty() && !why.empty()) {
-        root.errors().add(root.mark(), key + "file", "'" + ps.file + "' is " + why + " (need a PGM file)");
+        root.error_at(key + "file", "'" + ps.file + "' is " + why + " (need a PGM file)");
       }
       if (const std::string why = path_kind_problem(ps.mask); !ps.mask.empty() && !why.empty()) {
-        root.errors().add(root.mark(), key + "mask", "'" + ps.mask + "' is " + why + " (need a PGM file)");
+        root.error_at(key + "mask", "'" + ps.mask + "' is " + why + " (need a PGM file)");
       }
     }
   }
@@ -71,49 +72,54 @@ void cross_check(Section& root, const AppConfig& c) {
     struct stat st {};
     if (::stat(c.replay.frames_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
       const std::string why = path_kind_problem(c.replay.frames_dir);
-      root.errors().add(root.mark(), "replay.frames_dir",
-                        "'" + c.replay.frames_dir + "' is " + (why.empty() ? std::string("a file") : why) +
-                            " (need a directory of PGM frames)");
+      root.error_at("replay.frames_dir", "'" + c.replay.frames_dir + "' is " +
+                                             (why.empty() ? std::string("a file") : why) +
+                                             " (need a directory of PGM frames)");
     }
   }
   if (c.output.poses_csv == "-") {
     // `sempose run` prints its status lines on stdout; poses there would be mixed into them.
-    root.errors().add(root.mark(), "output.poses_csv",
-                      "'-' (standard output) is not supported here: stdout carries the run's status lines; name a file");
+    root.error_at("output.poses_csv",
+                  "'-' (standard output) is not supported here: stdout carries the run's status "
+                  "lines; name a file");
   } else if (const std::string why = output_path_problem(c.output.poses_csv);
              !c.output.poses_csv.empty() && !why.empty()) {
-    root.errors().add(root.mark(), "output.poses_csv", "'" + c.output.poses_csv + "' cannot be written: it is " + why);
+    root.error_at("output.poses_csv",
+                  "'" + c.output.poses_csv + "' cannot be written: it is " + why);
   }
   if (c.can.interface.empty() && c.can.log_file == "-") {
     // As for the poses: '-' reads as "standard output" elsewhere, but a file named '-' was made
     // in the working folder (found probing).
-    root.errors().add(root.mark(), "can.log_file",
-                      "'-' (standard output) is not supported here: stdout carries the run's status lines; name a file");
+    root.error_at("can.log_file",
+                  "'-' (standard output) is not supported here: stdout carries the run's status "
+                  "lines; name a file");
   } else if (const std::string why = output_path_problem(c.can.log_file);
              c.can.interface.empty() && !c.can.log_file.empty() && !why.empty()) {
-    root.errors().add(root.mark(), "can.log_file", "'" + c.can.log_file + "' cannot be written: it is " + why);
+    root.error_at("can.log_file", "'" + c.can.log_file + "' cannot be written: it is " + why);
   }
   if (const std::string why = output_dir_problem(c.output.hist_dir); !c.output.hist_dir.empty() && !why.empty()) {
-    root.errors().add(root.mark(), "output.hist_dir", "'" + c.output.hist_dir + "' cannot hold histograms: it is " + why);
+    root.error_at("output.hist_dir",
+                  "'" + c.output.hist_dir + "' cannot hold histograms: it is " + why);
   }
   if (c.pipeline.schedule.size() > 16) {  // Pipeline::kMaxSchedule
-    root.errors().add(root.mark(), "pipeline.schedule",
-                      std::to_string(c.pipeline.schedule.size()) + " entries; at most 16 are allowed");
+    root.error_at("pipeline.schedule",
+                  std::to_string(c.pipeline.schedule.size()) + " entries; at most 16 are allowed");
   }
   for (int t : c.pipeline.schedule) {
     if (t >= targets) {
-      root.errors().add(root.mark(), "pipeline.schedule",
-                        std::to_string(t) + " is not a target index (targets: " + std::to_string(targets) +
-                            ", allowed [0, " + std::to_string(std::max(0, targets - 1)) + "])");
+      root.error_at("pipeline.schedule", std::to_string(t) + " is not a target index (targets: " +
+                                             std::to_string(targets) + ", allowed [0, " +
+                                             std::to_string(std::max(0, targets - 1)) + "])");
     }
   }
   // A target the schedule leaves out is never scanned: no pose, no state, not even LOST, for
   // the whole run (it used to run so, its summary line poses=0).
   for (int t = 0; !c.pipeline.schedule.empty() && t < targets && t <= kMaxTrackedTargets; ++t) {
     if (std::find(c.pipeline.schedule.begin(), c.pipeline.schedule.end(), t) == c.pipeline.schedule.end()) {
-      root.errors().add(root.mark(), "pipeline.schedule",
-                        "target " + std::to_string(t) + " is never named: it would never be scanned or reported " +
-                            "(name every target at least once, or remove it from the targets)");
+      root.error_at("pipeline.schedule",
+                    "target " + std::to_string(t) +
+                        " is never named: it would never be scanned or reported " +
+                        "(name every target at least once, or remove it from the targets)");
     }
   }
 }
@@ -143,7 +149,7 @@ void resolve_sim_data(Section& root, const std::string& config_path, AppConfig& 
     if (find_data_file(path, config_path, resolved, problem)) {
       path = resolved;
     } else if (c.source == "sim") {
-      root.errors().add(root.mark(), key, path + ": " + problem);
+      root.error_at(key, path + ": " + problem);
     }
   };
   for (std::size_t i = 0; i < c.sim.targets.size(); ++i) {

@@ -33,14 +33,16 @@ void check_governor_against_scan(Section& root, const GovernorConfig& c, const S
       " (allowed: 0, or within scan.min_dwell_ns..scan.max_dwell_ns [" + std::to_string(scan.min_dwell_ns) + ", " +
       std::to_string(scan.max_dwell_ns) + "])";
   if (c.min_dwell_ns > scan.max_dwell_ns) {
-    root.errors().add(root.mark(), "governor.min_dwell_ns",
-                      std::to_string(c.min_dwell_ns) + " is above scan.max_dwell_ns " + std::to_string(scan.max_dwell_ns) +
-                          ": the scan generator would refuse every scan" + scan_range);
+    root.error_at("governor.min_dwell_ns",
+                  std::to_string(c.min_dwell_ns) + " is above scan.max_dwell_ns " +
+                      std::to_string(scan.max_dwell_ns) +
+                      ": the scan generator would refuse every scan" + scan_range);
   }
   if (c.max_dwell_ns != 0 && c.max_dwell_ns < scan.min_dwell_ns) {
-    root.errors().add(root.mark(), "governor.max_dwell_ns",
-                      std::to_string(c.max_dwell_ns) + " is below scan.min_dwell_ns " + std::to_string(scan.min_dwell_ns) +
-                          ": no dwell could keep to it" + scan_range);
+    root.error_at("governor.max_dwell_ns", std::to_string(c.max_dwell_ns) +
+                                               " is below scan.min_dwell_ns " +
+                                               std::to_string(scan.min_dwell_ns) +
+                                               ": no dwell could keep to it" + scan_range);
     return;
   }
   // The first dwell (the start search's, and with the governor off every ROI's) was moved to the
@@ -48,27 +50,30 @@ void check_governor_against_scan(Section& root, const GovernorConfig& c, const S
   // probing). The scan generator cannot run it as given: named, as `sim --dwell` names it.
   const std::uint64_t step = scan.dwell_step_ns == 0 ? 1 : scan.dwell_step_ns;
   if (c.initial_dwell_ns < scan.min_dwell_ns || c.initial_dwell_ns > scan.max_dwell_ns) {
-    root.errors().add(root.mark(), "governor.initial_dwell_ns",
-                      std::to_string(c.initial_dwell_ns) + " is outside scan.min_dwell_ns..scan.max_dwell_ns [" +
-                          std::to_string(scan.min_dwell_ns) + ", " + std::to_string(scan.max_dwell_ns) +
-                          "]: the scan generator cannot run it");
+    root.error_at("governor.initial_dwell_ns",
+                  std::to_string(c.initial_dwell_ns) +
+                      " is outside scan.min_dwell_ns..scan.max_dwell_ns [" +
+                      std::to_string(scan.min_dwell_ns) + ", " + std::to_string(scan.max_dwell_ns) +
+                      "]: the scan generator cannot run it");
   } else if (c.initial_dwell_ns % step != 0) {
     const std::uint64_t below = c.initial_dwell_ns / step * step, above = below + step;
-    root.errors().add(root.mark(), "governor.initial_dwell_ns",
-                      std::to_string(c.initial_dwell_ns) + " is not a multiple of scan.dwell_step_ns " + std::to_string(step) +
-                          ": the scan generator would run " + std::to_string(scan.round_dwell_ns(c.initial_dwell_ns)) +
-                          "; give " + std::to_string(below) + " or " + std::to_string(above));
+    root.error_at("governor.initial_dwell_ns",
+                  std::to_string(c.initial_dwell_ns) + " is not a multiple of scan.dwell_step_ns " +
+                      std::to_string(step) + ": the scan generator would run " +
+                      std::to_string(scan.round_dwell_ns(c.initial_dwell_ns)) + "; give " +
+                      std::to_string(below) + " or " + std::to_string(above));
   }
   // Both ranges overlap; the governor's dwells are multiples of the scan's step inside both.
   const std::uint64_t lo = std::max(scan.min_dwell_ns, c.min_dwell_ns);
   const std::uint64_t hi = c.max_dwell_ns == 0 ? scan.max_dwell_ns : std::min(scan.max_dwell_ns, c.max_dwell_ns);
   const bool scan_has_one = (scan.min_dwell_ns + step - 1) / step * step <= scan.max_dwell_ns;  // else scan's error
   if (lo <= hi && scan_has_one && (lo + step - 1) / step * step > hi) {
-    root.errors().add(root.mark(), "governor.min_dwell_ns",
-                      std::to_string(c.min_dwell_ns) + " and governor.max_dwell_ns " + std::to_string(c.max_dwell_ns) +
-                          " leave [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                          "] within the scan's limits: no multiple of scan.dwell_step_ns " +
-                          std::to_string(scan.dwell_step_ns) + " in it: no dwell keeps to both");
+    root.error_at("governor.min_dwell_ns",
+                  std::to_string(c.min_dwell_ns) + " and governor.max_dwell_ns " +
+                      std::to_string(c.max_dwell_ns) + " leave [" + std::to_string(lo) + ", " +
+                      std::to_string(hi) +
+                      "] within the scan's limits: no multiple of scan.dwell_step_ns " +
+                      std::to_string(scan.dwell_step_ns) + " in it: no dwell keeps to both");
   }
 }
 

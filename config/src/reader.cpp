@@ -128,6 +128,45 @@ void Section::error(const char* key, const std::string& what) {
   errors_->add(has_key ? node_[key].Mark() : node_.Mark(), key_path(key), what);
 }
 
+void Section::error_at(const std::string& dotted_key, const std::string& what) {
+  // Walks "a.b[2].c" from this node; stops at the first part the file does not have.
+  YAML::Mark mark = node_.Mark();
+  const YAML::Node root = node_;  // const: a lookup of a missing key must not insert it
+  YAML::Node at = root;
+  std::size_t i = 0;
+  while (i < dotted_key.size() && at.IsDefined() && !at.IsNull()) {
+    std::size_t end = dotted_key.find_first_of(".[", i);
+    if (end == std::string::npos) end = dotted_key.size();
+    const std::string name = dotted_key.substr(i, end - i);
+    if (!name.empty()) {
+      if (!at.IsMap()) break;
+      const YAML::Node next = static_cast<const YAML::Node&>(at)[name];
+      if (!next.IsDefined()) break;
+      at.reset(next);
+      mark = at.Mark();
+    }
+    i = end;
+    while (i < dotted_key.size() && dotted_key[i] == '[') {
+      const std::size_t close = dotted_key.find(']', i);
+      if (close == std::string::npos || !at.IsSequence()) {
+        i = dotted_key.size();
+        break;
+      }
+      const std::size_t index = std::strtoul(dotted_key.c_str() + i + 1, nullptr, 10);
+      if (index >= at.size()) {
+        i = dotted_key.size();
+        break;
+      }
+      const YAML::Node next = static_cast<const YAML::Node&>(at)[index];
+      at.reset(next);
+      mark = at.Mark();
+      i = close + 1;
+    }
+    if (i < dotted_key.size() && dotted_key[i] == '.') ++i;
+  }
+  errors_->add(mark, key_path(dotted_key.c_str()), what);
+}
+
 void Section::finish() {
   if (finished_) return;
   finished_ = true;

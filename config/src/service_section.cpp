@@ -16,11 +16,12 @@ void check_service_against_scan(Section& root, const ServiceConfig& service, con
   const std::int64_t full_field_ns = scan.scan_time_ns(scan.field_w, scan.field_h, initial_dwell_ns);
   const std::int64_t needed_ms = (2 * full_field_ns + 999'999) / 1'000'000;
   if (static_cast<std::int64_t>(service.stall_timeout_ms) < needed_ms) {
-    root.errors().add(root.mark(), "service.stall_timeout_ms",
-                      std::to_string(service.stall_timeout_ms) + " is below " + std::to_string(needed_ms) +
-                          " ms, twice the full-field scan at governor.initial_dwell_ns (" +
-                          std::to_string(scan.field_w) + "x" + std::to_string(scan.field_h) + " px at " +
-                          std::to_string(initial_dwell_ns) + " ns): a start search would count as a stall");
+    root.error_at(
+        "service.stall_timeout_ms",
+        std::to_string(service.stall_timeout_ms) + " is below " + std::to_string(needed_ms) +
+            " ms, twice the full-field scan at governor.initial_dwell_ns (" +
+            std::to_string(scan.field_w) + "x" + std::to_string(scan.field_h) + " px at " +
+            std::to_string(initial_dwell_ns) + " ns): a start search would count as a stall");
   }
 }
 

@@ -496,5 +496,32 @@ TEST(ConfigFaults, APatternLargerThanTheFieldIsRefused) {
   EXPECT_NE(e.find("tracker.pattern_size_px: 128 px does not fit the 100x100 scan field"), std::string::npos) << e;
 }
 
+// Checks that span sections (a pattern file that is missing, an output that cannot be written, a
+// schedule naming no target) said file:1:1 (noticed probing); they now point at the key's value,
+// or at its nearest written parent when the key is a default.
+TEST(ConfigFaults, ACrossSectionErrorIsLocatedAtItsKey) {
+  AppConfig c;
+  std::string e;
+  const std::string text =
+      "source: sim\n"
+      "targets:\n"
+      "  - name: a\n"
+      "    pattern_sets:\n"
+      "      - {file: here.pgm, nm_per_px: 40, dwell_ns: 2000}\n"
+      "      - {file: missing.pgm, nm_per_px: 20, dwell_ns: 2000}\n"
+      "output:\n"
+      "  poses_csv: /proc/nope/p.csv\n"
+      "pipeline:\n"
+      "  schedule: [0, 3]\n";
+  EXPECT_FALSE(parse_app_config(text, "l.yaml", c, e));
+  EXPECT_NE(e.find("l.yaml:6:16: targets[0].pattern_sets[1].file: 'missing.pgm' is missing"), std::string::npos) << e;
+  EXPECT_NE(e.find("l.yaml:8:14: output.poses_csv: '/proc/nope/p.csv' cannot be written"), std::string::npos) << e;
+  EXPECT_NE(e.find("l.yaml:10:13: pipeline.schedule: 3 is not a target index"), std::string::npos) << e;
+  EXPECT_EQ(e.find(":1:1:"), std::string::npos) << e;
+  // A key left at its default is located at the nearest parent the file has.
+  EXPECT_FALSE(parse_app_config("source: replay\nreplay:\n  loop: true\n", "r.yaml", c, e));
+  EXPECT_NE(e.find("r.yaml:3:3: replay.frames_dir: required when source is replay"), std::string::npos) << e;
+}
+
 }  // namespace
 }  // namespace sempose::config

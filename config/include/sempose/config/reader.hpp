@@ -78,6 +78,11 @@ class Section {
   Errors& errors() noexcept { return *errors_; }
   const YAML::Mark mark() const { return node_.Mark(); }
   void error(const char* key, const std::string& what);
+  // An error about a key named by its path below this section ("output.poses_csv",
+  // "targets[0].pattern_sets[1].file"), located at that key's line, or at its nearest written
+  // parent when the key itself is not in the file (a default). Checks that span sections use it:
+  // they used to point at the file's first line.
+  void error_at(const std::string& dotted_key, const std::string& what);
   void finish();
 
  private:
