@@ -54,7 +54,10 @@ int sempose::cli::check_rt(int argc, char** argv) {
   config::AppConfig cfg;
   if (!config_path.empty()) {
     std::string errors;
-    if (!config::load_app_config(config_path, cfg, errors)) {
+    // Outputs this user cannot write are one of the checks (FAIL outputs), not a config error
+    // that hid every RT check (found probing: check-rt as the service user before its log folder
+    // was made stopped at "invalid config").
+    if (!config::load_app_config(config_path, cfg, errors, config::OutputCheck::kLeaveToCaller)) {
       std::fprintf(stderr, "sempose check-rt: invalid config:\n%s", errors.c_str());
       return 2;
     }

@@ -15,7 +15,7 @@ namespace {
 constexpr int kMaxTrackedTargets = 4;  // hal::kMaxTargets (config does not depend on hal)
 
 // Checks that need more than one section (run after every section is read).
-void cross_check(Section& root, const AppConfig& c) {
+void cross_check(Section& root, const AppConfig& c, OutputCheck outputs) {
   if (c.source == "replay" && c.replay.frames_dir.empty()) {
     root.error_at("replay.frames_dir", "required when source is replay");
   }
@@ -82,10 +82,6 @@ void cross_check(Section& root, const AppConfig& c) {
     root.error_at("output.poses_csv",
                   "'-' (standard output) is not supported here: stdout carries the run's status "
                   "lines; name a file");
-  } else if (const std::string why = output_path_problem(c.output.poses_csv);
-             !c.output.poses_csv.empty() && !why.empty()) {
-    root.error_at("output.poses_csv",
-                  "'" + c.output.poses_csv + "' cannot be written: it is " + why);
   }
   if (c.can.interface.empty() && c.can.log_file == "-") {
     // As for the poses: '-' reads as "standard output" elsewhere, but a file named '-' was made
@@ -93,13 +89,9 @@ void cross_check(Section& root, const AppConfig& c) {
     root.error_at("can.log_file",
                   "'-' (standard output) is not supported here: stdout carries the run's status "
                   "lines; name a file");
-  } else if (const std::string why = output_path_problem(c.can.log_file);
-             c.can.interface.empty() && !c.can.log_file.empty() && !why.empty()) {
-    root.error_at("can.log_file", "'" + c.can.log_file + "' cannot be written: it is " + why);
   }
-  if (const std::string why = output_dir_problem(c.output.hist_dir); !c.output.hist_dir.empty() && !why.empty()) {
-    root.error_at("output.hist_dir",
-                  "'" + c.output.hist_dir + "' cannot hold histograms: it is " + why);
+  if (outputs == OutputCheck::kRefuse) {
+    for (const OutputProblem& p : output_problems(c)) root.error_at(p.key, p.what);
   }
   if (c.pipeline.schedule.size() > 16) {  // Pipeline::kMaxSchedule
     root.error_at("pipeline.schedule",
@@ -165,9 +157,28 @@ void resolve_sim_data(Section& root, const std::string& config_path, AppConfig& 
 
 }  // namespace
 
+std::vector<OutputProblem> output_problems(const AppConfig& c) {
+  std::vector<OutputProblem> out;
+  if (const std::string why = output_path_problem(c.output.poses_csv);
+      !c.output.poses_csv.empty() && c.output.poses_csv != "-" && !why.empty()) {
+    out.push_back(
+        {"output.poses_csv", "'" + c.output.poses_csv + "' cannot be written: it is " + why});
+  }
+  if (const std::string why = output_path_problem(c.can.log_file);
+      c.can.interface.empty() && !c.can.log_file.empty() && c.can.log_file != "-" && !why.empty()) {
+    out.push_back({"can.log_file", "'" + c.can.log_file + "' cannot be written: it is " + why});
+  }
+  if (const std::string why = output_dir_problem(c.output.hist_dir);
+      !c.output.hist_dir.empty() && !why.empty()) {
+    out.push_back(
+        {"output.hist_dir", "'" + c.output.hist_dir + "' cannot hold histograms: it is " + why});
+  }
+  return out;
+}
+
 namespace {
 bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, AppConfig& result,
-                     std::string& error_text);
+                     std::string& error_text, OutputCheck outputs);
 }  // namespace
 
 const std::vector<std::string>& app_config_sections() {
@@ -181,25 +192,27 @@ std::vector<KeyInfo> config_keys(const std::string& text) {
   Errors errors("(catalog)");
   AppConfig out;
   std::string ignored;
-  read_app_config("(catalog)", load_text(text, errors), errors, out, ignored);
+  read_app_config("(catalog)", load_text(text, errors), errors, out, ignored, OutputCheck::kRefuse);
   return errors.keys();
 }
 
-bool load_app_config(const std::string& path, AppConfig& result, std::string& error_text) {
+bool load_app_config(const std::string& path, AppConfig& result, std::string& error_text,
+                     OutputCheck outputs) {
   Errors errors(path);
   YAML::Node node = load_file(path, errors);
-  return read_app_config(path, node, errors, result, error_text);
+  return read_app_config(path, node, errors, result, error_text, outputs);
 }
 
-bool parse_app_config(const std::string& text, const std::string& path, AppConfig& result, std::string& error_text) {
+bool parse_app_config(const std::string& text, const std::string& path, AppConfig& result,
+                      std::string& error_text, OutputCheck outputs) {
   Errors errors(path);
   YAML::Node node = load_text(text, errors);
-  return read_app_config(path, node, errors, result, error_text);
+  return read_app_config(path, node, errors, result, error_text, outputs);
 }
 
 namespace {
 bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, AppConfig& result,
-                     std::string& error_text) {
+                     std::string& error_text, OutputCheck outputs) {
   // Read into a fresh struct (defaults), hand it over at the end.
   auto fresh = std::make_unique<AppConfig>();
   AppConfig& out = *fresh;
@@ -235,7 +248,7 @@ bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, A
       read_section(root, "service", read_service, out.service);
       check_service_against_scan(root, out.service, out.scan, out.governor.initial_dwell_ns);
       check_governor_against_scan(root, out.governor, out.scan);
-      cross_check(root, out);
+      cross_check(root, out, outputs);
       resolve_sim_data(root, path, out);
     }  // root's destructor reports unknown top-level sections
   } catch (const std::exception& e) {

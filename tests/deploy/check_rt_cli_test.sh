@@ -43,6 +43,17 @@ rc=0; "$bin" check-rt --config "$work/bad.yaml" >"$work/bad.txt" 2>&1 || rc=$?
 [ "$rc" -eq 2 ] && grep -q 'bad.yaml:2:.*pipeline.acquisition.cpu: 2000 is outside the allowed range \[-1, 1023\]' "$work/bad.txt" \
   && ok "bad config: exit 2 naming the key" || { cat "$work/bad.txt"; bad "bad config: rc $rc"; }
 
+# An output this user cannot write is a FAIL line among the checks (exit 3), not a config error
+# that hides them (exit 2).
+printf 'output: {poses_csv: /proc/sempose-nowhere/poses.csv}\n' >"$work/unwritable.yaml"
+rc=0; "$bin" check-rt --config "$work/unwritable.yaml" >"$work/unwritable.txt" 2>&1 || rc=$?
+if [ "$rc" -eq 3 ] && grep -q "^FAIL  outputs .*output.poses_csv: '/proc/sempose-nowhere/poses.csv' cannot be written" "$work/unwritable.txt" \
+   && [ "$(grep -cE '^(PASS|WARN|FAIL)  ' "$work/unwritable.txt")" -eq "$lines" ]; then
+  ok "unwritable output: its own FAIL line among all $lines checks, exit 3"
+else
+  cat "$work/unwritable.txt"; bad "unwritable output: rc $rc"
+fi
+
 # --strict-rt runs the same checks first and refuses on a failure, writing nothing.
 if [ "$want" -eq 3 ]; then
   printf 'output: {poses_csv: %s/poses.csv, hist_dir: %s/hist}\ncan: {log_file: %s/can.log}\nsim: {clock: virtual}\n' \

@@ -282,9 +282,37 @@ TEST_F(FakeTree, GpioLines) {
 TEST_F(FakeTree, ReplaySourceNeedsItsFolder) {
   cfg.source = "replay";
   cfg.replay.frames_dir = (root / "recording").string();
-  EXPECT_EQ(find(run(), "scan-device").level, Level::kFail);
+  const auto missing = find(run(), "scan-device");
+  EXPECT_EQ(missing.level, Level::kFail);
+  EXPECT_NE(missing.fix.find("replay.frames_dir"), std::string::npos) << missing.fix;  // the key that exists
   fs::create_directories(root / "recording");
   EXPECT_EQ(find(run(), "scan-device").level, Level::kPass);
+}
+
+// Outputs this user cannot write are a FAIL line of their own among the RT checks (they were a
+// config error that hid every check: check-rt as the service user before its log folder existed).
+TEST_F(FakeTree, AnOutputThisUserCannotWriteFailsItsOwnLine) {
+  cfg.output.poses_csv = (root / "out" / "poses.csv").string();
+  cfg.can.log_file = (root / "out" / "can.log").string();
+  cfg.output.hist_dir = (root / "out" / "hist").string();
+  fs::create_directories(root / "out");
+  const auto fine = run();
+  only(fine, "");
+  EXPECT_NE(find(fine, "outputs").detail.find("poses CSV " + cfg.output.poses_csv), std::string::npos);
+  put("out/plain", "a file, not a folder\n");
+  cfg.output.poses_csv = (root / "out" / "plain" / "poses.csv").string();
+  put("out/hist", "a file where the histogram folder should be\n");
+  const auto r = run();
+  only(r, "outputs");
+  int failed = 0;
+  for (const auto& x : r) {
+    if (x.name != "outputs") continue;
+    EXPECT_EQ(x.level, Level::kFail) << check_rt::format_result(x);
+    EXPECT_NE(x.fix.find("writable by the user that runs sempose"), std::string::npos) << x.fix;
+    ++failed;
+  }
+  EXPECT_EQ(failed, 2);  // the CSV and the histogram folder, each named; the candump log passes silently
+  EXPECT_EQ(check_rt::exit_code(r), 3);
 }
 
 // source: comedi: the configured device node (under the tree's root) must exist; its fix

@@ -390,10 +390,35 @@ void check_scan_source(const SystemTree& tree, const config::AppConfig& cfg, Liv
   } else if (cfg.source == "replay") {
     std::error_code ec;
     if (std::filesystem::is_directory(cfg.replay.frames_dir, ec)) out.push_back(pass("scan-device", "replay folder " + cfg.replay.frames_dir + " present"));
-    else out.push_back(fail("scan-device", "replay folder '" + cfg.replay.frames_dir + "' missing", "set replay.dir to a recorded sequence"));
+    else
+      out.push_back(fail("scan-device", "replay folder '" + cfg.replay.frames_dir + "' missing",
+                         "set replay.frames_dir to a recorded sequence (a folder of frame_N.pgm)"));
   } else {
     out.push_back(warn("scan-device", "source '" + cfg.source + "': no presence check implemented", "check the device by hand"));
   }
+}
+
+// The outputs as this user sees them (always the live file system, also under --root): the
+// service user may not write a folder the engineer running check-rt can, and the reverse.
+void check_outputs(const config::AppConfig& cfg, std::vector<CheckResult>& out) {
+  const auto problems = config::output_problems(cfg);
+  for (const auto& p : problems) {
+    out.push_back(fail(
+        "outputs", p.key + ": " + p.what,
+        "make the folder writable by the user that runs sempose (the packaged unit: user sempose, "
+        "/var/log/sempose), or name another path"));
+  }
+  if (!problems.empty()) return;
+  std::string what;
+  auto add = [&what](const std::string& name, const std::string& path) {
+    if (path.empty()) return;
+    what += (what.empty() ? "" : ", ") + name + " " + path;
+  };
+  add("poses CSV", cfg.output.poses_csv);
+  if (cfg.can.interface.empty()) add("candump log", cfg.can.log_file);
+  add("histograms in", cfg.output.hist_dir);
+  out.push_back(pass(
+      "outputs", what.empty() ? "no file outputs configured" : what + ": writable by this user"));
 }
 
 }  // namespace
@@ -427,6 +452,7 @@ std::vector<CheckResult> run_checks(const SystemTree& tree, const config::AppCon
   check_can(tree, cfg.can, probe, out);
   check_gpio(cfg.gpio, probe, out);
   check_scan_source(tree, cfg, probe, out);
+  check_outputs(cfg, out);
   return out;
 }
 

@@ -41,12 +41,27 @@ struct AppConfig {
 // files): what a pre-flight check (sempose check-rt, a systemd unit) must find and may open.
 inline std::string scan_device_path(const AppConfig& c) { return c.source == "comedi" ? c.comedi.device : ""; }
 
+// Whether outputs that cannot be written on this machine, as this user, are config errors. A run
+// refuses them; `check-rt` reads the config as the service would and reports them as one of its
+// checks, beside the RT checks an engineer also needs to see (output_problems()).
+enum class OutputCheck { kRefuse, kLeaveToCaller };
+
 // Reads and validates `path` into `out`. On failure returns false and error_text holds
 // one line per problem; `out` then holds defaults plus whatever could be read.
-bool load_app_config(const std::string& path, AppConfig& out, std::string& error_text);
+bool load_app_config(const std::string& path, AppConfig& out, std::string& error_text,
+                     OutputCheck outputs = OutputCheck::kRefuse);
 // The same for YAML text already in memory (tests, the fuzz target); `path` names it in
 // messages and is the folder relative pattern paths resolve against.
-bool parse_app_config(const std::string& text, const std::string& path, AppConfig& out, std::string& error_text);
+bool parse_app_config(const std::string& text, const std::string& path, AppConfig& out,
+                      std::string& error_text, OutputCheck outputs = OutputCheck::kRefuse);
+
+// The configured outputs (poses CSV, candump log, histogram folder) that cannot be written here
+// by this user: the key and the problem ("'/var/log/x.csv' cannot be written: it is ...").
+struct OutputProblem {
+  std::string key;
+  std::string what;
+};
+std::vector<OutputProblem> output_problems(const AppConfig& c);
 // The top-level keys `sempose run` reads (source, scan, sim, ...), in the order it reads them:
 // `sempose sim` reads only scan: and sim: from a run's config but must still refuse a key no
 // part of sempose knows (a typo such as `sim_targets:` ran the default scene).
