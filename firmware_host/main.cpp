@@ -34,9 +34,6 @@ int usage(std::FILE* out) {
   return out == stdout ? 0 : 2;
 }
 
-}  // namespace
-
-namespace {
 // A standard stream started closed (a wrapper's `>&-`, a supervisor that closes them) left its
 // number free, the first file opened took it, and the status lines and warnings went into the
 // candump log or the poses CSV (found probing: run with stdout closed, 10 status lines among the
@@ -45,11 +42,8 @@ namespace {
 void keep_standard_streams_open() {
   for (int fd = 0; fd <= 2; ++fd) {
     if (::fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
-    const int null = ::open("/dev/null", fd == 0 ? O_RDONLY : O_WRONLY);
-    if (null >= 0 && null != fd) {  // the lowest free number is fd (those below are open): not expected
-      ::dup2(null, fd);
-      ::close(null);
-    }
+    // open() takes the lowest free number: fd itself, since every number below it is open by now.
+    ::open("/dev/null", fd == 0 ? O_RDONLY : O_WRONLY);
   }
 }
 }  // namespace
