@@ -78,26 +78,38 @@ constexpr const char* kHistogramJson = "latency_hist.json";
 // and renamed over it only when both are whole: found probing on a 64 KiB tmpfs, the run said
 // "NOT written" but left latency_hist.txt cut mid-line without its Total/Max trailer (the tail
 // a latency check reads) and latency_hist.json empty. A failed dump leaves the last whole one.
-bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p) {
+// `series` is the run's snapshots, made at setup and refreshed here without allocating; the
+// writing itself allocates (streams, formatting), and out of memory there is a failed dump, not
+// the end of the run's report (found probing under `ulimit -v`).
+bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p,
+                     std::vector<rt::HistogramSnapshot>& series) {
   if (dir.empty()) return true;
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  const auto series = p.histograms().snapshot();
-  const std::string txt_path = dir + "/" + kHistogramTxt, json_path = dir + "/" + kHistogramJson;
-  std::ofstream txt(txt_path + ".part");
-  rt::write_cyclictest_histogram(txt, series);
-  txt.close();
-  std::ofstream json(json_path + ".part");
-  rt::write_histogram_json(json, series);
-  json.close();
-  if (!txt || !json || std::rename((txt_path + ".part").c_str(), txt_path.c_str()) != 0 ||
-      std::rename((json_path + ".part").c_str(), json_path.c_str()) != 0) {
-    std::remove((txt_path + ".part").c_str());
-    std::remove((json_path + ".part").c_str());
-    std::fprintf(stderr, "sempose run: cannot write histograms to %s\n", dir.c_str());
-    return false;
+  p.histograms().snapshot_into(series);
+  std::string txt_part, json_part;
+  const char* why = "write error";
+  try {
+    const std::string txt_path = dir + "/" + kHistogramTxt, json_path = dir + "/" + kHistogramJson;
+    txt_part = txt_path + ".part";
+    json_part = json_path + ".part";
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    std::ofstream txt(txt_part);
+    rt::write_cyclictest_histogram(txt, series);
+    txt.close();
+    std::ofstream json(json_part);
+    rt::write_histogram_json(json, series);
+    json.close();
+    if (txt && json && std::rename(txt_part.c_str(), txt_path.c_str()) == 0 &&
+        std::rename(json_part.c_str(), json_path.c_str()) == 0) {
+      return true;
+    }
+  } catch (const std::bad_alloc&) {
+    why = "out of memory (an address-space limit: ulimit -v, RLIMIT_AS)";
   }
-  return true;
+  if (!txt_part.empty()) std::remove(txt_part.c_str());
+  if (!json_part.empty()) std::remove(json_part.c_str());
+  std::fprintf(stderr, "sempose run: cannot write histograms to %s: %s\n", dir.c_str(), why);
+  return false;
 }
 
 // The signals that stop a run cleanly: every one whose default action would end the process
@@ -392,6 +404,13 @@ int sempose::cli::run(int argc, char** argv) {
               run.csv ? cfg.output.poses_csv.c_str() : "");
   for (const std::string& note : run.output_notes) std::printf("%s\n", note.c_str());
 
+  // The histograms' snapshots for the status lines, SIGUSR1 dumps and the summary, made once here:
+  // the main loop and the report at exit refresh them without allocating (under `ulimit -v` just
+  // above the run's need, a status line's snapshot threw std::bad_alloc mid-run and the run ended
+  // without its summary; found probing).
+  std::vector<rt::HistogramSnapshot> snapshots = pipe->histograms().snapshot();
+  rt::HistogramSnapshot e2e_now = pipe->histograms().end_to_end.snapshot();
+
   // ---- RT memory and latency setup, then start
   if (cfg.pipeline.lock_memory) {
     st = rt::lock_process_memory(strict);
@@ -453,73 +472,97 @@ int sempose::cli::run(int argc, char** argv) {
   int stop_signal = 0;
   bool can_detached = false;
   pipeline::StallWatchdog source_watchdog(pipeline::StallWatchdog::timeout_for(run.scan->limits()), t0);
-  while (!pipe->finished()) {
-    const std::int64_t now = rt::now_ns();
-    // Stall watchdog (non-RT): frames must keep coming while running. Virtual-time sources
-    // run as fast as the CPU allows, so the same wall-clock bound holds for them.
-    switch (source_watchdog.update(c.frames_scanned.get(), now)) {
-      case pipeline::StallWatchdog::Change::kStalled:
-        pipe->set_fault(pipeline::kFaultSourceStalled, true);
-        std::printf("fault: the scan source delivered no frame for %.1f s (scan_errors=%llu); state reported LOST\n",
-                    source_watchdog.silent_ns(now) * 1e-9, static_cast<unsigned long long>(c.scan_errors.get()));
-        std::fflush(stdout);
-        break;
-      case pipeline::StallWatchdog::Change::kRecovered:
-        pipe->set_fault(pipeline::kFaultSourceStalled, false);
-        std::printf("fault cleared: the scan source delivers frames again\n");
-        std::fflush(stdout);
-        break;
-      case pipeline::StallWatchdog::Change::kNone:
-        break;
-    }
-    if (opt.duration_s > 0 && now - t0 >= duration_ns) break;
-    const std::int64_t until = std::min(next_status, watchdog.next_due_ns());
-    const timespec wait = rt::to_timespec(std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, until - now)));
-    const int sig = sigtimedwait(&signals, nullptr, &wait);
-    if (is_stop_signal(sig)) {
-      stop_signal = sig;
-      break;
-    }
-    if (sig == SIGUSR1) {
-      const bool written = dump_histograms(hist_dir, *pipe);
-      std::printf("histograms %s %s\n", written ? "written to" : "NOT written (write error) to",
-                  hist_dir.empty() ? "(no --hist-dir)" : hist_dir.c_str());
-    }
-    if (rt::now_ns() >= watchdog.next_due_ns()) watchdog.poll(rt::now_ns());
-    if (rt::now_ns() >= next_status) {
-      // After a time jump (SIGSTOP, a suspended VM) one status line, not one per missed period.
-      next_status = std::max(next_status + period_ns, rt::now_ns() + period_ns);
-      run.flush_outputs();
-      if (run.output_write_errors() > 0 && !(pipe->faults() & pipeline::kFaultOutputWrite)) {
-        pipe->set_fault(pipeline::kFaultOutputWrite, true);
-        std::printf("fault: writing an output file failed (%s)\n", std::strerror(run.last_output_errno()));
-        std::fflush(stdout);
+  // Out of memory here (the status line's and the dump's formatting may allocate; an address-space
+  // limit just above the run's need) stops the run like a stop signal: the stages drain, the
+  // outputs close and the summary says why, instead of an exception leaving them running.
+  bool out_of_memory = false;
+  try {
+    while (!pipe->finished()) {
+      const std::int64_t now = rt::now_ns();
+      // Stall watchdog (non-RT): frames must keep coming while running. Virtual-time sources
+      // run as fast as the CPU allows, so the same wall-clock bound holds for them.
+      switch (source_watchdog.update(c.frames_scanned.get(), now)) {
+        case pipeline::StallWatchdog::Change::kStalled:
+          pipe->set_fault(pipeline::kFaultSourceStalled, true);
+          std::printf(
+              "fault: the scan source delivered no frame for %.1f s (scan_errors=%llu); state "
+              "reported LOST\n",
+              source_watchdog.silent_ns(now) * 1e-9,
+              static_cast<unsigned long long>(c.scan_errors.get()));
+          std::fflush(stdout);
+          break;
+        case pipeline::StallWatchdog::Change::kRecovered:
+          pipe->set_fault(pipeline::kFaultSourceStalled, false);
+          std::printf("fault cleared: the scan source delivers frames again\n");
+          std::fflush(stdout);
+          break;
+        case pipeline::StallWatchdog::Change::kNone:
+          break;
       }
-      // The CAN interface went away (unplugged adapter, `ip link del`) or came back and was
-      // bound again by flush_outputs(): said once each way.
-      if (run.can.channel->detached() != can_detached) {
-        can_detached = !can_detached;
-        if (can_detached)
-          std::printf("fault: CAN interface %s is gone; poses and heartbeats are not sent (counted) until it is back\n",
-                      run.can.channel->name());
-        else
-          std::printf("fault cleared: CAN interface %s is back and bound again\n", run.can.channel->name());
-        std::fflush(stdout);
+      if (opt.duration_s > 0 && now - t0 >= duration_ns) break;
+      const std::int64_t until = std::min(next_status, watchdog.next_due_ns());
+      const timespec wait = rt::to_timespec(
+          std::min<std::int64_t>(50 * rt::kNsPerMs, std::max<std::int64_t>(0, until - now)));
+      const int sig = sigtimedwait(&signals, nullptr, &wait);
+      if (is_stop_signal(sig)) {
+        stop_signal = sig;
+        break;
       }
-      if (cfg.output.print_status) {
-        const auto e2e = pipe->histograms().end_to_end.snapshot();
-        std::printf("t=%.1fs frames=%llu poses=%llu dropped=%llu overruns=%llu dwell_ns=[%llu,%llu] e2e_us_p99=%.0f "
-                    "output_errors=%llu%s\n",
-                    (rt::now_ns() - t0) * 1e-9, static_cast<unsigned long long>(c.frames_scanned.get()),
-                    static_cast<unsigned long long>(c.sent.get()),
-                    static_cast<unsigned long long>(pipe->dropped_frames()),
-                    static_cast<unsigned long long>(c.overruns.get()),
-                    static_cast<unsigned long long>(c.dwell_min_ns.get()),
-                    static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99),
-                    static_cast<unsigned long long>(run.output_write_errors()), source_watchdog.stalled() ? " STALLED" : "");
-        std::fflush(stdout);
+      if (sig == SIGUSR1) {
+        const bool written = dump_histograms(hist_dir, *pipe, snapshots);
+        std::printf("histograms %s %s\n", written ? "written to" : "NOT written (write error) to",
+                    hist_dir.empty() ? "(no --hist-dir)" : hist_dir.c_str());
+      }
+      if (rt::now_ns() >= watchdog.next_due_ns()) watchdog.poll(rt::now_ns());
+      if (rt::now_ns() >= next_status) {
+        // After a time jump (SIGSTOP, a suspended VM) one status line, not one per missed period.
+        next_status = std::max(next_status + period_ns, rt::now_ns() + period_ns);
+        run.flush_outputs();
+        if (run.output_write_errors() > 0 && !(pipe->faults() & pipeline::kFaultOutputWrite)) {
+          pipe->set_fault(pipeline::kFaultOutputWrite, true);
+          std::printf("fault: writing an output file failed (%s)\n",
+                      std::strerror(run.last_output_errno()));
+          std::fflush(stdout);
+        }
+        // The CAN interface went away (unplugged adapter, `ip link del`) or came back and was
+        // bound again by flush_outputs(): said once each way.
+        if (run.can.channel->detached() != can_detached) {
+          can_detached = !can_detached;
+          if (can_detached)
+            std::printf(
+                "fault: CAN interface %s is gone; poses and heartbeats are not sent (counted) "
+                "until it is back\n",
+                run.can.channel->name());
+          else
+            std::printf("fault cleared: CAN interface %s is back and bound again\n",
+                        run.can.channel->name());
+          std::fflush(stdout);
+        }
+        if (cfg.output.print_status) {
+          pipe->histograms().end_to_end.snapshot_into(e2e_now);
+          const rt::HistogramSnapshot& e2e = e2e_now;
+          std::printf(
+              "t=%.1fs frames=%llu poses=%llu dropped=%llu overruns=%llu dwell_ns=[%llu,%llu] "
+              "e2e_us_p99=%.0f "
+              "output_errors=%llu%s\n",
+              (rt::now_ns() - t0) * 1e-9, static_cast<unsigned long long>(c.frames_scanned.get()),
+              static_cast<unsigned long long>(c.sent.get()),
+              static_cast<unsigned long long>(pipe->dropped_frames()),
+              static_cast<unsigned long long>(c.overruns.get()),
+              static_cast<unsigned long long>(c.dwell_min_ns.get()),
+              static_cast<unsigned long long>(c.dwell_max_ns.get()), e2e.percentile_us(0.99),
+              static_cast<unsigned long long>(run.output_write_errors()),
+              source_watchdog.stalled() ? " STALLED" : "");
+          std::fflush(stdout);
+        }
       }
     }
+  } catch (const std::bad_alloc&) {
+    out_of_memory = true;
+    std::printf(
+        "fault: out of memory in the non-RT loop (an address-space limit: ulimit -v, RLIMIT_AS); "
+        "stopping\n");
+    std::fflush(stdout);
   }
   // What follows (stop line, histograms, summary) may wait a little for a slow reader, in all
   // at most 2 s: the run has stopped, and a reader that never reads must not keep it alive.
@@ -531,7 +574,7 @@ int sempose::cli::run(int argc, char** argv) {
   while (!pipe->finished() && rt::now_ns() < drain_deadline) rt::sleep_until_ns(rt::now_ns() + 5 * rt::kNsPerMs);
   if (!pipe->finished()) {
     run.flush_outputs();
-    dump_histograms(hist_dir, *pipe);
+    dump_histograms(hist_dir, *pipe, snapshots);
     std::printf("sempose run: the stages did not drain within service.stop_timeout_ms=%u ms; exiting without them\n",
                 cfg.service.stop_timeout_ms);
     std::fflush(stdout);
@@ -546,10 +589,11 @@ int sempose::cli::run(int argc, char** argv) {
   const bool csv_ok = run.csv ? run.csv->close() : true;
   if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal_name(stop_signal));
   if (pipe->source_ended()) std::printf("the source ended\n");
-  const bool hist_ok = dump_histograms(hist_dir, *pipe);
+  const bool hist_ok = dump_histograms(hist_dir, *pipe, snapshots);
 
   // ---- summary
-  for (const auto& s : pipe->histograms().snapshot()) {
+  pipe->histograms().snapshot_into(snapshots);
+  for (const auto& s : snapshots) {
     // dwell_ns is recorded with 1 ns per bucket (see pipeline_stats.hpp): its unit is ns.
     const char* unit = s.name == "dwell_ns" ? "ns" : "us";
     std::printf("%-7s %-10s n=%llu min=%.1f%s p50=%.0f%s p99=%.0f%s p99.9=%.0f%s max=%.1f%s\n",
@@ -601,8 +645,8 @@ int sempose::cli::run(int argc, char** argv) {
                 static_cast<unsigned long long>(k.timeouts),
                 static_cast<unsigned long long>(k.arm_errors), static_cast<unsigned long long>(k.cancelled));
   }
-  session::RunSummary summary =
-      session::collect_summary(run, run_s, rt::alloc::allocations() - allocs_at_start, source_watchdog.stalls());
+  session::RunSummary summary = session::collect_summary(
+      run, e2e_now, run_s, rt::alloc::allocations() - allocs_at_start, source_watchdog.stalls());
   summary.stdout_lines_lost = session::stdout_lines_lost();
   session::print_summary(stdout, summary);
   if (session::stdout_lines_lost() > summary.stdout_lines_lost) {
@@ -611,7 +655,14 @@ int sempose::cli::run(int argc, char** argv) {
     session::print_summary(stderr, summary);
   }
   // Exit code: 0 only when nothing was lost. 4: an output failed to write; 5: the source stalled;
-  // 6 (above): the stages did not drain within service.stop_timeout_ms.
+  // 6 (above): the stages did not drain within service.stop_timeout_ms; 7: memory ran out in the
+  // non-RT loop and the run was stopped early.
+  if (out_of_memory) {
+    std::fprintf(
+        stderr,
+        "sempose run: stopped early: out of memory in the non-RT loop (ulimit -v, RLIMIT_AS)\n");
+    return 7;
+  }
   if (summary.output_errors > 0 || !csv_ok || summary.can_log_bytes_lost > 0 || !hist_ok) {
     std::fprintf(stderr, "sempose run: output write errors (csv lines lost %llu, candump log bytes lost %llu%s)\n",
                  static_cast<unsigned long long>(summary.csv_lines_lost),

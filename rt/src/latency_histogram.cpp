@@ -75,16 +75,21 @@ void LatencyHistogram::reset() noexcept {
 HistogramSnapshot LatencyHistogram::snapshot() const {
   HistogramSnapshot s;
   s.name = name_;
-  s.count = count_.load(std::memory_order_acquire);
   s.buckets.resize(bucket_count_);
-  for (std::size_t i = 0; i < bucket_count_; ++i) {
+  snapshot_into(s);
+  return s;
+}
+
+void LatencyHistogram::snapshot_into(HistogramSnapshot& s) const noexcept {
+  s.count = count_.load(std::memory_order_acquire);
+  const std::size_t n = std::min(bucket_count_, s.buckets.size());
+  for (std::size_t i = 0; i < n; ++i) {
     s.buckets[i] = buckets_[i].load(std::memory_order_relaxed);
   }
   s.overflows = overflows_.load(std::memory_order_relaxed);
   s.min_ns = min_ns_.load(std::memory_order_relaxed);
   s.max_ns = max_ns_.load(std::memory_order_relaxed);
   s.sum_ns = sum_ns_.load(std::memory_order_relaxed);
-  return s;
 }
 
 void write_cyclictest_histogram(std::ostream& out, std::span<const HistogramSnapshot> series) {

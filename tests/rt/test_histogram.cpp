@@ -64,6 +64,28 @@ TEST(LatencyHistogram, RecordingDoesNotAllocate) {
   EXPECT_EQ(allocs, 0u);
 }
 
+// The non-RT loop refreshes snapshots made at setup: under an address-space limit just above the
+// run's need, a fresh snapshot each status period (80 kB) threw std::bad_alloc mid-run and the run
+// ended without its summary (found probing).
+TEST(LatencyHistogram, ASnapshotIsRefreshedWithoutAllocating) {
+  LatencyHistogram h("e2e");
+  HistogramSnapshot s = h.snapshot();
+  for (int i = 0; i < 1000; ++i) h.record_ns(250'000 + i);
+  std::uint64_t allocs = 0;
+  {
+    sempose::rt::alloc::ScopedArm arm;
+    h.snapshot_into(s);
+    allocs = sempose::rt::alloc::this_thread_allocations();
+  }
+  EXPECT_EQ(allocs, 0u);
+  const HistogramSnapshot fresh = h.snapshot();
+  EXPECT_EQ(s.count, 1000u);
+  EXPECT_EQ(s.buckets, fresh.buckets);
+  EXPECT_EQ(s.name, "e2e");
+  EXPECT_EQ(s.max_ns, fresh.max_ns);
+  EXPECT_DOUBLE_EQ(s.percentile_us(0.99), fresh.percentile_us(0.99));
+}
+
 // Reads the dump as OSADL's scripts and gnuplot one-liners do: every line not starting with
 // '#' is "bucket count count ...".
 TEST(LatencyHistogram, CyclictestLayoutParsesBack) {

@@ -206,7 +206,13 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     out.sink = nullptr;
     out.tee.reset();
     out.gpio_sink.reset();
-    return refuse(rt::Status::failure(e.what()));
+    // A bare "std::bad_alloc" named nothing (found probing under `ulimit -v`).
+    const bool oom = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
+    return refuse(rt::Status::failure(
+        oom ? "out of memory allocating the pipeline (its frame pool: pipeline.frame_pool_slots "
+              "full-field frames; the "
+              "machine's memory, or an address-space limit: ulimit -v, RLIMIT_AS)"
+            : e.what()));
   }
   // output.keep_previous: the last run's files kept as NAME.1 before they are emptied (a unit
   // restarted after a watchdog kill or a crash erased the record of the run that failed, 2 s

@@ -4,7 +4,8 @@
 
 namespace sempose::session {
 
-RunSummary collect_summary(const RunSetup& run, double run_s, std::uint64_t rt_allocs, std::uint64_t source_stalls) {
+RunSummary collect_summary(const RunSetup& run, rt::HistogramSnapshot& e2e, double run_s,
+                           std::uint64_t rt_allocs, std::uint64_t source_stalls) {
   RunSummary s;
   const pipeline::Pipeline& pipe = *run.pipeline;
   const auto& c = pipe.counters();
@@ -18,7 +19,7 @@ RunSummary collect_summary(const RunSetup& run, double run_s, std::uint64_t rt_a
   s.dropped = pipe.dropped_frames();
   s.overruns = c.overruns.get();
   s.rt_allocs = rt_allocs;
-  const auto e2e = pipe.histograms().end_to_end.snapshot();
+  pipe.histograms().end_to_end.snapshot_into(e2e);
   if (e2e.count > 0) {
     s.e2e_us_p50 = e2e.percentile_us(0.5);
     s.e2e_us_p99 = e2e.percentile_us(0.99);

@@ -45,6 +45,10 @@ class LatencyHistogram {
   void reset() noexcept;
 
   HistogramSnapshot snapshot() const;
+  // The same into a snapshot made earlier by snapshot() (its buckets already sized): no
+  // allocation, so a non-RT loop that must keep reporting under memory pressure (`ulimit -v`
+  // just above the run's need) can take one each status period and at exit.
+  void snapshot_into(HistogramSnapshot& s) const noexcept;
   const std::string& name() const noexcept { return name_; }
   std::size_t bucket_count() const noexcept { return bucket_count_; }
 

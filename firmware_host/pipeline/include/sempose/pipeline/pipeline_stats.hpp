@@ -74,6 +74,13 @@ struct PipelineHistograms {
     return {poll_lag.snapshot(), queue.snapshot(), compute.snapshot(), output.snapshot(),
             end_to_end.snapshot(), scan_time.snapshot(), dwell_ns.snapshot(), arm.snapshot()};
   }
+  // Into snapshots made by snapshot() (same order): no allocation
+  // (LatencyHistogram::snapshot_into).
+  void snapshot_into(std::vector<rt::HistogramSnapshot>& s) const noexcept {
+    const rt::LatencyHistogram* all[] = {&poll_lag,   &queue,     &compute,  &output,
+                                         &end_to_end, &scan_time, &dwell_ns, &arm};
+    for (std::size_t i = 0; i < s.size() && i < std::size(all); ++i) all[i]->snapshot_into(s[i]);
+  }
 };
 
 }  // namespace sempose::pipeline

@@ -42,8 +42,10 @@ struct RunSummary {
 };
 
 // From a finished run (stages joined, sinks closed): run_s the run's length, rt_allocs the
-// heap calls on RT threads, source_stalls the stall watchdog's count.
-RunSummary collect_summary(const RunSetup& run, double run_s, std::uint64_t rt_allocs, std::uint64_t source_stalls);
+// heap calls on RT threads, source_stalls the stall watchdog's count. `e2e` is a snapshot of the
+// end-to-end histogram made at setup, refreshed here without allocating.
+RunSummary collect_summary(const RunSetup& run, rt::HistogramSnapshot& e2e, double run_s,
+                           std::uint64_t rt_allocs, std::uint64_t source_stalls);
 // "summary: poses=… source_stalls=…\n".
 void print_summary(std::FILE* out, const RunSummary& s);
 
