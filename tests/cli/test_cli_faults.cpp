@@ -1877,6 +1877,36 @@ TEST(CliFaults, AThreadLimitIsNamedBeforeAnyOutputIsTouched) {
   }
 }
 
+// A frame pool larger than the memory left (pipeline.frame_pool_slots of a large field, in range)
+// failed only when the pipeline was built, after the outputs were opened: a bare std::bad_alloc,
+// and the refused run's CSV header written over the last run's first bytes (found probing). Now
+// it is refused with the inputs, naming the key, and the last run's files are left whole.
+TEST(CliFaults, AFramePoolBeyondTheMemoryLeftIsRefusedAndTheLastRunsFilesKept) {
+  const std::string dir = work_dir() + "/frame_pool";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string csv = dir + "/poses.csv", can_log = dir + "/can.log", cfg = dir + "/big.yaml";
+  std::ofstream(cfg) << "scan: {field_w: 4096, field_h: 4096, max_roi_w: 128, max_roi_h: 128}\n"
+                        "sim:\n  clock: virtual\n  targets:\n    - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}\n"
+                        "tracker: {pattern_size_px: 64, roi_size_px: 96}\n"
+                        "pipeline: {lock_memory: false, hold_dma_latency: false, frame_pool_slots: 64,\n"
+                        "           acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0},\n"
+                        "           output: {cpu: -1, priority: 0}, non_rt_cpu: -1}\n"
+                        "service: {stall_timeout_ms: 20000}\noutput: {poses_csv: " << csv << "}\ncan: {log_file: " << can_log << "}\n";
+  const std::string last_csv = "frame,t_ns,x_px,y_px,phi_deg,score,status,target,scale\n0,1,2,3,4,0.9,TRACKING,1,1.0\n";
+  std::ofstream(csv) << last_csv;
+  std::ofstream(can_log) << "OLD LOG\n";
+  g_child_address_space_limit = 1536L << 20;  // 64 slots of 4096x4096 at 2 B: 2147 MB
+  const Outcome r = run({"run", "--config", cfg, "--duration", "0.2"}, 120);
+  g_child_address_space_limit = -1;
+  ASSERT_FALSE(r.hung);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("the frame pool needs 2147 MB, more than the"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("64 slots (pipeline.frame_pool_slots) of the 4096x4096 field"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(csv), last_csv) << "the refused run touched the last run's CSV";
+  EXPECT_EQ(slurp(can_log), "OLD LOG\n");
+}
+
 // A reader's shared lock (a backup or log shipper copying the CAN log under `flock -s`) was
 // reported as another sempose writing it (found probing). The holder and the lock's kind are
 // named from /proc/locks; the writer's message names the process too.

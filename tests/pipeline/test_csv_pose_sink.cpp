@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -226,6 +227,30 @@ TEST(CsvPoseSinkFaults, LinesWrittenIntoADeletedFileAreCountedLost) {
   EXPECT_EQ(sink.last_errno(), ENOENT);
   EXPECT_EQ(sink.written(), 1u);
   EXPECT_FALSE(sink.close());
+}
+
+// A run refused after its CSV was opened keeping the last run's lines (its pipeline out of
+// memory) wrote its header over their first bytes when the sink closed (found probing: a 13-cell
+// header, a stub "_order", then the old 14-cell rows). Opened and dropped before begin(), the
+// file is left exactly as it was.
+TEST(CsvPoseSinkFaults, ASinkDroppedBeforeItBeganLeavesTheLastRunsFileAlone) {
+  const std::string dir = temp_dir();
+  ASSERT_FALSE(dir.empty());
+  const std::string path = dir + "/poses.csv";
+  const std::string last_run =
+      "frame,t_ns,x_px,y_px,phi_deg,score,status,target,scale\n0,1,2,3,4,0.9,TRACKING,1,1.0\n";
+  std::ofstream(path) << last_run;
+  {
+    CsvPoseSink sink(path, 16, false);
+    ASSERT_TRUE(sink.open_keeping().ok);
+    sink.publish(pose(0), 0);
+    sink.write_pending();
+    EXPECT_TRUE(sink.close());
+  }
+  std::ostringstream after;
+  after << std::ifstream(path).rdbuf();
+  EXPECT_EQ(after.str(), last_run);
+  fs::remove_all(dir);
 }
 
 }  // namespace

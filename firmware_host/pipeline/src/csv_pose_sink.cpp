@@ -65,6 +65,7 @@ rt::Status CsvPoseSink::begin() {
     return rt::Status::failure("output.poses_csv: cannot empty '" + path_ + "': " + std::strerror(errno));
   good_offset_ = regular_file_ ? std::ftell(file_) : 0;
   header_written_ = false;
+  begun_ = true;
   write_pending();  // the header, now: a full disk shows at once
   return rt::Status::success();
 }
@@ -79,7 +80,7 @@ PublishResult CsvPoseSink::publish(const PoseRecord& pose, std::int64_t t_now_ns
 }
 
 void CsvPoseSink::write_pending() {
-  if (file_ == nullptr) return;
+  if (file_ == nullptr || !begun_) return;
   // Poses the RT side could not keep (ring full: this thread fell behind) are lost lines
   // too: counted in dropped() and reported as a write error, never silently missing.
   const std::uint64_t dropped_now = dropped();

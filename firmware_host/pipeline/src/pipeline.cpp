@@ -24,8 +24,7 @@ Pipeline::Pipeline(const config::PipelineConfig& pipeline, const config::Governo
       sleep_polling_(clock.real_time() && pipeline.polling != "spin"),
       frame_ring_depth_(std::clamp<std::uint32_t>(pipeline.frame_ring, 2, kFrameRingCapacity)),
       pose_ring_depth_(std::clamp<std::uint32_t>(pipeline.pose_ring, 2, kPoseRingCapacity)),
-      pool_(std::clamp<std::size_t>(pipeline.frame_pool_slots, frame_ring_depth_ + 3, kFreeRingCapacity),
-            frame_slot_pixels(source.limits())) {
+      pool_(frame_pool_slots_for(pipeline), frame_slot_pixels(source.limits())) {
   if (trackers_.empty() || trackers_.size() > static_cast<std::size_t>(hal::kMaxTargets)) {
     throw std::invalid_argument("pipeline: 1 to " + std::to_string(hal::kMaxTargets) +
                                 " targets are supported, got " + std::to_string(trackers_.size()));
@@ -141,6 +140,17 @@ std::vector<std::string> Pipeline::warnings() const {
     if (!t->warning().empty()) out.push_back(t->warning());
   }
   return out;
+}
+
+std::size_t Pipeline::frame_pool_slots_for(const config::PipelineConfig& pipeline) noexcept {
+  const std::size_t ring = std::clamp<std::uint32_t>(pipeline.frame_ring, 2, kFrameRingCapacity);
+  return std::clamp<std::size_t>(pipeline.frame_pool_slots, ring + 3, kFreeRingCapacity);
+}
+
+std::uint64_t Pipeline::frame_pool_bytes_for(const config::PipelineConfig& pipeline,
+                                             const hal::ScanLimits& limits) noexcept {
+  return static_cast<std::uint64_t>(frame_pool_slots_for(pipeline)) * frame_slot_pixels(limits) *
+         sizeof(hal::Pixel);
 }
 
 std::size_t Pipeline::frame_pool_bytes() const noexcept {

@@ -18,6 +18,7 @@
 #include "sempose/hal/can_candump_log.hpp"
 #include "sempose/hal/source_factory.hpp"
 #include "sempose/pose/tracker.hpp"
+#include "sempose/rt/memory_room.hpp"
 
 namespace sempose::session {
 
@@ -114,6 +115,20 @@ rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out) {
     out.scan = out.synced.get();
   }
   out.clock = pipeline::make_stage_clock(cfg);
+  // The frame pool is allocated with the pipeline, after the outputs are opened: its size is
+  // checked here, with the inputs (found probing: 64 slots of a 4096² recording under `ulimit -v`
+  // failed there as a bare std::bad_alloc; 64 of a 16384² field ask 32 GiB, in range).
+  const std::uint64_t pool =
+      pipeline::Pipeline::frame_pool_bytes_for(cfg.pipeline, out.scan->limits());
+  if (const std::uint64_t room = rt::memory_room().least(); room > 0 && pool > room) {
+    const hal::ScanLimits& l = out.scan->limits();
+    return rt::Status::failure(
+        "the frame pool needs " + std::to_string(pool / 1000000) + " MB, more than the " +
+        std::to_string(room / 1000000) + " MB this machine has available: " +
+        std::to_string(pipeline::Pipeline::frame_pool_slots_for(cfg.pipeline)) +
+        " slots (pipeline.frame_pool_slots) of the " + std::to_string(l.field_w) + "x" +
+        std::to_string(l.field_h) + " field at 2 bytes a pixel");
+  }
   return pipeline::make_trackers(cfg, out.scan->limits(), out.trackers);
 }
 

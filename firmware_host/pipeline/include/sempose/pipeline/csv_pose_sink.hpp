@@ -60,6 +60,9 @@ class CsvPoseSink final : public PoseSink {
   bool regular_file_ = false;       // can be cut back to good_offset_ after a failed write
   long good_offset_ = 0;            // end of the last whole line written
   bool header_written_ = false;
+  // begin() ran: the file is ours to write. Opened by open_keeping() and dropped before begin()
+  // (a refused run), nothing is written: its header went over the last run's first bytes.
+  bool begun_ = false;
   bool deleted_noted_ = false;      // the file was unlinked while open (noted once when idle)
   void note_error(int err, std::uint64_t lines);
 };

@@ -90,6 +90,12 @@ class Pipeline {
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
 
+  // The frame pool's slots and bytes for a config and a scan, before anything is allocated (a
+  // setup checks them against the memory there is: up to 64 slots of a 16384² field is 32 GiB).
+  static std::size_t frame_pool_slots_for(const config::PipelineConfig& pipeline) noexcept;
+  static std::uint64_t frame_pool_bytes_for(const config::PipelineConfig& pipeline,
+                                            const hal::ScanLimits& limits) noexcept;
+
   // Starts the stage threads. strict: refuse without SCHED_FIFO/affinity (else warn and run).
   rt::Status start(bool strict);
   // Stops scanning; the stages finish the frames in flight, then exit. Async-signal-safe.
