@@ -3,9 +3,11 @@
 #include "sempose/hal/frame.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -37,6 +39,23 @@ double number_in(const std::string& cell, const std::string& where, const char* 
     m << where << ": " << what << " '" << cell << "' is not " << (whole ? "a whole number" : "a number") << " in [" << lo
       << ", " << hi << "]";
     throw std::runtime_error(m.str());
+  }
+  return v;
+}
+
+// A whole number of the column's own type, read exactly: the frame counter and t_ns are written
+// as 64-bit integers (t_ns is CLOCK_MONOTONIC on a box up for more than 104 days, or a
+// recording's epoch stamps, beyond the 2^53 a double holds exactly: found probing, `view`
+// refused sempose's own CSVs).
+template <typename Int>
+Int whole_number(const std::string& cell, const std::string& where, const char* what) {
+  Int v{};
+  const char* end = cell.data() + cell.size();
+  const auto [ptr, ec] = std::from_chars(cell.data(), end, v);
+  if (cell.empty() || ec != std::errc{} || ptr != end) {
+    throw std::runtime_error(where + ": " + what + " '" + cell + "' is not a whole number in [" +
+                             std::to_string(std::numeric_limits<Int>::min()) + ", " +
+                             std::to_string(std::numeric_limits<Int>::max()) + "]");
   }
   return v;
 }
@@ -98,9 +117,8 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
       throw std::runtime_error(where + ": " + std::to_string(cells.size()) + " cells, the header has " + std::to_string(columns));
     }
     PoseRow r;
-    // Doubles hold every whole number up to 2^53 exactly; beyond it the conversion is not exact.
-    r.frame = static_cast<std::uint64_t>(number_in(cells[0], where, "frame", 0, 9007199254740992.0, true));
-    r.t_ns = static_cast<std::int64_t>(number_in(cells[1], where, "t_ns", -9007199254740992.0, 9007199254740992.0, true));
+    r.frame = whole_number<std::uint64_t>(cells[0], where, "frame");
+    r.t_ns = whole_number<std::int64_t>(cells[1], where, "t_ns");
     // Positions in a field and angles wrapped to (-180, 180] are what sempose writes; 1e300 px
     // drew a picture of nothing and a track plot whose axis hid every real pose.
     r.x_px = number_in(cells[2], where, "x_px", -kMaxPositionPx, kMaxPositionPx, false);
