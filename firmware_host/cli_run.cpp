@@ -363,6 +363,15 @@ int sempose::cli::run(int argc, char** argv) {
     std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
     return 2;
   }
+  // A recording sets the field: the stall rule the config was checked against with
+  // scan.field_w/h holds for the field the start search will scan (found probing: a 4096²
+  // recording under the 2 s default, every start search reported as a stall, heartbeat LOST).
+  if (const std::string why = config::stall_timeout_problem(cfg.service, run.scan->limits(), cfg.governor.initial_dwell_ns);
+      !why.empty()) {
+    std::fprintf(stderr, "sempose run: service.stall_timeout_ms: %s (the field is the source's, not scan.field_w/h)\n",
+                 why.c_str());
+    return 2;
+  }
   // Setup is done up to the outputs: a stop signal that came meanwhile stops here, before
   // any output file is created or truncated.
   if (const int sig = pending_stop_signal(signals)) {

@@ -1907,6 +1907,49 @@ TEST(CliFaults, AFramePoolBeyondTheMemoryLeftIsRefusedAndTheLastRunsFilesKept) {
   EXPECT_EQ(slurp(can_log), "OLD LOG\n");
 }
 
+// The stall rule (service.stall_timeout_ms at least twice a full-field scan) was checked on
+// scan.field_w/h only, but a recording sets the field: a 4096² recording passed under the 2 s
+// default and every start search was reported as a stall, the heartbeat LOST (found probing).
+// Checked again on the source's field, before any output is touched.
+TEST(CliFaults, TheStallRuleHoldsForARecordingsField) {
+  const std::string dir = work_dir() + "/stall_field";
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/rec");
+  sempose::hal::Image img;
+  img.width = img.height = 2048;  // 2048² at 250 ns: 1.05 s a field scan
+  img.bits = 8;
+  img.pixels.assign(static_cast<std::size_t>(img.width) * img.height, 100);
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) img.pixels[static_cast<std::size_t>(1000 + y) * img.width + 1000 + x] = (x / 8 + y / 16) % 2 ? 200 : 20;
+  sempose::hal::write_pgm(dir + "/rec/frame_000000.pgm", img);
+  sempose::hal::Image pat;
+  pat.width = pat.height = 64;
+  pat.bits = 8;
+  for (int y = 0; y < 64; ++y)
+    for (int x = 0; x < 64; ++x) pat.pixels.push_back((x / 8 + y / 16) % 2 ? 200 : 20);
+  sempose::hal::write_pgm(dir + "/p.pgm", pat);
+  const std::string csv = dir + "/poses.csv", cfg = dir + "/rec.yaml";
+  std::ofstream(cfg) << "source: replay\nreplay: {frames_dir: " << dir << "/rec, clock: real}\n"
+                        "targets: [{name: t, pattern_sets: [{file: p.pgm}]}]\n"
+                        "tracker: {pattern_size_px: 64, roi_size_px: 96}\n"
+                        "pipeline: {lock_memory: false, hold_dma_latency: false,\n"
+                        "           acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0},\n"
+                        "           output: {cpu: -1, priority: 0}, non_rt_cpu: -1}\n"
+                        "output: {poses_csv: " << csv << "}\ncan: {log_file: " << dir << "/can.log}\n";
+  std::ofstream(csv) << "OLD CSV\n";
+  const Outcome r = run({"run", "--config", cfg, "--duration", "0.5"}, 120);
+  ASSERT_FALSE(r.hung);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("service.stall_timeout_ms: 2000 is below 2"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("(2048x2048 px at 250 ns)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the field is the source's, not scan.field_w/h"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(csv), "OLD CSV\n");
+  // Given room for it, the same recording runs.
+  std::ofstream(cfg, std::ios::app) << "service: {stall_timeout_ms: 5000}\n";
+  const Outcome ok = run({"run", "--config", cfg, "--duration", "0.5"}, 120);
+  EXPECT_EQ(ok.code, 0) << ok.out << ok.err;
+}
+
 // A reader's shared lock (a backup or log shipper copying the CAN log under `flock -s`) was
 // reported as another sempose writing it (found probing). The holder and the lock's kind are
 // named from /proc/locks; the writer's message names the process too.

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 
 namespace sempose::config {
 
@@ -28,5 +29,8 @@ void read_service(Section& section, ServiceConfig& out);
 // fit twice, or a healthy start search would be reported as a stall.
 void check_service_against_scan(Section& root, const ServiceConfig& service, const ScanLimits& scan,
                                 std::uint32_t initial_dwell_ns);
+// The same rule for a field known only once the source is open (a recording's frames set it):
+// "" when it holds, else the problem (for "service.stall_timeout_ms: ...").
+std::string stall_timeout_problem(const ServiceConfig& service, const ScanLimits& scan, std::uint32_t initial_dwell_ns);
 
 }  // namespace sempose::config
