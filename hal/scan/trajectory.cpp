@@ -26,6 +26,9 @@ Trajectory::Trajectory(const config::TrajectoryConfig& cfg, Pose2 start, std::in
   const double m_y = std::min(cfg.margin_px, (field_h - 1) / 2.0);
   lo_x_ = m_x, hi_x_ = field_w - 1 - m_x;
   lo_y_ = m_y, hi_y_ = field_h - 1 - m_y;
+  checkpoint_index_.fill(-1);
+  checkpoint_[0] = start_;
+  checkpoint_index_[0] = 0;
 }
 
 // Reflects x into [lo, hi] (a ball bouncing between walls).
@@ -87,34 +90,56 @@ Pose2 Trajectory::at(double t) noexcept {
   return p;
 }
 
+Pose2 Trajectory::walk_step(std::int64_t k, Pose2 p) const noexcept {
+  const double dt = cfg_.knot_s;
+  const auto uk = static_cast<std::uint64_t>(k);
+  // Box–Muller from hashed uniforms: independent of call order.
+  auto gauss = [&](std::uint64_t lane) {
+    const double u1 = SimRng::hash_uniform(seed_, uk, lane) + 1e-300;
+    const double u2 = SimRng::hash_uniform(seed_, uk, lane + 100);
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(kTwoPi * u2);
+  };
+  const double s = std::sqrt(dt);
+  p.x_px = bounce(p.x_px + cfg_.sigma_px_per_sqrt_s * s * gauss(1), lo_x_, hi_x_);
+  p.y_px = bounce(p.y_px + cfg_.sigma_px_per_sqrt_s * s * gauss(2), lo_y_, hi_y_);
+  p.phi_deg = p.phi_deg + cfg_.sigma_deg_per_sqrt_s * s * gauss(3);
+  return p;
+}
+
+Pose2 Trajectory::knot_at(std::int64_t k) noexcept {
+  // Forward: the cursor moves on, leaving a checkpoint at every stride.
+  while (k_ < k) {
+    knot_ = walk_step(k_++, knot_);
+    if (k_ % kCheckpointStride == 0) {
+      const std::int64_t c = k_ / kCheckpointStride;
+      checkpoint_[static_cast<std::size_t>(c) % kCheckpoints] = knot_;
+      checkpoint_index_[static_cast<std::size_t>(c) % kCheckpoints] = c;
+    }
+  }
+  if (k == k_) return knot_;
+  // Back: from the checkpoint at or before k when it is still kept, else from the start.
+  const std::int64_t c = k / kCheckpointStride;
+  const std::size_t slot = static_cast<std::size_t>(c) % kCheckpoints;
+  std::int64_t from = 0;
+  Pose2 p = start_;
+  if (checkpoint_index_[slot] == c) {
+    from = c * kCheckpointStride;
+    p = checkpoint_[slot];
+  }
+  while (from < k) p = walk_step(from++, p);
+  return p;
+}
+
 Pose2 Trajectory::random_walk(double t) noexcept {
   if (t < 0) t = 0;
   const double dt = cfg_.knot_s;
-  const auto target_k = static_cast<std::int64_t>(std::floor(t / dt));
-  if (target_k < k_) {  // time went back: replay from the start
-    k_ = 0;
-    knot_ = start_;
-  }
-  auto step = [&](std::int64_t k, Pose2 p) {
-    const auto uk = static_cast<std::uint64_t>(k);
-    // Box–Muller from hashed uniforms: independent of call order.
-    auto gauss = [&](std::uint64_t lane) {
-      const double u1 = SimRng::hash_uniform(seed_, uk, lane) + 1e-300;
-      const double u2 = SimRng::hash_uniform(seed_, uk, lane + 100);
-      return std::sqrt(-2.0 * std::log(u1)) * std::cos(kTwoPi * u2);
-    };
-    const double s = std::sqrt(dt);
-    p.x_px = bounce(p.x_px + cfg_.sigma_px_per_sqrt_s * s * gauss(1), lo_x_, hi_x_);
-    p.y_px = bounce(p.y_px + cfg_.sigma_px_per_sqrt_s * s * gauss(2), lo_y_, hi_y_);
-    p.phi_deg = p.phi_deg + cfg_.sigma_deg_per_sqrt_s * s * gauss(3);
-    return p;
-  };
-  while (k_ < target_k) knot_ = step(k_++, knot_);
-  // Linear between knots k_ and k_+1 so the motion is continuous.
-  const Pose2 next = step(k_, knot_);
-  const double f = t / dt - static_cast<double>(k_);
-  return {knot_.x_px + f * (next.x_px - knot_.x_px), knot_.y_px + f * (next.y_px - knot_.y_px),
-          knot_.phi_deg + f * (next.phi_deg - knot_.phi_deg)};
+  const auto k = static_cast<std::int64_t>(std::floor(t / dt));
+  const Pose2 knot = knot_at(k);
+  // Linear between knots k and k+1 so the motion is continuous.
+  const Pose2 next = walk_step(k, knot);
+  const double f = t / dt - static_cast<double>(k);
+  return {knot.x_px + f * (next.x_px - knot.x_px), knot.y_px + f * (next.y_px - knot.y_px),
+          knot.phi_deg + f * (next.phi_deg - knot.phi_deg)};
 }
 
 }  // namespace sempose::hal

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "sempose/hal/sim_source.hpp"
+#include "sempose/hal/trajectory.hpp"
 #include "sempose/hal/source_factory.hpp"
 #include "sempose/rt/alloc_counter.hpp"
 #include "sempose/rt/clock.hpp"
@@ -41,6 +42,28 @@ config::SimConfig moving_config(const std::string& clock) {
   b.trajectory.omega_deg_s = 90;
   c.targets = {a, b};
   return c;
+}
+
+// The random walk's pose at t is the same whatever was asked before: forward, back a little
+// (every frame goes back from its last line to mid-scan; that replayed the walk from t = 0 each
+// frame, found probing: recordings O(frames²), a run's acquisition slower every second), back
+// beyond the kept checkpoints, and forward again.
+TEST(Trajectory, RandomWalkIsAFunctionOfTimeWhateverTheOrderOfQuestions) {
+  config::TrajectoryConfig c;
+  c.kind = "random_walk";
+  c.knot_s = 1e-4;
+  c.sigma_px_per_sqrt_s = 50;
+  c.sigma_deg_per_sqrt_s = 20;
+  c.margin_px = 10;
+  auto fresh = [&](double t) { return Trajectory(c, {160, 120, 0}, 320, 240, 7).at(t); };
+  Trajectory walk(c, {160, 120, 0}, 320, 240, 7);
+  const double times[] = {0.0, 0.04, 0.02, 0.08, 0.06, 0.12, 3.0, 2.99, 2.5, 0.013, 3.5, 1e-5, 3.5};
+  for (const double t : times) {
+    const Pose2 got = walk.at(t), want = fresh(t);
+    EXPECT_EQ(got.x_px, want.x_px) << t;
+    EXPECT_EQ(got.y_px, want.y_px) << t;
+    EXPECT_EQ(got.phi_deg, want.phi_deg) << t;
+  }
 }
 
 TEST(SimSource, VirtualClockFollowsTheScanTimeModel) {

@@ -1,12 +1,17 @@
 // x(t), y(t), φ(t) of a simulated target (t in seconds since the source started), in the
 // the README's conventions. Pure function of t and the seed, except random_walk, which keeps
-// a cursor so that monotone time costs O(1) per call (going back in time replays from 0).
+// a cursor so that monotone time costs O(1) per call, and a checkpoint every 256 knots (the
+// last 64) so that going back a little, as every frame does (its lines rise to the scan's end,
+// then the truth is asked at mid-scan), costs at most 256 steps. It replayed from t = 0 on every
+// frame: O(frames²) recordings, and a run's acquisition slower by ~5 ms a frame after an hour.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 
-#include "sempose/rt/angle.hpp"
 #include "sempose/config/sim_config.hpp"
+#include "sempose/rt/angle.hpp"
 
 namespace sempose::hal {
 
@@ -25,6 +30,8 @@ class Trajectory {
  private:
   enum class Kind : std::uint8_t { kStatic, kLinear, kSine, kSteps, kJumps, kSpin, kRandomWalk };
   Pose2 random_walk(double t_s) noexcept;
+  Pose2 walk_step(std::int64_t k, Pose2 p) const noexcept;  // knot k+1 from knot k
+  Pose2 knot_at(std::int64_t k) noexcept;                   // knot k (cursor, checkpoint or replay)
   static double bounce(double x, double lo, double hi) noexcept;
 
   config::TrajectoryConfig cfg_{};
@@ -35,6 +42,10 @@ class Trajectory {
   // random walk cursor: pose at knot k_
   std::int64_t k_ = 0;
   Pose2 knot_{};
+  static constexpr std::int64_t kCheckpointStride = 256;
+  static constexpr std::size_t kCheckpoints = 64;
+  std::array<Pose2, kCheckpoints> checkpoint_{};  // knot c·stride at [c % kCheckpoints]
+  std::array<std::int64_t, kCheckpoints> checkpoint_index_{};  // its c (-1: empty)
 };
 
 // Wraps degrees into (-180, 180] (the one wrap, shared with the pose engine).
