@@ -9,14 +9,29 @@
 #include <fstream>
 #include <iterator>
 #include <stdexcept>
+#include <string>
+#include <tuple>
 #include <vector>
 
 namespace sempose::hal {
 
 namespace {
 
-// Reads one decimal header field, skipping whitespace and # comments.
-bool next_number(const std::vector<unsigned char>& d, std::size_t& pos, long long& value) {
+// What stands at pos as a header field, for a message: up to whitespace or a comment, at most
+// 24 bytes, unprintable bytes as '?' ("nothing" at the end of the file).
+std::string field_text(const std::vector<unsigned char>& d, std::size_t pos) {
+  std::string t;
+  while (pos < d.size() && !std::isspace(d[pos]) && d[pos] != '#' && t.size() < 24) {
+    t += std::isprint(d[pos]) ? static_cast<char>(d[pos]) : '?';
+    ++pos;
+  }
+  return t.empty() ? std::string("nothing") : "'" + t + (pos < d.size() && !std::isspace(d[pos]) && d[pos] != '#' ? "...'" : "'");
+}
+
+// Reads one decimal header field, skipping whitespace and # comments. "" on success, else the
+// problem with what was found ("-64", "99999999999": the value was not named, found probing).
+std::string next_number(const std::vector<unsigned char>& d, std::size_t& pos, long long& value, const char* name,
+                        long long max) {
   for (;;) {
     while (pos < d.size() && std::isspace(d[pos])) ++pos;
     if (pos < d.size() && d[pos] == '#') {
@@ -25,16 +40,22 @@ bool next_number(const std::vector<unsigned char>& d, std::size_t& pos, long lon
     }
     break;
   }
-  if (pos >= d.size() || !std::isdigit(d[pos])) return false;
+  const std::size_t start = pos;
+  auto bad = [&] {
+    return std::string("header: ") + name + " " + field_text(d, start) + " is not a whole number in 1.." + std::to_string(max) +
+           " (digits only, then whitespace)";
+  };
+  if (pos >= d.size() || !std::isdigit(d[pos])) return bad();
   value = 0;
   while (pos < d.size() && std::isdigit(d[pos])) {
     value = value * 10 + (d[pos] - '0');
-    if (value > 1'000'000'000) return false;
+    if (value > 1'000'000'000) return bad();
     ++pos;
   }
   // A field ends at whitespace or a comment: "64.0" was read as 64 and its ".0" blamed on the
   // next field (found probing: "missing or bad height" for a bad width).
-  return pos >= d.size() || std::isspace(d[pos]) || d[pos] == '#';
+  if (pos < d.size() && !std::isspace(d[pos]) && d[pos] != '#') return bad();
+  return "";
 }
 
 std::string parse(const std::vector<unsigned char>& d, Image& out) {
@@ -47,9 +68,11 @@ std::string parse(const std::vector<unsigned char>& d, Image& out) {
   if (d.size() > 2 && !std::isspace(d[2]) && d[2] != '#') return "header: no whitespace after the magic P5";
   std::size_t pos = 2;
   long long w = 0, h = 0, maxval = 0;
-  if (!next_number(d, pos, w)) return "header: missing or bad width (a whole number, then whitespace)";
-  if (!next_number(d, pos, h)) return "header: missing or bad height (a whole number, then whitespace)";
-  if (!next_number(d, pos, maxval)) return "header: missing or bad maxval (a whole number, then whitespace)";
+  for (auto [value, name, max] : {std::tuple{&w, "width", static_cast<long long>(kPgmMaxSide)},
+                                   std::tuple{&h, "height", static_cast<long long>(kPgmMaxSide)},
+                                   std::tuple{&maxval, "maxval", 65535LL}}) {
+    if (std::string why = next_number(d, pos, *value, name, max); !why.empty()) return why;
+  }
   if (w <= 0 || h <= 0 || w > kPgmMaxSide || h > kPgmMaxSide) {
     return "size " + std::to_string(w) + "x" + std::to_string(h) + " is outside 1.." +
            std::to_string(kPgmMaxSide) + " per side";

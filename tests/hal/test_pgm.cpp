@@ -83,7 +83,13 @@ TEST(Pgm, EachMalformedFileNamesTheProblem) {
   check("noheight.pgm", "P5\n2 \n", "height");
   // A field runs to whitespace (found probing: "P564 64 255" read as width 64, "64.0" blamed on the height).
   check("glued_magic.pgm", "P564 2 255\nabcd", "no whitespace after the magic P5");
-  check("fraction.pgm", "P5\n2.0 2\n255\nabcd", "missing or bad width");
+  check("fraction.pgm", "P5\n2.0 2\n255\nabcd", "header: width '2.0' is not a whole number in 1..16384");
+  // A sign or more digits than any size: the value named (it said "missing or bad width").
+  check("negative.pgm", "P5\n-64 2\n255\nabcd", "header: width '-64' is not a whole number in 1..16384");
+  check("plus.pgm", "P5\n2 +64\n255\nabcd", "header: height '+64' is not a whole number in 1..16384");
+  check("huge.pgm", "P5\n99999999999 2\n255\nabcd", "header: width '99999999999' is not a whole number in 1..16384");
+  check("maxval.pgm", "P5\n2 2\n1000000000000\nabcd", "header: maxval '1000000000000' is not a whole number in 1..65535");
+  check("short.pgm", "P5\n2 2\n", "header: maxval nothing is not a whole number in 1..65535");
   // Bytes beyond the raster: read as a wrong image without a word before.
   check("comment_after_maxval.pgm", "P5\n2 2\n255 # hand-made\nabcd", "12 bytes after the 2x2 raster");
   check("wide_under_255.pgm", "P5\n2 2\n255\nabcdefgh", "4 bytes after the 2x2 raster");
