@@ -171,10 +171,22 @@ int run_replay(int argc, char** argv) {
   app.path = "command line";  // names where the targets came from in errors when there is no --config
   if (!config_path.empty()) {
     std::string errors;
-    if (!config::load_app_config(config_path, app, errors)) {
+    // A run's config: its outputs are not replay's (it writes --out), so one this user cannot
+    // write (the service's /var/log/sempose) is no error here.
+    if (!config::load_app_config(config_path, app, errors, config::OutputCheck::kLeaveToCaller)) {
       std::fprintf(stderr, "sempose replay: %s", errors.c_str());
       return 2;
     }
+    // What a run's config names that replay passes over, said: a config naming another recording
+    // than --frames replayed --frames without a word (found probing).
+    std::string unused;
+    auto add = [&unused](const std::string& what) { unused += (unused.empty() ? "" : ", ") + what; };
+    std::error_code ec;
+    if (!app.replay.frames_dir.empty() && !std::filesystem::equivalent(app.replay.frames_dir, frames_dir, ec))
+      add("replay.frames_dir '" + app.replay.frames_dir + "' (--frames '" + frames_dir + "' is replayed)");
+    if (app.replay.loop) add("replay.loop (a replay goes through the frames once)");
+    if (!app.output.poses_csv.empty()) add("output.poses_csv '" + app.output.poses_csv + "' (the poses go to --out)");
+    if (!unused.empty()) std::fprintf(stderr, "note: %s: not used by replay: %s\n", config_path.c_str(), unused.c_str());
   }
   if (!patterns.empty()) {
     app.targets.clear();

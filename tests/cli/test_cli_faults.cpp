@@ -1950,6 +1950,27 @@ TEST(CliFaults, TheStallRuleHoldsForARecordingsField) {
   EXPECT_EQ(ok.code, 0) << ok.out << ok.err;
 }
 
+// `replay --config RUN.yaml` passed over the run's replay.frames_dir (another recording than
+// --frames), replay.loop and output.poses_csv without a word (found probing); and a run config
+// whose CSV this user cannot write (the service's log folder) refused a replay that never writes
+// it. Both said, neither refused.
+TEST(CliFaults, ReplaySaysWhatOfARunsConfigItDoesNotUse) {
+  const std::string dir = work_dir() + "/replay_run_config";
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/other");
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 3));
+  const std::string cfg = dir + "/run.yaml";
+  std::ofstream(cfg) << "source: replay\nreplay: {frames_dir: " << dir << "/other, loop: true}\n"
+                        "output: {poses_csv: /proc/sempose-nowhere/poses.csv}\n";
+  const Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--config", cfg, "--out", dir + "/o.csv"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("not used by replay: replay.frames_dir '" + dir + "/other' (--frames '" + dir + "/rec' is replayed), "
+                       "replay.loop (a replay goes through the frames once), output.poses_csv '/proc/sempose-nowhere/poses.csv' "
+                       "(the poses go to --out)"),
+            std::string::npos)
+      << r.err;
+}
+
 // A reader's shared lock (a backup or log shipper copying the CAN log under `flock -s`) was
 // reported as another sempose writing it (found probing). The holder and the lock's kind are
 // named from /proc/locks; the writer's message names the process too.
