@@ -108,6 +108,17 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
       tc.pattern_sets.push_back(p);
     }
     if (tc.pattern_sets.empty()) t.error("pattern_sets", "a target needs at least one pattern set ({file, nm_per_px})");
+    t.opt_list("start_area", tc.start_area, 0.0, 16384.0);
+    if (!tc.start_area.empty() || t.has("start_area")) {  // given empty, it would be ignored unsaid
+      if (tc.start_area.size() != 3) {
+        t.error("start_area",
+                "expected [x_px, y_px, radius_px] (where the target is at start, in field pixels)");
+        tc.start_area.clear();
+      } else if (!(tc.start_area[2] >= 1.0)) {
+        t.error("start_area", "radius_px " + std::to_string(tc.start_area[2]) + " is below 1 px");
+        tc.start_area.clear();
+      }
+    }
     // One set given twice (a copy-paste slip) is its own look-alike: every search finds two
     // hypotheses that score alike, and the tracked share fell 0.55 -> 0.35 (found probing).
     for (std::size_t j = 1; j < tc.pattern_sets.size(); ++j) {

@@ -1995,6 +1995,58 @@ TEST(CliFaults, AVirtualComputeLongerThanAnyScanIsSaid) {
   }
 }
 
+// targets[i].start_area through the whole path (config -> trackers -> the start search): inside
+// the recording's field the replay tracks; outside it (a recording sets the field, so the config
+// cannot check it) it is refused naming the key and the field.
+TEST(CliFaults, AStartAreaIsUsedAndCheckedAgainstTheRecordingsField) {
+  const std::string dir = work_dir() + "/start_area";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(
+      record_with_pattern(dir, small_config(dir, ""), 6));  // the lamella still at (160, 120)
+  // The poses' distance from the target, row by row (the CSV's x_px, y_px).
+  auto distances = [&] {
+    std::vector<double> d;
+    std::ifstream in(dir + "/o.csv");
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      double x = 0, y = 0;
+      if (std::sscanf(line.c_str(), "%*[^,],%*[^,],%lf,%lf", &x, &y) == 2)
+        d.push_back(std::hypot(x - 160, y - 120));
+    }
+    return d;
+  };
+  for (const std::string area : {"[160, 120, 40]", "[60, 60, 30]", "[400, 100, 50]"}) {
+    const std::string cfg = dir + "/area.yaml";
+    std::ofstream(cfg) << "targets: [{name: lam, pattern_sets: [{file: p.pgm}], start_area: "
+                       << area
+                       << "}]\n"
+                          "tracker: {pattern_size_px: 64, roi_size_px: 96}\n";
+    fs::remove(dir + "/o.csv");
+    const Outcome r =
+        run({"replay", "--frames", dir + "/rec", "--config", cfg, "--out", dir + "/o.csv"});
+    if (area == "[400, 100, 50]") {
+      EXPECT_EQ(r.code, 2) << r.err;
+      EXPECT_NE(
+          r.err.find(
+              "targets[0].start_area: centre (400, 100) is outside the source's 320x240 field"),
+          std::string::npos)
+          << r.err;
+      continue;
+    }
+    EXPECT_EQ(r.code, 0) << r.err;
+    const std::vector<double> d = distances();
+    ASSERT_EQ(d.size(), 6u) << area;
+    for (const double dist : d) {
+      if (area == "[160, 120, 40]")
+        EXPECT_LT(dist, 3.0) << area << ": the target is in the area";
+      else
+        EXPECT_GT(dist, 40.0) << area << ": the searches keep to the area, where the target is not";
+    }
+  }
+}
+
 // A reader's shared lock (a backup or log shipper copying the CAN log under `flock -s`) was
 // reported as another sempose writing it (found probing). The holder and the lock's kind are
 // named from /proc/locks; the writer's message names the process too.

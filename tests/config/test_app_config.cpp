@@ -230,6 +230,41 @@ TEST(AppConfig, APatternSetGivenTwiceIsRefused) {
   EXPECT_EQ(e.find("repeats set"), std::string::npos) << e;
 }
 
+// targets[i].start_area: [x_px, y_px, radius_px], where the target is at start (a twin elsewhere
+// in the field scores as well as the target). Read, and each malformed form named.
+TEST(AppConfig, AStartAreaIsReadAndItsMistakesNamed) {
+  AppConfig c;
+  std::string e;
+  std::ofstream(::testing::TempDir() + "p.pgm")
+      << "P5\n2 2\n255\nabcd";  // the pattern file must exist
+  ASSERT_TRUE(load_app_config(write_yaml("area.yaml",
+                                         "targets:\n  - {name: a, pattern_sets: [{file: p.pgm}], "
+                                         "start_area: [200, 160.5, 60]}\n"),
+                              c, e))
+      << e;
+  ASSERT_EQ(c.targets.size(), 1u);
+  EXPECT_EQ(c.targets[0].start_area, (std::vector<double>{200, 160.5, 60}));
+  const std::pair<const char*, const char*> bad[] = {
+      {"[200, 160]", "targets[0].start_area: expected [x_px, y_px, radius_px]"},
+      {"[]", "targets[0].start_area: expected [x_px, y_px, radius_px]"},
+      {"[200, 160, 0.5]", "targets[0].start_area: radius_px 0.500000 is below 1 px"},
+      {"[-5, 160, 60]", "targets[0].start_area[0]: -5 is outside the allowed range [0, 16384]"},
+      {"[2000, 160, 60]",
+       "targets[0].start_area: centre (2000, 160) is outside the 1024x768 scan field"},
+  };
+  for (const auto& [value, message] : bad) {
+    e.clear();
+    EXPECT_FALSE(load_app_config(
+        write_yaml("area_bad.yaml",
+                   std::string("targets:\n  - {name: a, pattern_sets: [{file: p.pgm}], "
+                               "start_area: ") +
+                       value + "}\n"),
+        c, e))
+        << value;
+    EXPECT_NE(e.find(message), std::string::npos) << value << "\n" << e;
+  }
+}
+
 TEST(AppConfig, TargetNamesAreOneWordAndUnique) {
   // The status lines, the summary and the logs name targets as whitespace-separated fields.
   const auto path = write_yaml("names.yaml",

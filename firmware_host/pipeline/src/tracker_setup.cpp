@@ -118,6 +118,18 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
     rt::Status st;
     auto tracker = pose::Tracker::create(tracker_cfg, std::move(per_target[i]), limits, st);
     if (!tracker) return rt::Status::failure("target " + out.names[i] + ": " + st.message);
+    if (i < cfg.targets.size() && cfg.targets[i].start_area.size() == 3) {
+      const auto& a = cfg.targets[i].start_area;
+      // The field is the source's (a recording's frames set it): checked here, not in the config.
+      if (a[0] >= limits.field_w || a[1] >= limits.field_h) {
+        return rt::Status::failure(
+            cfg.path + ": targets[" + std::to_string(i) + "].start_area: centre (" +
+            std::to_string(static_cast<int>(a[0])) + ", " + std::to_string(static_cast<int>(a[1])) +
+            ") is outside the source's " + std::to_string(limits.field_w) + "x" +
+            std::to_string(limits.field_h) + " field");
+      }
+      tracker->set_start_area(a[0], a[1], a[2]);
+    }
     if (!st.message.empty()) out.warnings.push_back("target " + out.names[i] + ": " + st.message);
     out.memory_bytes += tracker->memory_bytes();
     for (std::size_t set = 0; set < tracker->pattern_set_count(); ++set) {

@@ -37,6 +37,7 @@ void CandidateList::add_local_maxima(const float* map, int vw, int vh, int k, in
 }
 
 void CandidateList::insert(const StartCandidate& c) noexcept {
+  if (area_r_ > 0 && std::hypot(c.ux - area_ux_, c.uy - area_uy_) > area_r_) return;
   const int sep = separation_px_;
   for (int i = 0; i < size_; ++i) {
     StartCandidate& have = items_[static_cast<std::size_t>(i)];

@@ -117,6 +117,14 @@ Measurement StartSearch::search(const PatternBank& bank, const std::uint16_t* px
     active_[static_cast<std::size_t>(n_levels++)] = s;
   }
   candidates_.clear();
+  // A start area (the config's, until the target is first TRACKING), in the coarse map's
+  // displacements: a candidate's centre is ux·d − coarse_offset + c_p in the frame.
+  {
+    const double c_p0 = (pattern_px - 1) / 2.0;
+    candidates_.keep_within((held.within_x_px - c_p0 + sizes_.coarse_offset_px) / d,
+                            (held.within_y_px - c_p0 + sizes_.coarse_offset_px) / d,
+                            held.within_r_px > 0 ? held.within_r_px / d + 1.0 : 0.0);
+  }
   for (int l = 0; l < n_levels; ++l) {
     const double s = active_[static_cast<std::size_t>(l)];
     // The level's frame (the scanned one enlarged by 1/s) on the smaller correlator that holds

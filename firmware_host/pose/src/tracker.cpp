@@ -1057,6 +1057,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       held.x_px[i] -= roi.x;
       held.y_px[i] -= roi.y;
     }
+    if (start_r > 0 && !ever_tracking) {
+      held.within_x_px = start_x - roi.x;
+      held.within_y_px = start_y - roi.y;
+      held.within_r_px = start_r;
+    }
     const Measurement m = search.search(bank, px, roi.w, roi.h, frame.bits, motion.last_angle(), scale_prior, rx, ry,
                                         found_scale, held);
     if (m.valid) {
@@ -1722,9 +1727,16 @@ static std::int64_t beam_time_ns(const PoseFrame& frame, const PoseEstimate& e) 
 PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
   PoseEstimate e = impl_->update(frame);
   impl_->keep_continuity(frame, e);
+  if (e.state == TrackState::kTracking) impl_->ever_tracking = true;
   e.followed = impl_->tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
   e.t_beam_ns = beam_time_ns(frame, e);
   return e;
+}
+
+void Tracker::set_start_area(double x_px, double y_px, double radius_px) noexcept {
+  impl_->start_x = x_px;
+  impl_->start_y = y_px;
+  impl_->start_r = radius_px > 0 && std::isfinite(radius_px) ? radius_px : 0.0;
 }
 
 bool Tracker::selectable(std::uint8_t set, double nm_per_px) const noexcept {

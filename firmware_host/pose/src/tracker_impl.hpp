@@ -171,6 +171,10 @@ struct Tracker::Impl {
   static constexpr double kRescaleFrom = RoiRescaler::kMinChange;
   config::ScanLimits field;  // the scan field's size (from setup, then from the frames)
   std::atomic<bool> reacquire{false};
+  // The config's start area (radius 0: none) and whether a pose was ever TRACKING (it then no
+  // longer applies).
+  double start_x = 0, start_y = 0, start_r = 0;
+  bool ever_tracking = false;
   // The pending re-acquisition was commanded (REACQUIRE, SELECT): its search's pose is marked.
   std::atomic<bool> reacquire_commanded{false};
   std::atomic<std::uint8_t> active{0};

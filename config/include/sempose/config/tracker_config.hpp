@@ -143,6 +143,11 @@ struct PatternSetConfig {
 struct TargetConfig {
   std::string name;
   std::vector<PatternSetConfig> pattern_sets;  // index = magnification step
+  // Where the target is at start: [x_px, y_px, radius_px] in field pixels (empty: anywhere). The
+  // start searches keep to this circle until the target is first TRACKING. A copy of the object
+  // elsewhere in the field (a twin, the background a target was cut from) scores as well as the
+  // target itself; only its place tells them apart (README Known limitations).
+  std::vector<double> start_area;
 };
 
 // A rule between settings that is broken: the key to blame and why (empty key: none).

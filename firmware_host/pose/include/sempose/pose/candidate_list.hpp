@@ -20,6 +20,11 @@ class CandidateList {
   CandidateList(int capacity, int separation_px);
 
   void clear() noexcept { size_ = 0; }
+  // RT: keep only places within r of (ux, uy) in the coarse map (r ≤ 0: anywhere), e.g. a start
+  // area told in the config: a twin outside it must not take the list's places.
+  void keep_within(double ux, double uy, double r) noexcept {
+    area_ux_ = ux, area_uy_ = uy, area_r_ = r;
+  }
   int size() const noexcept { return size_; }
   const StartCandidate& operator[](int i) const noexcept { return items_[static_cast<std::size_t>(i)]; }
 
@@ -37,6 +42,7 @@ class CandidateList {
   std::vector<StartCandidate> items_;
   int size_ = 0;
   int separation_px_;
+  double area_ux_ = 0, area_uy_ = 0, area_r_ = 0;
 };
 
 }  // namespace sempose::pose

@@ -19,6 +19,9 @@ struct HeldPlaces {
   int count = 0;
   double x_px[kMaxHeldPlaces]{};
   double y_px[kMaxHeldPlaces]{};
+  // The search keeps to this circle when within_r_px > 0 (a start area told in the config, until
+  // the target is first TRACKING; set by the tracker, not by the caller).
+  double within_x_px = 0, within_y_px = 0, within_r_px = 0;
 };
 
 struct PoseFrame {

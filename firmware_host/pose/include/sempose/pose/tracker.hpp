@@ -124,6 +124,11 @@ class Tracker {
   // UNCERTAIN, so the pose stream shows the command took effect whatever frame ran it;
   // sempose's own re-search (look-alike, TrackingStep) passes false and marks it itself.
   void request_reacquire(bool commanded = true) noexcept;
+  // Setup: where the target is at start (field pixels, radius > 0). The start searches keep to
+  // this circle until the target is first reported TRACKING; after that they cover the field as
+  // before. A copy of the object elsewhere in the field scores as well as the target (a twin,
+  // the background a target was cut from): only its place tells them apart.
+  void set_start_area(double x_px, double y_px, double radius_px) noexcept;
   // Learned appearance (tracker.appearance; README: Learned appearance). Not RT: folds a batch
   // of good frames the RT side completed into the model, checks it against the recorded
   // pattern and, when it passes, builds the bank with the learned support and swaps it in
