@@ -385,6 +385,18 @@ int sempose::cli::run(int argc, char** argv) {
     std::fprintf(stderr, "sempose run: %s (no output touched)\n", st.message.c_str());
     return 3;
   }
+  // The histograms' snapshots for the status lines, SIGUSR1 dumps and the summary, made once here:
+  // the main loop and the report at exit refresh them without allocating (under `ulimit -v` just
+  // above the run's need, a status line's snapshot threw std::bad_alloc mid-run and the run ended
+  // without its summary; found probing). Made before the outputs are touched, from histograms of
+  // the pipeline's fixed sizes: running out of memory here leaves the last run's files whole.
+  std::vector<rt::HistogramSnapshot> snapshots;
+  rt::HistogramSnapshot e2e_now;
+  {
+    const pipeline::PipelineHistograms sizes;
+    snapshots = sizes.snapshot();
+    e2e_now = sizes.end_to_end.snapshot();
+  }
   st = session::build_outputs(cfg, opt.can_log, hist_dir, run);
   if (!st) {
     std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
@@ -427,13 +439,6 @@ int sempose::cli::run(int argc, char** argv) {
   std::printf("output: %s%s%s\n", run.can.description.c_str(), run.csv ? ", CSV " : "",
               run.csv ? cfg.output.poses_csv.c_str() : "");
   for (const std::string& note : run.output_notes) std::printf("%s\n", note.c_str());
-
-  // The histograms' snapshots for the status lines, SIGUSR1 dumps and the summary, made once here:
-  // the main loop and the report at exit refresh them without allocating (under `ulimit -v` just
-  // above the run's need, a status line's snapshot threw std::bad_alloc mid-run and the run ended
-  // without its summary; found probing).
-  std::vector<rt::HistogramSnapshot> snapshots = pipe->histograms().snapshot();
-  rt::HistogramSnapshot e2e_now = pipe->histograms().end_to_end.snapshot();
 
   // ---- RT memory and latency setup, then start
   if (cfg.pipeline.lock_memory) {

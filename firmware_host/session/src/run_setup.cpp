@@ -115,9 +115,13 @@ rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out) {
     out.scan = out.synced.get();
   }
   out.clock = pipeline::make_stage_clock(cfg);
+  if (rt::Status st_trackers = pipeline::make_trackers(cfg, out.scan->limits(), out.trackers);
+      !st_trackers)
+    return st_trackers;
   // The frame pool is allocated with the pipeline, after the outputs are opened: its size is
-  // checked here, with the inputs (found probing: 64 slots of a 4096² recording under `ulimit -v`
-  // failed there as a bare std::bad_alloc; 64 of a 16384² field ask 32 GiB, in range).
+  // checked here, with the inputs, against what the trackers' banks left (found probing: 64
+  // slots of a 4096² recording under `ulimit -v` failed there as a bare std::bad_alloc; 64 of a
+  // 16384² field ask 32 GiB, in range).
   const std::uint64_t pool =
       pipeline::Pipeline::frame_pool_bytes_for(cfg.pipeline, out.scan->limits());
   if (const std::uint64_t room = rt::memory_room().least(); room > 0 && pool > room) {
@@ -129,7 +133,7 @@ rt::Status build_inputs(const config::AppConfig& cfg, RunSetup& out) {
         " slots (pipeline.frame_pool_slots) of the " + std::to_string(l.field_w) + "x" +
         std::to_string(l.field_h) + " field at 2 bytes a pixel");
   }
-  return pipeline::make_trackers(cfg, out.scan->limits(), out.trackers);
+  return rt::Status::success();
 }
 
 config::AppConfig replay_config(const config::AppConfig& cfg, const std::string& frames_dir) {
