@@ -48,8 +48,8 @@ rc=0; "$bin" check-rt --config "$work/bad.yaml" >"$work/bad.txt" 2>&1 || rc=$?
 printf 'output: {poses_csv: /proc/sempose-nowhere/poses.csv}\n' >"$work/unwritable.yaml"
 rc=0; "$bin" check-rt --config "$work/unwritable.yaml" >"$work/unwritable.txt" 2>&1 || rc=$?
 if [ "$rc" -eq 3 ] && grep -q "^FAIL  outputs .*output.poses_csv: '/proc/sempose-nowhere/poses.csv' cannot be written" "$work/unwritable.txt" \
-   && [ "$(grep -cE '^(PASS|WARN|FAIL)  ' "$work/unwritable.txt")" -eq "$lines" ]; then
-  ok "unwritable output: its own FAIL line among all $lines checks, exit 3"
+   && [ "$(grep -cE '^(PASS|WARN|FAIL)  ' "$work/unwritable.txt")" -eq "$((lines + 1))" ]; then
+  ok "unwritable output: its own FAIL line among all $((lines + 1)) checks, exit 3"
 else
   cat "$work/unwritable.txt"; bad "unwritable output: rc $rc"
 fi

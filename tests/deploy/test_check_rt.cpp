@@ -292,6 +292,7 @@ TEST_F(FakeTree, ReplaySourceNeedsItsFolder) {
 // Outputs this user cannot write are a FAIL line of their own among the RT checks (they were a
 // config error that hid every check: check-rt as the service user before its log folder existed).
 TEST_F(FakeTree, AnOutputThisUserCannotWriteFailsItsOwnLine) {
+  cfg.path = (root / "sempose.yaml").string();  // the outputs are a config's (none: not checked)
   cfg.output.poses_csv = (root / "out" / "poses.csv").string();
   cfg.can.log_file = (root / "out" / "can.log").string();
   cfg.output.hist_dir = (root / "out" / "hist").string();
@@ -313,6 +314,10 @@ TEST_F(FakeTree, AnOutputThisUserCannotWriteFailsItsOwnLine) {
   }
   EXPECT_EQ(failed, 2);  // the CSV and the histogram folder, each named; the candump log passes silently
   EXPECT_EQ(check_rt::exit_code(r), 3);
+  // The built-in defaults (no --config) name relative outputs in check-rt's own folder, nothing
+  // a service writes: not checked.
+  cfg.path.clear();
+  for (const auto& x : run()) EXPECT_NE(x.name, "outputs") << check_rt::format_result(x);
 }
 
 // source: comedi: the configured device node (under the tree's root) must exist; its fix

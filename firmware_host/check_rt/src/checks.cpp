@@ -401,6 +401,8 @@ void check_scan_source(const SystemTree& tree, const config::AppConfig& cfg, Liv
 // The outputs as this user sees them (always the live file system, also under --root): the
 // service user may not write a folder the engineer running check-rt can, and the reverse.
 void check_outputs(const config::AppConfig& cfg, std::vector<CheckResult>& out) {
+  // Without a config the built-in defaults' outputs (relative names) say nothing about a service.
+  if (cfg.path.empty()) return;
   const auto problems = config::output_problems(cfg);
   for (const auto& p : problems) {
     out.push_back(fail(
