@@ -57,17 +57,6 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs) {
   // Files: checked for their kind before anything opens them (a directory reads as empty, a
   // FIFO blocks in open(), a device never ends), so a wrong path is a message, not a hang.
   for (std::size_t i = 0; i < c.targets.size(); ++i) {
-    // A start area outside the field would keep every start search from finding anything. A
-    // replay's field is its frames' size, checked when they are read.
-    if (const auto& a = c.targets[i].start_area;
-        a.size() == 3 && c.source != "replay" &&
-        (a[0] >= c.scan.field_w || a[1] >= c.scan.field_h)) {
-      root.error_at("targets[" + std::to_string(i) + "].start_area",
-                    "centre (" + std::to_string(static_cast<int>(a[0])) + ", " +
-                        std::to_string(static_cast<int>(a[1])) + ") is outside the " +
-                        std::to_string(c.scan.field_w) + "x" + std::to_string(c.scan.field_h) +
-                        " scan field (scan.field_w, scan.field_h)");
-    }
     for (std::size_t j = 0; j < c.targets[i].pattern_sets.size(); ++j) {
       const auto& ps = c.targets[i].pattern_sets[j];
       const std::string key = "targets[" + std::to_string(i) + "].pattern_sets[" + std::to_string(j) + "].";
