@@ -20,6 +20,12 @@
 
 namespace sempose::hal {
 
+namespace {
+// A looped recording's span at most (52 days): a clock can go on ~1000 passes of it after the
+// largest stamp frames.csv accepts (2^62), with room for a scan after each.
+constexpr std::int64_t kMaxLoopSpanNs = std::int64_t{1} << 52;
+}  // namespace
+
 namespace fs = std::filesystem;
 
 bool is_pgm_name(const std::string& path) {
@@ -166,7 +172,6 @@ ReplaySource::ReplaySource(const ScanLimits& limits, const config::ReplayConfig&
   // fine once, but a span of ~2^62 ns overflowed the 64-bit clock on the second pass (found
   // probing: t_ns -9.2e18 on 537 poses, exit 0). Looping asks for a span a clock can go on from:
   // at most 2^52 ns (52 days), which leaves room for a thousand passes after the largest stamp.
-  constexpr std::int64_t kMaxLoopSpanNs = std::int64_t{1} << 52;
   if (loop_ && t_ns_.size() > 1 && t_ns_.back() - t_ns_.front() > kMaxLoopSpanNs) {
     throw std::runtime_error(csv.string() + ": its time stamps span " + std::to_string(t_ns_.back() - t_ns_.front()) +
                              " ns (t_ns " + std::to_string(t_ns_.front()) + " .. " + std::to_string(t_ns_.back()) +
@@ -192,7 +197,9 @@ StartResult ReplaySource::start(const ScanRequest& req, FrameSlot& slot) noexcep
       const std::int64_t period = frames_.size() > 1 ? (t_ns_.back() - t_ns_.front()) / static_cast<std::int64_t>(frames_.size() - 1) : 0;
       // Bounded (span ≤ 2^52 ns, checked at setup): saturating only past ~1000 passes of the longest.
       const std::int64_t step = t_ns_.back() - t_ns_.front() + period;
-      const std::int64_t room = std::numeric_limits<std::int64_t>::max() - t_ns_.back() - loop_offset_ns_;
+      // Room for a pass more and a scan after its last stamp (the scan's end is t0 + its time).
+      const std::int64_t room = std::numeric_limits<std::int64_t>::max() - t_ns_.back() -
+                                loop_offset_ns_ - kMaxLoopSpanNs;
       if (step > room) return StartResult::kEnded;  // no later pass can be stamped: the source ends
       loop_offset_ns_ += step;
     }
