@@ -136,7 +136,7 @@ std::vector<std::int64_t> read_frames_csv(const std::string& path, std::size_t f
   if (!S_ISREG(st.st_mode)) throw std::runtime_error(path + ": not a regular file");
   if (st.st_size > kMaxFileBytes) throw std::runtime_error(path + ": larger than 64 MiB");
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot open");
+  if (!in) throw std::runtime_error(path + ": cannot open (" + std::strerror(errno) + ")");
   std::string text(static_cast<std::size_t>(st.st_size), '\0');
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   text.resize(static_cast<std::size_t>(in.gcount()));
@@ -156,7 +156,7 @@ std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::
   }
   if (st.st_size > kMaxFileBytes) throw std::runtime_error(path + ": larger than 64 MiB");
   std::ifstream f(path);
-  if (!f) throw std::runtime_error(path + ": cannot open");
+  if (!f) throw std::runtime_error(path + ": cannot open (" + std::strerror(errno) + ")");
   std::vector<std::vector<double>> rows;
   std::string line;
   std::size_t line_no = 0;

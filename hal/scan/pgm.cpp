@@ -146,7 +146,7 @@ bool try_read_pgm(const std::string& path, Image& out, std::string& error) {
   }
   std::ifstream f(path, std::ios::binary);
   if (!f) {
-    error = path + ": cannot open (missing or unreadable)";
+    error = path + ": cannot open (" + std::strerror(errno) + ")";
     return false;
   }
   std::vector<unsigned char> data(static_cast<std::size_t>(st.st_size));

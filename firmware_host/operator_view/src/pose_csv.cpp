@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -71,7 +73,7 @@ std::string status(const std::string& cell, const std::string& where) {
 
 std::vector<PoseRow> read_pose_csv(const std::string& path) {
   std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open");
+  if (!in) throw std::runtime_error(path + ": cannot open (" + std::strerror(errno) + ")");
   std::vector<PoseRow> rows;
   std::string line;
   int n = 0;
