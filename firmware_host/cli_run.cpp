@@ -73,35 +73,46 @@ int usage(std::FILE* out) {
 constexpr const char* kHistogramTxt = "latency_hist.txt";
 constexpr const char* kHistogramJson = "latency_hist.json";
 
-// False when a file could not be written in full (a full disk shows only when the buffer is
-// flushed, so both files are closed before they are judged). Each is written beside its name
-// and renamed over it only when both are whole: found probing on a 64 KiB tmpfs, the run said
+// nullptr when both files are written in full, else why not (errno's text, or out of memory). A
+// full disk shows only when the buffer is flushed, so both files are closed before they are
+// judged. Each is written beside its name and renamed over it only when both are whole: found probing on a 64 KiB tmpfs, the run said
 // "NOT written" but left latency_hist.txt cut mid-line without its Total/Max trailer (the tail
 // a latency check reads) and latency_hist.json empty. A failed dump leaves the last whole one.
 // `series` is the run's snapshots, made at setup and refreshed here without allocating; the
 // writing itself allocates (streams, formatting), and out of memory there is a failed dump, not
 // the end of the run's report (found probing under `ulimit -v`).
-bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p,
-                     std::vector<rt::HistogramSnapshot>& series) {
-  if (dir.empty()) return true;
+const char* dump_histograms(const std::string& dir, const pipeline::Pipeline& p,
+                            std::vector<rt::HistogramSnapshot>& series) {
+  if (dir.empty()) return nullptr;
   p.histograms().snapshot_into(series);
   std::string txt_part, json_part;
   const char* why = "write error";
+  // errno of the step that failed, read before anything else can change it.
+  const auto failed = [&why] { why = errno != 0 ? std::strerror(errno) : "write error"; };
   try {
     const std::string txt_path = dir + "/" + kHistogramTxt, json_path = dir + "/" + kHistogramJson;
     txt_part = txt_path + ".part";
     json_part = json_path + ".part";
     std::error_code ec;
     std::filesystem::create_directories(dir, ec);
+    errno = 0;
     std::ofstream txt(txt_part);
     rt::write_cyclictest_histogram(txt, series);
     txt.close();
-    std::ofstream json(json_part);
-    rt::write_histogram_json(json, series);
-    json.close();
-    if (txt && json && std::rename(txt_part.c_str(), txt_path.c_str()) == 0 &&
-        std::rename(json_part.c_str(), json_path.c_str()) == 0) {
-      return true;
+    if (!txt) {
+      failed();
+    } else {
+      std::ofstream json(json_part);
+      rt::write_histogram_json(json, series);
+      json.close();
+      if (!json) {
+        failed();
+      } else if (std::rename(txt_part.c_str(), txt_path.c_str()) != 0 ||
+                 std::rename(json_part.c_str(), json_path.c_str()) != 0) {
+        failed();
+      } else {
+        return nullptr;
+      }
     }
   } catch (const std::bad_alloc&) {
     why = "out of memory (an address-space limit: ulimit -v, RLIMIT_AS)";
@@ -109,7 +120,7 @@ bool dump_histograms(const std::string& dir, const pipeline::Pipeline& p,
   if (!txt_part.empty()) std::remove(txt_part.c_str());
   if (!json_part.empty()) std::remove(json_part.c_str());
   std::fprintf(stderr, "sempose run: cannot write histograms to %s: %s\n", dir.c_str(), why);
-  return false;
+  return why;
 }
 
 // The signals that stop a run cleanly: every one whose default action would end the process
@@ -538,9 +549,12 @@ int sempose::cli::run(int argc, char** argv) {
         break;
       }
       if (sig == SIGUSR1) {
-        const bool written = dump_histograms(hist_dir, *pipe, snapshots);
-        std::printf("histograms %s %s\n", written ? "written to" : "NOT written (write error) to",
-                    hist_dir.empty() ? "(no --hist-dir)" : hist_dir.c_str());
+        const char* why_not = dump_histograms(hist_dir, *pipe, snapshots);
+        if (why_not == nullptr) {
+          std::printf("histograms written to %s\n", hist_dir.empty() ? "(no --hist-dir)" : hist_dir.c_str());
+        } else {
+          std::printf("histograms NOT written to %s (%s)\n", hist_dir.c_str(), why_not);
+        }
       }
       if (rt::now_ns() >= watchdog.next_due_ns()) watchdog.poll(rt::now_ns());
       if (rt::now_ns() >= next_status) {
@@ -618,7 +632,7 @@ int sempose::cli::run(int argc, char** argv) {
   const bool csv_ok = run.csv ? run.csv->close() : true;
   if (stop_signal != 0) std::printf("stopped by %s\n", stop_signal_name(stop_signal));
   if (pipe->source_ended()) std::printf("the source ended\n");
-  const bool hist_ok = dump_histograms(hist_dir, *pipe, snapshots);
+  const char* hist_why_not = dump_histograms(hist_dir, *pipe, snapshots);
 
   // ---- summary
   pipe->histograms().snapshot_into(snapshots);
@@ -661,8 +675,8 @@ int sempose::cli::run(int argc, char** argv) {
   }
   if (hist_dir.empty()) {
     std::printf("histograms: not written (no --hist-dir / output.hist_dir)\n");
-  } else if (!hist_ok) {
-    std::printf("histograms: NOT written to %s (write error)\n", hist_dir.c_str());
+  } else if (hist_why_not != nullptr) {
+    std::printf("histograms: NOT written to %s (%s)\n", hist_dir.c_str(), hist_why_not);
   } else {
     std::printf("histograms: %s/latency_hist.txt (cyclictest layout), %s/latency_hist.json\n", hist_dir.c_str(),
                 hist_dir.c_str());
@@ -692,10 +706,10 @@ int sempose::cli::run(int argc, char** argv) {
         "sempose run: stopped early: out of memory in the non-RT loop (ulimit -v, RLIMIT_AS)\n");
     return 7;
   }
-  if (summary.output_errors > 0 || !csv_ok || summary.can_log_bytes_lost > 0 || !hist_ok) {
+  if (summary.output_errors > 0 || !csv_ok || summary.can_log_bytes_lost > 0 || hist_why_not != nullptr) {
     std::fprintf(stderr, "sempose run: output write errors (csv lines lost %llu, candump log bytes lost %llu%s)\n",
                  static_cast<unsigned long long>(summary.csv_lines_lost),
-                 static_cast<unsigned long long>(summary.can_log_bytes_lost), hist_ok ? "" : ", histograms not written");
+                 static_cast<unsigned long long>(summary.can_log_bytes_lost), hist_why_not == nullptr ? "" : ", histograms not written");
     return 4;
   }
   if (source_watchdog.stalls() > 0) {
