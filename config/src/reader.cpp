@@ -131,8 +131,9 @@ void Section::error(const char* key, const std::string& what) {
 void Section::error_at(const std::string& dotted_key, const std::string& what) {
   // Walks "a.b[2].c" from this node; stops at the first part the file does not have.
   YAML::Mark mark = node_.Mark();
-  const YAML::Node root = node_;  // const: a lookup of a missing key must not insert it
-  YAML::Node at = root;
+  // Lookups go through a const reference: a missing key must not be inserted. reset() moves
+  // `at` to the next node without touching node_.
+  YAML::Node at = node_;
   std::size_t i = 0;
   while (i < dotted_key.size() && at.IsDefined() && !at.IsNull()) {
     std::size_t end = dotted_key.find_first_of(".[", i);
