@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 
@@ -108,14 +109,20 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
       tc.pattern_sets.push_back(p);
     }
     if (tc.pattern_sets.empty()) t.error("pattern_sets", "a target needs at least one pattern set ({file, nm_per_px})");
+    // An element out of range is named by opt_list and read as 0; the radius's own floor is
+    // only judged on a list that read whole (a radius of 1e300 was also "0.000000 below 1 px").
+    const std::size_t errors_before = t.errors().messages().size();
     t.opt_list("start_area", tc.start_area, 0.0, 16384.0);
+    const bool read_whole = t.errors().messages().size() == errors_before;
     if (!tc.start_area.empty() || t.has("start_area")) {  // given empty, it would be ignored unsaid
       if (tc.start_area.size() != 3) {
         t.error("start_area",
                 "expected [x_px, y_px, radius_px] (where the target is at start, in field pixels)");
         tc.start_area.clear();
-      } else if (!(tc.start_area[2] >= 1.0)) {
-        t.error("start_area", "radius_px " + std::to_string(tc.start_area[2]) + " is below 1 px");
+      } else if (read_whole && !(tc.start_area[2] >= 1.0)) {
+        char radius[32];
+        std::snprintf(radius, sizeof radius, "%g", tc.start_area[2]);
+        t.error("start_area", std::string("radius_px ") + radius + " is outside [1, 16384] px");
         tc.start_area.clear();
       }
     }

@@ -247,8 +247,9 @@ TEST(AppConfig, AStartAreaIsReadAndItsMistakesNamed) {
   const std::pair<const char*, const char*> bad[] = {
       {"[200, 160]", "targets[0].start_area: expected [x_px, y_px, radius_px]"},
       {"[]", "targets[0].start_area: expected [x_px, y_px, radius_px]"},
-      {"[200, 160, 0.5]", "targets[0].start_area: radius_px 0.500000 is below 1 px"},
+      {"[200, 160, 0.5]", "targets[0].start_area: radius_px 0.5 is outside [1, 16384] px"},
       {"[-5, 160, 60]", "targets[0].start_area[0]: -5 is outside the allowed range [0, 16384]"},
+      {"[200, 160, 1e300]", "targets[0].start_area[2]: 1e300 is outside the allowed range [0, 16384]"},
   };
   for (const auto& [value, message] : bad) {
     e.clear();
@@ -260,6 +261,8 @@ TEST(AppConfig, AStartAreaIsReadAndItsMistakesNamed) {
         c, e))
         << value;
     EXPECT_NE(e.find(message), std::string::npos) << value << "\n" << e;
+    // One error a mistake: an element out of range was also read as a radius of 0 "below 1 px".
+    EXPECT_EQ(std::count(e.begin(), e.end(), '\n') + (e.empty() || e.back() == '\n' ? 0 : 1), 1) << value << "\n" << e;
   }
 }
 
