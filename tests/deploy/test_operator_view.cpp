@@ -74,6 +74,11 @@ TEST(PoseCsv, ReadsRunAndReplayFiles) {
                     p + ":2: angle_order '9' is not a whole number in [1, 6]");
   std::ofstream(p) << "frame,t_ns,x_px,y_px,phi_deg,score,status,scale,angle_order\n0,0,1,2,3,0.5,TRACKING,1.0,2\n";
   EXPECT_THROW(read_pose_csv(p), std::runtime_error);
+  // Saved again by a spreadsheet: a UTF-8 byte-order mark before the header is read past (shown
+  // in the error, it made the header look right).
+  std::ofstream(p) << "\xEF\xBB\xBF" "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,1,160,120,0,0.9,TRACKING\n";
+  ASSERT_EQ(read_pose_csv(p).size(), 1u);
+  EXPECT_DOUBLE_EQ(read_pose_csv(p).front().x_px, 160.0);
   fs::remove(p);
 }
 

@@ -86,6 +86,9 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty()) continue;
     if (n == 1) {
+      // A UTF-8 byte-order mark (the CSV saved again by a spreadsheet) is read past, as the
+      // truth reader does: shown in the error, it made the header look right (found probing).
+      if (line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
       if (line.rfind("frame,t_ns,x_px,y_px,phi_deg,score,status", 0) != 0) {
         throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale]");
       }
