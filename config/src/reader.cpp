@@ -1,4 +1,5 @@
 #include "sempose/config/reader.hpp"
+#include "sempose/config/unsafe_text.hpp"
 
 #include <sys/stat.h>
 #include <sys/vfs.h>
@@ -288,55 +289,29 @@ std::string output_dir_problem(const std::string& path) {
   return output_path_problem(path + "/x");
 }
 
-namespace {
-const char* control_name(unsigned char c) {
-  switch (c) {
-    case 0: return "a NUL byte (\\0)";
-    case '\n': return "a newline (\\n)";
-    case '\r': return "a carriage return (\\r)";
-    case '\t': return "a tab (\\t)";
-    case 0x1b: return "an escape (\\x1b)";
-    case 0x7f: return "a DEL (\\x7f)";
-    default: return "a control character";
-  }
-}
-bool is_control(unsigned char c) { return c < 0x20 || c == 0x7f; }
-}  // namespace
-
 std::string printable(const std::string& value) {
   std::string out;
-  for (const char ch : value) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (!is_control(c)) {
-      out += ch;
-    } else if (c == '\n') {
-      out += "\\n";
-    } else if (c == '\r') {
-      out += "\\r";
-    } else if (c == '\t') {
-      out += "\\t";
-    } else if (c == 0) {
-      out += "\\0";
-    } else {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02x", c);
-      out += buf;
-    }
+  std::size_t i = 0;
+  for (UnsafeCharacter u = find_unsafe_character(value); u.found; u = find_unsafe_character(value, i)) {
+    out.append(value, i, u.byte - i);
+    out += u.escape;
+    i = u.byte + u.length;
   }
+  out.append(value, i, std::string::npos);
   return out;
 }
 
 std::string control_character_problem(const std::string& value) {
-  for (std::size_t i = 0; i < value.size(); ++i) {
-    const auto c = static_cast<unsigned char>(value[i]);
-    if (!is_control(c)) continue;
-    char byte[8];
-    std::snprintf(byte, sizeof byte, "0x%02x", c);
-    return "'" + printable(value) + "' holds " + control_name(c) + ", byte " + byte + " at character " +
-           std::to_string(i + 1) + ": control characters are not allowed (a file name with one breaks every " +
-           "line-oriented tool and log)";
+  const UnsafeCharacter u = find_unsafe_character(value);
+  if (!u.found) return "";
+  std::string bytes = u.length == 1 ? "byte" : "bytes";
+  for (std::size_t k = 0; k < u.length; ++k) {
+    char b[8];
+    std::snprintf(b, sizeof b, " 0x%02x", static_cast<unsigned char>(value[u.byte + k]));
+    bytes += b;
   }
-  return "";
+  return "'" + printable(value) + "' holds " + u.what + ", " + bytes + " at character " + std::to_string(u.position) +
+         ": control characters are not allowed (a file name with one breaks every line-oriented tool and log)";
 }
 
 namespace {

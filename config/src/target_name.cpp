@@ -1,4 +1,5 @@
 #include "sempose/config/target_name.hpp"
+#include "sempose/config/unsafe_text.hpp"
 
 #include <algorithm>
 
@@ -7,6 +8,13 @@ namespace {
 
 bool breaks_word(unsigned char ch) { return ch <= ' ' || ch == 0x7f; }
 
+// A space, or a character that is not safe in text (unsafe_text.hpp: a zero-width space made
+// "a\u200b" print as "a", a bidirectional override reordered the status line after it).
+bool breaks_name(const std::string& name) {
+  return std::any_of(name.begin(), name.end(), [](unsigned char ch) { return breaks_word(ch); }) ||
+         find_unsafe_character(name).found;
+}
+
 bool is_taken(const std::string& name, const std::vector<std::string>& taken) {
   return std::find(taken.begin(), taken.end(), name) != taken.end();
 }
@@ -14,8 +22,7 @@ bool is_taken(const std::string& name, const std::vector<std::string>& taken) {
 }  // namespace
 
 bool is_target_name(const std::string& name) {
-  return !name.empty() && name.size() <= kMaxTargetNameLength &&
-         std::none_of(name.begin(), name.end(), [](unsigned char ch) { return breaks_word(ch); });
+  return !name.empty() && name.size() <= kMaxTargetNameLength && !breaks_name(name);
 }
 
 std::string make_target_name(const std::string& raw, std::size_t index, const std::vector<std::string>& taken) {
@@ -24,6 +31,8 @@ std::string make_target_name(const std::string& raw, std::size_t index, const st
   while (cut > 0 && cut < raw.size() && (static_cast<unsigned char>(raw[cut]) & 0xC0) == 0x80) --cut;
   std::string base = raw.substr(0, cut);
   std::replace_if(base.begin(), base.end(), [](unsigned char ch) { return breaks_word(ch); }, '_');
+  for (UnsafeCharacter u = find_unsafe_character(base); u.found; u = find_unsafe_character(base, u.byte + 1))
+    base.replace(u.byte, u.length, "_");
   if (base.empty()) base = "target" + std::to_string(index);
   std::string name = base;
   for (std::size_t n = index; is_taken(name, taken); ++n) name = base + "_" + std::to_string(n);

@@ -94,7 +94,7 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
     tc.name = "target" + std::to_string(out.size());
     t.opt("name", tc.name);
     if (!is_target_name(tc.name)) {
-      t.error("name", "'" + tc.name + "' is not a target name (1..64 bytes of UTF-8, no spaces or control characters)");
+      t.error("name", "'" + printable(tc.name) + "' is not a target name (1..64 bytes of UTF-8, no spaces, control or invisible characters)");
     } else {
       for (std::size_t k = 0; k < out.size(); ++k) {
         if (out[k].name == tc.name) t.error("name", "'" + tc.name + "' is already targets[" + std::to_string(k) + "]'s name");

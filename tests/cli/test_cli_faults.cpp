@@ -1492,6 +1492,10 @@ TEST(CliFaults, ControlCharactersInOutputPathsAreRefusedByName) {
            {"output: {hist_dir: \"" + dir + "/h\\e\"}\n", "output.hist_dir", "an escape (\\x1b), byte 0x1b"},
            {"output: {poses_csv: \"" + dir + "/n\\0.csv\"}\n", "output.poses_csv", "a NUL byte (\\0), byte 0x00"},
            {"output: {poses_csv: \"" + dir + "/r.csv\\r\"}\n", "output.poses_csv", "a carriage return"},
+           // YAML's own next-line escape (yaml-cpp writes it as the single byte 0x85) and a
+           // line separator: accepted and used as file names before (found probing).
+           {"output: {poses_csv: \"" + dir + "/nel\\N.csv\"}\n", "output.poses_csv", "a byte that is not UTF-8, byte 0x85"},
+           {"can: {log_file: \"" + dir + "/ls\\L.log\"}\n", "can.log_file", "U+2028 (a line separator)"},
        }) {
     const std::string cfg = small_config(dir, c.yaml);
     const Outcome r = run({"run", "--config", cfg, "--duration", "1"}, 60);
@@ -1514,12 +1518,15 @@ TEST(CliFaults, ControlCharactersInOutputPathsAreRefusedByName) {
            {{"replay", "--frames", dir + "/rec", "--pattern", dir + "/rec/frame_000000.pgm", "--out", nl + ".csv"},
             "sempose replay: --out: '" + dir + "/x\\ny.csv' holds a newline"},
            {{"view", "--poses", dir + "/none.csv", "--out", dir + "/v\x01"}, "sempose view: --out: '" + dir + "/v\\x01' holds a control character, byte 0x01"},
+           {{"sim", "--out", dir + "/rec\xc2\x85x", "--frames", "2"},
+            "sempose sim: --out: '" + dir + "/rec\\u0085x' holds U+0085 (a next-line control (NEL)), bytes 0xc2 0x85"},
+           {{"sim", "--out", dir + "/rec\x9b" "31m", "--frames", "2"}, "sempose sim: --out: '" + dir + "/rec\\x9b31m' holds a byte that is not UTF-8"},
        }) {
     expect_refused(c, 60);
   }
   for (const auto& e : fs::directory_iterator(dir)) {
     const std::string name = e.path().filename().string();
-    EXPECT_EQ(name.find_first_of("\n\t\r\x1b\x01"), std::string::npos) << "made: " << name;
+    EXPECT_EQ(name.find_first_of("\n\t\r\x1b\x01\x85\x9b"), std::string::npos) << "made: " << name;
     EXPECT_NE(name, "n") << "a NUL cut the name short";
     EXPECT_FALSE(name == "ok.csv" || name == "sempose_can.log") << "an output was touched: " << name;
   }

@@ -274,7 +274,10 @@ TEST(AppConfig, TargetNamesAreOneWordAndUnique) {
                                "  - {name: a, pattern_sets: [{file: p.pgm}]}\n"
                                "  - {name: '', pattern_sets: [{file: p.pgm}]}\n"
                                "  - {name: 'left jaw', pattern_sets: [{file: p.pgm}]}\n"
-                               "  - {name: needle_2.tip-x, pattern_sets: [{file: p.pgm}]}\n");
+                               "  - {name: needle_2.tip-x, pattern_sets: [{file: p.pgm}]}\n"
+                               // Printed like 'a' and like 'ba' (found probing: accepted).
+                               "  - {name: \"a\\u200b\", pattern_sets: [{file: p.pgm}]}\n"
+                               "  - {name: \"\\u202eab\", pattern_sets: [{file: p.pgm}]}\n");
   AppConfig c;
   std::string e;
   EXPECT_FALSE(load_app_config(path, c, e));
@@ -282,6 +285,9 @@ TEST(AppConfig, TargetNamesAreOneWordAndUnique) {
   EXPECT_NE(e.find("targets[2].name: '' is not a target name"), std::string::npos) << e;
   EXPECT_NE(e.find("targets[3].name: 'left jaw' is not a target name"), std::string::npos) << e;
   EXPECT_EQ(e.find("targets[4].name"), std::string::npos) << e;
+  EXPECT_NE(e.find("targets[5].name: 'a\\u200b' holds U+200B (a zero-width character)"), std::string::npos) << e;
+  EXPECT_NE(e.find("targets[6].name: '\\u202eab' holds U+202E (a bidirectional override)"), std::string::npos) << e;
+  EXPECT_FALSE(is_target_name("a\u200b"));  // a name read from a poses CSV (view) keeps the rule too
 }
 
 TEST(AppConfig, NamesMadeFromFilesKeepTheRule) {
@@ -291,6 +297,7 @@ TEST(AppConfig, NamesMadeFromFilesKeepTheRule) {
   EXPECT_EQ(make_target_name("a", 1, {"a"}), "a_1");
   EXPECT_EQ(make_target_name("a", 1, {"a", "a_1"}), "a_2");
   EXPECT_EQ(make_target_name(std::string("x\ty\x7f"), 0, {}), "x_y_");
+  EXPECT_EQ(make_target_name("a\u200bb\u2028c\x85", 0, {}), "a_b_c_");
   const std::string made = make_target_name(std::string(200, 'n'), 7, {std::string(52, 'n')});
   EXPECT_TRUE(is_target_name(made)) << made;
   EXPECT_NE(made, std::string(52, 'n'));

@@ -355,7 +355,16 @@ TEST(ConfigFaults, ControlCharactersAreRefusedInEveryTextValue) {
     for (const Bad& b : {Bad{"\"a\\nb\"", "'a\\nb' holds a newline (\\n), byte 0x0a at character 2"},
                          Bad{"\"a\\0b\"", "'a\\0b' holds a NUL byte (\\0), byte 0x00 at character 2"},
                          Bad{"\"ab\\x7f\"", "'ab\\x7f' holds a DEL (\\x7f), byte 0x7f at character 3"},
-                         Bad{"\"\\x01\"", "'\\x01' holds a control character, byte 0x01 at character 1"}}) {
+                         Bad{"\"\\x01\"", "'\\x01' holds a control character, byte 0x01 at character 1"},
+                         // The Unicode ones (found probing: accepted, used as file names): YAML's own
+                         // line-break escapes, a C1 control, a bidirectional override, a zero-width
+                         // space; characters before them are counted whole ("é" is one).
+                         Bad{"\"a\\Nb\"", "'a\\x85b' holds a byte that is not UTF-8, byte 0x85 at character 2"},
+                         Bad{"\"a\\Lb\"", "'a\\u2028b' holds U+2028 (a line separator), bytes 0xe2 0x80 0xa8 at character 2"},
+                         Bad{"\"\u00e9\\Pb\"", "'\u00e9\\u2029b' holds U+2029 (a paragraph separator), bytes 0xe2 0x80 0xa9 at character 2"},
+                         Bad{"\"a\\x9bb\"", "'a\\u009bb' holds U+009B (a C1 control character), bytes 0xc2 0x9b at character 2"},
+                         Bad{"\"a\\u202eb\"", "'a\\u202eb' holds U+202E (a bidirectional override), bytes 0xe2 0x80 0xae at character 2"},
+                         Bad{"\"a\\u200b\"", "'a\\u200b' holds U+200B (a zero-width character), bytes 0xe2 0x80 0x8b at character 2"}}) {
       AppConfig c;
       std::string e;
       EXPECT_FALSE(parse_app_config(with(base, k.path, b.yaml), dir + "/c.yaml", c, e)) << k.path << " = " << b.yaml;

@@ -141,7 +141,7 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
         const std::string shown = r.target.size() > 80 ? r.target.substr(0, 80) + "..." : r.target;
         throw std::runtime_error(where + ": target '" + shown + "' is not a target name (1.." +
                                  std::to_string(config::kMaxTargetNameLength) +
-                                 " bytes of UTF-8, no spaces or control characters)");
+                                 " bytes of UTF-8, no spaces, control or invisible characters)");
       }
       if (std::find(names.begin(), names.end(), r.target) == names.end()) {
         if (names.size() == static_cast<std::size_t>(hal::kMaxTargets)) {

@@ -130,12 +130,14 @@ std::string path_kind_problem(const std::string& path);
 std::string output_path_problem(const std::string& path);
 // For an output folder: "" when it is a writable directory or can be created; otherwise why not.
 std::string output_dir_problem(const std::string& path);
-// A text value (a path, a name) with a control character (bytes 0x00..0x1f, 0x7f): a newline
-// in a file name breaks every line-oriented tool and log, a NUL cut the name short where the
-// C library read it. "" when there is none; otherwise a message naming the first one (its
-// escape, byte and position) with the value shown escaped.
+// A text value (a path, a name) with a control character (bytes 0x00..0x1f, 0x7f, and the
+// Unicode ones of unsafe_text.hpp: C1 controls, line separators, invisible and bidirectional
+// characters, bytes that are not UTF-8): a newline in a file name breaks every line-oriented
+// tool and log, a NUL cut the name short where the C library read it. "" when there is none;
+// otherwise a message naming the first one (its escape, bytes and position) with the value
+// shown escaped.
 std::string control_character_problem(const std::string& value);
-// The value with control characters written as escapes (\n, \t, \x01): safe in a message.
+// The value with those characters written as escapes (\n, \t, \x01, \u2028): safe in a message.
 std::string printable(const std::string& value);
 
 // ---- template definitions ----

@@ -1,6 +1,6 @@
 // A target's name labels it in the status lines, the summary and the logs, which scripts read
 // as whitespace-separated fields: one word of 1..64 bytes (UTF-8: an accented letter is two),
-// no spaces or control characters, and one target per name. The config reader refuses a name that breaks the rule;
+// no spaces, control or invisible characters (unsafe_text.hpp), and one target per name. The config reader refuses a name that breaks the rule;
 // `sempose replay`, which names targets after their pattern files, makes one that keeps it.
 #pragma once
 
