@@ -78,6 +78,32 @@ void read_trajectory(Section& s, TrajectoryConfig& t) {
   s.opt("sigma_deg_per_sqrt_s", t.sigma_deg_per_sqrt_s, 0.0, 1e4);
   s.opt("knot_s", t.knot_s, 1e-4, 100.0);
   s.opt("margin_px", t.margin_px, 0.0, 8192.0);
+  // A key its kind does not use was read and dropped (found probing: `{vx_px_s: 100}` without
+  // a kind recorded a still target; `vx_px_s` under `kind: sine` did nothing). Which kind reads
+  // which key: hal/scan/trajectory.cpp.
+  struct Uses {
+    const char* key;
+    std::vector<std::string> kinds;
+  };
+  static const Uses uses[] = {{"vx_px_s", {"linear"}},
+                              {"vy_px_s", {"linear"}},
+                              {"omega_deg_s", {"linear", "spin"}},
+                              {"amplitude_x_px", {"sine", "steps"}},
+                              {"amplitude_y_px", {"sine", "steps"}},
+                              {"amplitude_phi_deg", {"sine", "steps", "jumps"}},
+                              {"period_s", {"sine", "steps", "jumps"}},
+                              {"steps", {"steps"}},
+                              {"sigma_px_per_sqrt_s", {"random_walk"}},
+                              {"sigma_deg_per_sqrt_s", {"random_walk"}},
+                              {"knot_s", {"random_walk"}},
+                              {"margin_px", {"linear", "jumps", "random_walk"}}};
+  for (const Uses& u : uses) {
+    if (!s.has(u.key) || std::find(u.kinds.begin(), u.kinds.end(), t.kind) != u.kinds.end()) continue;
+    std::string kinds;
+    for (const std::string& k : u.kinds) kinds += (kinds.empty() ? "" : ", ") + k;
+    s.error(u.key, std::string("applies to kind ") + kinds + " only, not '" + t.kind + "'" +
+                       (s.has("kind") ? "" : " (no kind given: the target's default)"));
+  }
 }
 
 // A TimeProfile as a mapping {from, to, start_s, ramp_s, amplitude, period_s}; `value` alone
@@ -120,9 +146,11 @@ void read_target(Section& s, SimTargetConfig& t) {
   if (t.texture.source == "image" && t.texture.path.empty()) {
     tex.error("path", "texture source 'image' needs a PGM path");
   }
-  // A path (or crop) beside a procedural source was read and never used.
-  if (t.texture.source != "image" && (tex.has("path") || tex.has("crop")))
-    tex.error(tex.has("path") ? "path" : "crop", "applies to texture source 'image' only, not '" + t.texture.source + "'");
+  // A path, crop or mask beside a procedural source was read and never used.
+  for (const char* key : {"path", "crop", "mask", "mask_level"}) {
+    if (t.texture.source != "image" && tex.has(key))
+      tex.error(key, "applies to texture source 'image' only, not '" + t.texture.source + "'");
+  }
   std::vector<std::int32_t> size;
   s.opt_list("size", size, std::int32_t{4}, std::int32_t{4096});
   if (!size.empty() || s.has("size")) {  // given empty, it kept the default unsaid
@@ -199,6 +227,14 @@ void read_sim(Section& s, SimConfig& c) {
   bg.opt("grain_px", c.background.grain_px, 0.5, 64.0);
   if (c.background.source == "image" && c.background.path.empty()) {
     bg.error("path", "background source 'image' needs a PGM path");
+  }
+  // Read and never used (found probing: an image background with mean/contrast/grain_px gave
+  // the same frames byte for byte).
+  for (const char* key : {"mean", "contrast", "grain_px"}) {
+    if (c.background.source == "image" && bg.has(key)) bg.error(key, "applies to background source 'procedural' only, not 'image'");
+  }
+  for (const char* key : {"path", "crop"}) {
+    if (c.background.source != "image" && bg.has(key)) bg.error(key, "applies to background source 'image' only, not '" + c.background.source + "'");
   }
   if (s.has("targets")) {
     std::vector<Section> list = s.children("targets");

@@ -255,6 +255,20 @@ TEST(ConfigFaults, SimValuesThatWouldBeIgnoredAreNamed) {
       {{"sim.targets[0].texture", "{source: image, path: " + kPattern + ", crop: []}"},
        {"sim.targets[0].texture.crop", "expected [x, y, w, h] (4 numbers), got 0"}},
       {{"sim.targets[0]", "~"}, {"sim.targets", "item 0 is empty"}},
+      // Twelfth round: a trajectory key its kind does not read (no kind: a still target), a
+      // mask on a procedural texture, a procedural background's settings on an image.
+      {{"sim.targets[0].trajectory", "{vx_px_s: 100}"},
+       {"sim.targets[0].trajectory.vx_px_s", "applies to kind linear only, not 'static' (no kind given: the target's default)"}},
+      {{"sim.targets[0].trajectory", "{kind: sine, vx_px_s: 100}"},
+       {"sim.targets[0].trajectory.vx_px_s", "applies to kind linear only, not 'sine'"}},
+      {{"sim.targets[0].trajectory", "{kind: spin, omega_deg_s: 30, period_s: 2}"},
+       {"sim.targets[0].trajectory.period_s", "applies to kind sine, steps, jumps only, not 'spin'"}},
+      {{"sim.targets[0].texture", "{source: lamella, mask: threshold_all, mask_level: 0.1}"},
+       {"sim.targets[0].texture.mask", "applies to texture source 'image' only, not 'lamella'"}},
+      {{"sim.background", "{source: image, path: " + kPattern + ", grain_px: 30}"},
+       {"sim.background.grain_px", "applies to background source 'procedural' only, not 'image'"}},
+      {{"sim.background", "{mean: 0.3, crop: [0, 0, 10, 10]}"},
+       {"sim.background.crop", "applies to background source 'image' only, not 'procedural'"}},
   };
   for (const auto& c : cases) {
     AppConfig cfg;
