@@ -137,6 +137,22 @@ TEST_F(FakeTree, MissingIsolationWarnsWhenSleepingFailsWhenSpinning) {
   }
 }
 
+// Found by the twelfth hostile-input round: nohz_full alone offloads RCU (the kernel adds its
+// cores to the no-callback set), "all" is a list, quotes are dropped, and the last of two
+// rcu_nocbs= is the kernel's (the first was read: a false PASS).
+TEST_F(FakeTree, RcuNocbsIsReadAsTheKernelReadsIt) {
+  put("proc/cmdline", "root=/dev/sda1 isolcpus=2,3 nohz_full=2-3\n");
+  EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kPass) << find(run(), "rcu_nocbs").detail;
+  put("sys/devices/system/cpu/nohz_full", "(null)\n");
+  for (const char* line : {"root=/dev/sda1 rcu_nocbs=all\n", "root=/dev/sda1 \"rcu_nocbs=2-3\"\n",
+                           "root=/dev/sda1 rcu_nocbs=\"2-3\"\n", "root=/dev/sda1 rcu_nocbs=0 rcu_nocbs=2-3\n"}) {
+    put("proc/cmdline", line);
+    EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kPass) << line << find(run(), "rcu_nocbs").detail;
+  }
+  put("proc/cmdline", "root=/dev/sda1 rcu_nocbs=2-3 rcu_nocbs=0\n");
+  EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kWarn) << "the kernel keeps the last";
+}
+
 TEST_F(FakeTree, RtThrottling) {
   put("proc/sys/kernel/sched_rt_runtime_us", "950000\n");
   auto r = run();
@@ -145,6 +161,13 @@ TEST_F(FakeTree, RtThrottling) {
   only(r, "rt-throttling");
   cfg.pipeline.polling = "spin";
   EXPECT_EQ(find(run(), "rt-throttling").level, Level::kFail);
+  // No RT time at all is a FAIL however the stages wait (it was a WARN); blanks are not part of
+  // the value ("on: RT threads get -1  of every").
+  cfg.pipeline.polling = "sleep";
+  put("proc/sys/kernel/sched_rt_runtime_us", "0\n");
+  EXPECT_EQ(find(run(), "rt-throttling").level, Level::kFail) << find(run(), "rt-throttling").detail;
+  put("proc/sys/kernel/sched_rt_runtime_us", "-1 \n");
+  EXPECT_EQ(find(run(), "rt-throttling").level, Level::kPass) << find(run(), "rt-throttling").detail;
 }
 
 TEST_F(FakeTree, PowersaveGovernorOnAnRtCoreWarns) {
@@ -189,6 +212,22 @@ TEST_F(FakeTree, IrqsAllowedOnRtCoresWarnAndNameThem) {
   EXPECT_NE(i.detail.find("(25,30)"), std::string::npos) << i.detail;
   EXPECT_NE(i.fix.find("irqaffinity=0-1"), std::string::npos) << i.fix;
   only(r, "irq-affinity");
+}
+
+// What cannot be parsed is not passed as "none may run on RT cores" (twelfth round).
+TEST_F(FakeTree, IrqListsThatDoNotParseAreNotPassed) {
+  for (int irq : {1, 9}) put("proc/irq/" + std::to_string(irq) + "/smp_affinity_list", "garbage\n");
+  auto r = run();
+  EXPECT_EQ(find(r, "irq-affinity").level, Level::kWarn);
+  EXPECT_NE(find(r, "irq-affinity").detail.find("cannot parse /proc/irq/1/smp_affinity_list and 1 more"), std::string::npos)
+      << find(r, "irq-affinity").detail;
+  only(r, "irq-affinity");
+  for (int irq : {1, 9}) put("proc/irq/" + std::to_string(irq) + "/smp_affinity_list", "0-1\n");
+  put("proc/irq/default_smp_affinity", "zz\n");
+  r = run();
+  EXPECT_EQ(find(r, "irq-affinity").level, Level::kWarn);
+  EXPECT_NE(find(r, "irq-affinity").detail.find("cannot parse /proc/irq/default_smp_affinity"), std::string::npos)
+      << find(r, "irq-affinity").detail;
 }
 
 TEST_F(FakeTree, DefaultIrqAffinityOnRtCoresWarns) {

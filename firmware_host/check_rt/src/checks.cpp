@@ -49,13 +49,34 @@ std::vector<int> missing_from(const std::vector<int>& want, const std::vector<in
   return out;
 }
 
-std::string cmdline_value(const std::string& cmdline, const std::string& key) {
+// A boot parameter's value as the kernel takes it: quotes dropped (`key="v"`, `"key=v"`), and
+// the last of several (each one parses over the one before; the first was read, a false PASS).
+std::optional<std::string> cmdline_value(const std::string& cmdline, const std::string& key) {
   std::istringstream ss(cmdline);
   std::string word;
+  std::optional<std::string> value;
   while (ss >> word) {
-    if (word.rfind(key + "=", 0) == 0) return word.substr(key.size() + 1);
+    word.erase(std::remove(word.begin(), word.end(), '"'), word.end());
+    if (word.rfind(key + "=", 0) == 0) value = word.substr(key.size() + 1);
   }
-  return {};
+  return value;
+}
+
+std::string trimmed(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r\n"), e = s.find_last_not_of(" \t\r\n");
+  return b == std::string::npos ? "" : s.substr(b, e - b + 1);
+}
+
+// The cores whose RCU callbacks are offloaded: rcu_nocbs= (a list, or "all"), and every
+// nohz_full core, which the kernel offloads itself (rcu_init_nohz()): a box booted with
+// nohz_full alone was told to add rcu_nocbs.
+std::vector<int> rcu_offloaded(const std::string& cmdline, const std::vector<int>& online, const std::vector<int>& nohz_full) {
+  std::set<int> cores(nohz_full.begin(), nohz_full.end());
+  if (const auto v = cmdline_value(cmdline, "rcu_nocbs")) {
+    const std::vector<int> listed = *v == "all" ? online : parse_cpu_list(*v).value_or(std::vector<int>{});
+    cores.insert(listed.begin(), listed.end());
+  }
+  return {cores.begin(), cores.end()};
 }
 
 // A field of /proc/self/status ("CapEff:\t000001ffffffffff").
@@ -139,22 +160,24 @@ void check_cpus(const std::vector<int>& rt, const std::vector<int>& online,
   out.push_back(pass("rt-cpus", "RT cores " + format_cpu_list(rt) + ", housekeeping " + format_cpu_list(housekeeping)));
 }
 
-void check_isolation(const SystemTree& tree, const std::vector<int>& rt, bool spin, std::vector<CheckResult>& out) {
+void check_isolation(const SystemTree& tree, const std::vector<int>& rt, const std::vector<int>& online, bool spin,
+                     std::vector<CheckResult>& out) {
   if (rt.empty()) return;
   const std::string cmdline = tree.read("proc/cmdline").value_or("");
+  const auto nohz_full = parse_cpu_list(tree.read("sys/devices/system/cpu/nohz_full").value_or("")).value_or(std::vector<int>{});
   struct Source {
     const char* name;
-    std::optional<std::string> list;
+    std::vector<int> cpus;
     const char* why;
   };
   const Source sources[] = {
-      {"isolcpus", tree.read("sys/devices/system/cpu/isolated"), "the scheduler still puts other tasks there"},
-      {"nohz_full", tree.read("sys/devices/system/cpu/nohz_full"), "the scheduler tick still interrupts them"},
-      {"rcu_nocbs", cmdline_value(cmdline, "rcu_nocbs"), "RCU callbacks still run there"},
+      {"isolcpus", parse_cpu_list(tree.read("sys/devices/system/cpu/isolated").value_or("")).value_or(std::vector<int>{}),
+       "the scheduler still puts other tasks there"},
+      {"nohz_full", nohz_full, "the scheduler tick still interrupts them"},
+      {"rcu_nocbs", rcu_offloaded(cmdline, online, nohz_full), "RCU callbacks still run there"},
   };
   for (const auto& s : sources) {
-    const auto cpus = parse_cpu_list(s.list.value_or(""));
-    const auto missing = missing_from(rt, cpus.value_or(std::vector<int>{}));
+    const auto missing = missing_from(rt, s.cpus);
     if (missing.empty()) out.push_back(pass(s.name, "RT cores " + format_cpu_list(rt) + " covered"));
     else
       out.push_back(risk(spin, s.name, "RT core(s) " + format_cpu_list(missing) + " not in " + s.name + ": " + s.why,
@@ -165,16 +188,21 @@ void check_isolation(const SystemTree& tree, const std::vector<int>& rt, bool sp
 void check_throttling(const SystemTree& tree, bool spin, std::vector<CheckResult>& out) {
   const auto runtime = tree.read("proc/sys/kernel/sched_rt_runtime_us");
   const auto period = tree.read("proc/sys/kernel/sched_rt_period_us");
+  const std::string value = runtime ? trimmed(*runtime) : "";
+  const std::string fix = "sysctl -w kernel.sched_rt_runtime_us=-1 and persist it: echo 'kernel.sched_rt_runtime_us = -1' > "
+                          "/etc/sysctl.d/60-sempose.conf";
   if (!runtime) {
     out.push_back(warn("rt-throttling", "cannot read /proc/sys/kernel/sched_rt_runtime_us", "check that /proc is mounted"));
-  } else if (*runtime == "-1") {
+  } else if (value == "-1") {
     out.push_back(pass("rt-throttling", "off (sched_rt_runtime_us = -1)"));
+  } else if (value == "0") {
+    // No RT time at all: a SCHED_FIFO stage never runs (it was only a WARN).
+    out.push_back(fail("rt-throttling", "RT threads get no time at all (sched_rt_runtime_us = 0): the FIFO stages cannot run", fix));
   } else {
     out.push_back(risk(spin, "rt-throttling",
-                       "on: RT threads get " + *runtime + " of every " + period.value_or("?") +
+                       "on: RT threads get " + value + " of every " + trimmed(period.value_or("?")) +
                            " us; a busy FIFO thread is paused for the rest",
-                       "sysctl -w kernel.sched_rt_runtime_us=-1 and persist it: echo 'kernel.sched_rt_runtime_us = -1' > "
-                       "/etc/sysctl.d/60-sempose.conf"));
+                       fix));
   }
 }
 
@@ -219,7 +247,7 @@ void check_irqs(const SystemTree& tree, const std::vector<int>& rt, const std::v
                 std::vector<CheckResult>& out) {
   if (rt.empty()) return;
   const auto housekeeping = missing_from(online, rt);
-  std::vector<std::string> on_rt;
+  std::vector<std::string> on_rt, unparsed;  // unparsed: what cannot be read is not passed
   int movable = 0;
   for (const std::string& irq : tree.list("proc/irq")) {
     if (irq.empty() || !std::all_of(irq.begin(), irq.end(), ::isdigit)) continue;
@@ -227,11 +255,15 @@ void check_irqs(const SystemTree& tree, const std::vector<int>& rt, const std::v
     if (!list) continue;
     ++movable;
     const auto cpus = parse_cpu_list(*list);
-    if (!cpus) continue;
+    if (!cpus) {
+      unparsed.push_back("/proc/irq/" + irq + "/smp_affinity_list");
+      continue;
+    }
     if (missing_from(rt, *cpus).size() < rt.size()) on_rt.push_back(irq);
   }
   const auto def = tree.read("proc/irq/default_smp_affinity");
   const auto def_cpus = def ? parse_cpu_mask(*def) : std::nullopt;
+  if (def && !def_cpus) unparsed.push_back("/proc/irq/default_smp_affinity");
   const bool default_on_rt = def_cpus && missing_from(rt, *def_cpus).size() < rt.size();
   const std::string hk = housekeeping.empty() ? "0" : format_cpu_list(housekeeping);
   const std::string fix = "boot with irqaffinity=" + hk + ", or: for f in /proc/irq/*/smp_affinity_list; do echo " + hk +
@@ -239,8 +271,13 @@ void check_irqs(const SystemTree& tree, const std::vector<int>& rt, const std::v
   if (movable == 0 && !def) {
     // Nothing read: not "none on the RT cores" (found probing: an empty tree passed).
     out.push_back(warn("irq-affinity", "cannot read /proc/irq: IRQ affinity not checked", "run on a Linux system with /proc mounted"));
-  } else if (on_rt.empty() && !default_on_rt) {
+  } else if (on_rt.empty() && !default_on_rt && unparsed.empty()) {
     out.push_back(pass("irq-affinity", std::to_string(movable) + " IRQs, none may run on RT cores " + format_cpu_list(rt)));
+  } else if (on_rt.empty() && !default_on_rt) {
+    out.push_back(warn("irq-affinity",
+                       "cannot parse " + unparsed.front() + (unparsed.size() > 1 ? " and " + std::to_string(unparsed.size() - 1) + " more" : "") +
+                           ": those IRQs not checked",
+                       "check that /proc is the kernel's own (check-rt --root: that the tree's files hold CPU lists such as 0-1)"));
   } else {
     std::string which;
     for (std::size_t i = 0; i < on_rt.size() && i < 8; ++i) which += (i ? "," : "") + on_rt[i];
@@ -445,7 +482,7 @@ std::vector<CheckResult> run_checks(const SystemTree& tree, const config::AppCon
   } else {
     check_cpus(rt, online, out);
   }
-  check_isolation(tree, rt, spin, out);
+  check_isolation(tree, rt, online, spin, out);
   check_throttling(tree, spin, out);
   check_governor(tree, rt, out);
   check_dma_latency(tree, p, out);
