@@ -29,7 +29,7 @@ POSE_ATTR = [
     ("score", 19, 11, True, 0.001, 0, -1, 1, "", "ZNCC peak score"),
     ("state", 30, 2, False, 1, 0, 0, 3, "", "0 TRACKING, 1 ACQUIRING, 2 LOST, 3 UNCERTAIN (followed, pose not trusted)"),
     ("reason", 32, 8, False, 1, 0, 0, 255,  "",
-     "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded (a REACQUIRE, or sempose's own re-search when look_alike is 1), 64 angle unsettled, "
+     "Lost reason bits: 1 low score, 2 low PSR, 4 flat frame, 8 out of field, 16 bad frame, 32 commanded (a REACQUIRE, or sempose's own re-search when look_alike is 1), 64 unsettled (the walk hit its angle step bound, or its place is on the ROI's edge: the peak may lie outside), "
      "128 unexplained (the pattern does not explain the window up to noise)"),
     ("seq", 40, 8, False, 1, 0, 0, 255, "", "Pose sequence counter (low 8 bits), same in POSE_XY"),
     ("age", 48, 12, False, 8, 0, 0, 32760, "us", "Beam on the target (the time the pose is valid for) to send, in 8 us steps (rounded, saturating)"),

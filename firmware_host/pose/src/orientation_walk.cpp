@@ -88,6 +88,11 @@ Measurement OrientationWalk::measure(const PatternBank& bank, int j, const Peak&
     m.dj = (sm > -2.0f && sp > -2.0f) ? fit3(sm, s0, sp, false) : 0.0;
   }
   m.steps += cache.computed();
+  // A place on the window's edge has no neighbour beyond it: the score there may still rise,
+  // so the maximum is not confirmed (an ROI with no room around the pattern, or a target that
+  // moved farther than the ROI's margin: found probing, TRACKING 6.6 px / 7° off).
+  const int last_x = scorer_.roi_w() - bank.size_px(), last_y = scorer_.roi_h() - bank.size_px();
+  m.on_window_edge = ux <= 0 || uy <= 0 || ux >= last_x || uy >= last_y;
   m.j = angles_.wrap(j);
   m.ux = ux;
   m.uy = uy;

@@ -1245,7 +1245,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     e.chi2 = normalised_chi2(e.score, attainable);
     if (e.score < loss.explained_bound()) m.attainable = static_cast<float>(attainable);
   }
-  if (m.unsettled) e.reason_bits |= kReasonAngleUnsettled;
+  if (m.unsettled || m.on_window_edge) e.reason_bits |= kReasonAngleUnsettled;
   if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
   // The split check's allowance for the target's own motion and size (before accept() moves the
   // motion model on): the accepted frame's check and the lost frame's (lost_on_tear) use it.
@@ -1283,6 +1283,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
       if (flip_open || rival_within_noise || jump_declined || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
+      if (m.on_window_edge) e.state = TrackState::kUncertain;  // followed: the next ROI is centred on it
       if (at_field_edge(e, used_scale)) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonOutOfField;

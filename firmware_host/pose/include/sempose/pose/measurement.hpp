@@ -16,6 +16,7 @@ struct Measurement {
   bool psr_valid = false;
   int steps = 0;                  // correlations and exact scores spent
   bool unsettled = false;         // the walk hit its per-frame bound
+  bool on_window_edge = false;    // the walk's place is on the loaded window's edge: a maximum not confirmed
   // The ZNCC the noise model says the target reaches in the window at this pose (Tracker:
   // attainable score); < 0: not measured yet (the walk's own decisions run without it).
   float attainable = -1.0f;

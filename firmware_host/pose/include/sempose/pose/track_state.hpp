@@ -26,7 +26,7 @@ enum LostReason : std::uint8_t {
   kReasonOutOfField = 1u << 3,    // predicted pose left the scan field
   kReasonBadFrame = 1u << 4,      // the scan source flagged the frame
   kReasonCommanded = 1u << 5,     // re-acquire requested by the controller
-  kReasonAngleUnsettled = 1u << 6, // orientation walk hit its per-frame step bound
+  kReasonAngleUnsettled = 1u << 6, // the walk did not settle: its per-frame angle bound, or its place on the ROI's edge
   kReasonUnexplained = 1u << 7     // the pattern leaves more of the window unexplained than noise
                                    // does (wrong scale, look-alike, torn frame), or than it leaves
                                    // of this target at its own fit level: not the target
