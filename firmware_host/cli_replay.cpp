@@ -36,6 +36,7 @@
 #include "sempose/pipeline/csv_pose_sink.hpp"
 #include "sempose/pipeline/offline_runner.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
+#include "sempose/session/detector_report.hpp"
 #include "sempose/session/run_setup.hpp"
 #include "sempose/pose/tracker.hpp"
 
@@ -409,6 +410,8 @@ int run_replay(int argc, char** argv) {
                 percentile(compute_us, 0.5), percentile(compute_us, 0.99),
                 compute_us.empty() ? 0.0 : *std::max_element(compute_us.begin(), compute_us.end()),
                 stats.search_compute_ns.empty() ? 0.0 : stats.search_compute_ns.front() * 1e-6);
+    for (std::size_t t = 0; t < trackers.trackers.size(); ++t)
+      session::print_detector_report(report, static_cast<int>(t), trackers.names[t], trackers.trackers[t]->detector_tau_status());
   };
   print_report(out_path == "-" ? stderr : stdout);
   // A report lost on stdout (a full disk, /dev/full) is said and repeated on stderr: exit 4.

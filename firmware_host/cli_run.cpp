@@ -26,6 +26,7 @@
 #include "cli.hpp"
 #include "cli_signals.hpp"
 #include "cli_options.hpp"
+#include "sempose/session/detector_report.hpp"
 #include "sempose/session/nonblocking_stdio.hpp"
 #include "sempose/session/run_setup.hpp"
 #include "sempose/session/run_summary.hpp"
@@ -657,21 +658,8 @@ int sempose::cli::run(int argc, char** argv) {
                   t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), a.accepted, a.rejected, a.deferred,
                   a.support_fraction, a.template_updates, a.template_weight);
     }
-    // τ measured from the frames (no tracker.detector_tau_ns): what to configure once known;
-    // told, whether the frames and the patterns' own noise agreed with it.
-    const pose::Tracker::DetectorTauStatus d = run.trackers.trackers[static_cast<std::size_t>(t)]->detector_tau_status();
-    if (d.measuring)
-      std::printf("detector %d %s: measured line_rho=%.3f lag2_excess=%+.3f tau_px=%.2f tau_ns=%.0f over %.0f ROI frames "
-                  "(0: a fast detector)%s\n",
-                  t, run.trackers.names[static_cast<std::size_t>(t)].c_str(), d.rho, d.lag2_excess, d.tau_px, d.tau_ns, d.frames,
-                  d.inconsistent ? "; INCONSISTENT: the lines' correlation is not a detector low-pass's (rho2 != rho1^2: "
-                                   "dropped lines?), no lag taken out"
-                                 : "");
-    if (d.measuring && d.told_tau_ns > 0)
-      std::printf("detector %d %s: told tau_ns=%.0f: frames %s; pattern sets whose own noise overruled their dwell_ns: %d\n", t,
-                  run.trackers.names[static_cast<std::size_t>(t)].c_str(), d.told_tau_ns,
-                  d.frames_disagree ? "DISAGREE (the told lag kept: check tracker.detector_tau_ns and the scan)" : "agree or not settled",
-                  d.patterns_told_overruled);
+    session::print_detector_report(stdout, t, run.trackers.names[static_cast<std::size_t>(t)],
+                                   run.trackers.trackers[static_cast<std::size_t>(t)]->detector_tau_status());
   }
   if (hist_dir.empty()) {
     std::printf("histograms: not written (no --hist-dir / output.hist_dir)\n");

@@ -126,6 +126,9 @@ struct Tracker::Impl {
   std::atomic<double> measured_rho{0}, measured_tau_px{0}, measured_tau_ns{0}, measured_tau_frames{0};
   std::atomic<double> measured_lag2_excess{0};
   std::atomic<bool> measured_inconsistent{false};
+  std::atomic<double> lag_beyond_frames{0}, lag_beyond_max_px{0};
+  // A TRACKING pose of a frame whose lag against the pattern is beyond kMaxCorrectedLagPx: UNCERTAIN.
+  void judge_lag(PoseEstimate& e) noexcept;
   // The frames' lag told; the set's lag told or, overruled, its own.
   double told_checked_lag_shift(std::uint8_t set) noexcept;
   // This frame's lag against the active set's pattern (px along x), told or measured.

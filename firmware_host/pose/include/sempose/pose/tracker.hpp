@@ -171,8 +171,16 @@ class Tracker {
     int patterns_told_overruled = 0;
     double lag2_excess = 0;
     bool inconsistent = false;
+    // Frames whose lag against the pattern was beyond what sempose corrects (Tracker::
+    // kMaxCorrectedLagPx: their poses UNCERTAIN), and the largest such lag (px).
+    double beyond_frames = 0, beyond_max_px = 0;
   };
   DetectorTauStatus detector_tau_status() const noexcept;
+  // The largest lag between the frames' detector low-pass and the pattern's (mean delay, px
+  // along the line) whose correction is measured: pose_envelope_probe detector_tau_* to 4 px
+  // (the poses' mean x error up to 1.3 px there); at 6–12 px it erred by 3–6 px (hostile round
+  // 12). A frame beyond it is UNCERTAIN.
+  static constexpr double kMaxCorrectedLagPx = 4.5;
   // Bank + spectra + FFT buffers, bytes (printed at start).
   std::size_t memory_bytes() const noexcept;
   // Setup (not RT): how much another target's patterns look like this one's — the best ZNCC
