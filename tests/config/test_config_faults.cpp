@@ -8,6 +8,7 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -202,6 +203,24 @@ TEST(ConfigFaults, ConfigFileItselfMustBeARegularFile) {
     EXPECT_NE(e.find(p + ": cannot read the config: it is "), std::string::npos) << e;
   }
   ::unlink(fifo.c_str());
+}
+
+// A 4 MB config (a 2,000,000-entry pipeline.schedule) was parsed whole before the list's limit
+// refused it: 6.9 s and 945 MB (hostile round 12). A config beyond 1 MiB is refused unparsed.
+TEST(ConfigFaults, AConfigBeyondOneMebibyteIsRefusedUnparsed) {
+  const std::string path = temp_dir() + "/huge.yaml";
+  {
+    std::ofstream out(path);
+    out << "pipeline:\n  schedule: [";
+    for (int i = 0; i < 600000; ++i) out << "0, ";
+    out << "0]\n";
+  }
+  AppConfig c;
+  std::string e;
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find(path + ": the config is larger than 1 MiB"), std::string::npos) << e.substr(0, 300);
+  std::printf("refused in %.3f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 }
 
 TEST(ConfigFaults, DuplicateAndNonScalarKeysAreErrors) {
