@@ -1,5 +1,6 @@
 // Speed: per-pose compute with orientation (FFT correlation at the predicted angle, the
-// walk's j±1, sub-pixel and sub-degree fits) for a 128² pattern in 128², 160², 192² ROIs,
+// walk's j±1, sub-pixel and sub-degree fits) for a 128² pattern in 144², 160², 192² ROIs (not
+// 128²: an ROI of the pattern's size is refused),
 // side by side with OpenCV matchTemplate(TM_CCOEFF_NORMED) doing the same 3-angle search
 // (8-bit input, its fastest path; no mask). Start search on 640x480 and 1024x768. Medians of
 // repeated runs in one process; the ratio is what counts (same machine, same moment).
@@ -68,7 +69,7 @@ int main(int argc, char** argv) {
   std::printf("per-pose compute with orientation, pattern 128², 3 angles (median / p99 over runs; OpenCV threads %d)\n",
               cv::getNumThreads());
   std::printf("%-6s | %12s %12s | %14s | %7s\n", "ROI", "sempose p50", "sempose p99", "matchTemplate", "ratio");
-  for (int roi : {128, 160, 192}) {
+  for (int roi : {144, 160, 192}) {
     if ((profile_roi && roi != profile_roi) || profile_search) continue;
     config::TrackerConfig tc;
     tc.roi_size_px = roi;
