@@ -292,7 +292,7 @@ std::string output_dir_problem(const std::string& path) {
 std::string printable(const std::string& value) {
   std::string out;
   std::size_t i = 0;
-  for (UnsafeCharacter u = find_unsafe_character(value); u.found; u = find_unsafe_character(value, i)) {
+  for (UnsafeCharacter u = find_unsafe_character(value); u.found; u = find_unsafe_character(value, i, u.position)) {
     out.append(value, i, u.byte - i);
     out += u.escape;
     i = u.byte + u.length;

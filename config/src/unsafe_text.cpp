@@ -34,13 +34,15 @@ std::string ascii_escape(unsigned char c) {
 // What a Unicode code point that acts as a control is, or nullptr for an ordinary one.
 const char* unicode_control_name(char32_t u) {
   if (u >= 0x80 && u <= 0x9f) return u == 0x85 ? "a next-line control (NEL)" : "a C1 control character";
-  if (u >= 0x200b && u <= 0x200d) return "a zero-width character";
-  if (u == 0x200e || u == 0x200f) return "a bidirectional mark";
+  if (u == 0x200b) return "a zero-width character";
+  if (u == 0x200e || u == 0x200f || u == 0x061c) return "a bidirectional mark";
   if (u == 0x2028) return "a line separator";
   if (u == 0x2029) return "a paragraph separator";
   if (u >= 0x202a && u <= 0x202e) return "a bidirectional override";
-  if (u >= 0x2060 && u <= 0x2064) return "an invisible character";
   if (u >= 0x2066 && u <= 0x2069) return "a bidirectional isolate";
+  if ((u >= 0x2060 && u <= 0x2064) || (u >= 0x206a && u <= 0x206f) || u == 0x00ad || u == 0x180e ||
+      (u >= 0xe0000 && u <= 0xe007f))
+    return "an invisible character";
   if (u == 0xfeff) return "a zero-width no-break space (byte-order mark)";
   return nullptr;
 }
@@ -67,10 +69,10 @@ std::size_t decode_utf8(const std::string& s, std::size_t i, char32_t& u) {
 
 }  // namespace
 
-UnsafeCharacter find_unsafe_character(const std::string& value, std::size_t from) {
+UnsafeCharacter find_unsafe_character(const std::string& value, std::size_t from, std::size_t position_before) {
   UnsafeCharacter out;
-  std::size_t position = 0;
-  for (std::size_t i = 0; i < value.size();) {
+  std::size_t position = position_before;
+  for (std::size_t i = from; i < value.size();) {
     ++position;
     const auto c = static_cast<unsigned char>(value[i]);
     std::size_t len = 1;
