@@ -1540,6 +1540,10 @@ TEST_P(NoRoomInTheRoi, APlaceOnTheRoisEdgeIsNeverTracking) {
               "false on search frames %d\n",
               room, s.target.c_str(), j.tracking, j.false_poses, j.worst_px, j.worst_deg, j.false_on_searches);
   EXPECT_EQ(j.false_poses, 0);
+  // Not by never tracking: with room for the motion the target is followed (65 / 69 / 57 of 80).
+  if (room >= 8) {
+    EXPECT_GE(j.tracking, 40) << "the edge rule took a target with room for its motion";
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(TargetsRoom, NoRoomInTheRoi,

@@ -19,6 +19,7 @@ void CandidateList::add_local_maxima(const float* map, int vw, int vh, int k, in
   // screen is the per-pixel test itself, so the same candidates go in, in the same order.
   constexpr int kChunk = 16;
   const int capacity = static_cast<int>(items_.size());
+  if (capacity == 0) return;
   bool full = size_ == capacity;
   float last = full ? items_[static_cast<std::size_t>(size_ - 1)].score : 0.0f;
   for (int y = 0; y < vh; ++y) {

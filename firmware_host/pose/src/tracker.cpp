@@ -1300,7 +1300,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // Followed either way; reported TRACKING only when the pose is that good (UNCERTAIN:
       // at 1 e-/px a pose can sit on a neighbouring maximum 4-8 px off at the target's score).
       if (flip_open || rival_within_noise || jump_declined || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
-      if (m.on_window_edge) e.state = TrackState::kUncertain;  // followed: the next ROI is centred on it
+      // Followed (the next ROI is centred on it), not vouched for; gated as the field's edge is.
+      if (m.on_window_edge && cfg.max_false_probability > 0 && !loss.calibrating()) e.state = TrackState::kUncertain;
       if (at_field_edge(e, used_scale)) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonOutOfField;

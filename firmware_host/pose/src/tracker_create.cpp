@@ -107,6 +107,12 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   const config::SettingProblem problem = config::check_tracker_sizes(cfg, pattern_px);
   if (problem) return fail("tracker." + problem.key + ": " + problem.message);
   if (limits.field_w < pattern_px || limits.field_h < pattern_px) return fail("the scan field is smaller than the pattern");
+  // The ROI is at most the field's shorter side: a field as small as the pattern leaves it one
+  // place, every pose on the ROI's edge and never TRACKING, without a word (review of the edge rule).
+  if (std::min({cfg.roi_size_px, limits.field_w, limits.field_h}) <= pattern_px)
+    return fail("the ROI (tracker.roi_size_px " + std::to_string(cfg.roi_size_px) + ", at most the " +
+                std::to_string(limits.field_w) + "x" + std::to_string(limits.field_h) + " field's shorter side) is not larger than the " +
+                std::to_string(pattern_px) + " px pattern: it leaves the target no room to move");
 
   const EngineSizes sizes = EngineSizes::of(cfg, pattern_px, limits.field_w, limits.field_h);
   auto impl = std::make_unique<Impl>(cfg, sizes, limits.field_w, limits.field_h);

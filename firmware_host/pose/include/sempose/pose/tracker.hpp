@@ -177,9 +177,10 @@ class Tracker {
   };
   DetectorTauStatus detector_tau_status() const noexcept;
   // The largest lag between the frames' detector low-pass and the pattern's (mean delay, px
-  // along the line) whose correction is measured: pose_envelope_probe detector_tau_* to 4 px
-  // (the poses' mean x error up to 1.3 px there); at 6–12 px it erred by 3–6 px (hostile round
-  // 12). A frame beyond it is UNCERTAIN.
+  // along the line) whose correction is measured: pose_envelope_probe detector_tau_* to τ 4 px
+  // (lags read 3.45–3.96 px there, the poses' mean x error up to 1.3 px); at 6–12 px it erred by
+  // 3–6 px (hostile round 12). 4.5: a reading's noise at 4 px stays below it. A frame beyond it
+  // is UNCERTAIN.
   static constexpr double kMaxCorrectedLagPx = 4.5;
   // Bank + spectra + FFT buffers, bytes (printed at start).
   std::size_t memory_bytes() const noexcept;
