@@ -103,6 +103,7 @@ const char* dump_histograms(const std::string& dir, const pipeline::Pipeline& p,
     if (!txt) {
       failed();
     } else {
+      errno = 0;
       std::ofstream json(json_part);
       rt::write_histogram_json(json, series);
       json.close();

@@ -65,7 +65,9 @@ void read_crop(Section& s, std::int32_t& x, std::int32_t& y, std::int32_t& w, st
 }
 
 void read_trajectory(Section& s, TrajectoryConfig& t) {
+  const std::size_t errors_before = s.errors().messages().size();
   s.opt_choice("kind", t.kind, {"static", "linear", "sine", "steps", "jumps", "spin", "random_walk"});
+  const bool kind_read = s.errors().messages().size() == errors_before;
   s.opt("vx_px_s", t.vx_px_s, -1e5, 1e5);
   s.opt("vy_px_s", t.vy_px_s, -1e5, 1e5);
   s.opt("omega_deg_s", t.omega_deg_s, -1e5, 1e5);
@@ -98,7 +100,8 @@ void read_trajectory(Section& s, TrajectoryConfig& t) {
                               {"knot_s", {"random_walk"}},
                               {"margin_px", {"linear", "jumps", "random_walk"}}};
   for (const Uses& u : uses) {
-    if (!s.has(u.key) || std::find(u.kinds.begin(), u.kinds.end(), t.kind) != u.kinds.end()) continue;
+    // A kind refused is already named: its keys are not judged against the default it left.
+    if (!kind_read || !s.has(u.key) || std::find(u.kinds.begin(), u.kinds.end(), t.kind) != u.kinds.end()) continue;
     std::string kinds;
     for (const std::string& k : u.kinds) kinds += (kinds.empty() ? "" : ", ") + k;
     s.error(u.key, std::string("applies to kind ") + kinds + " only, not '" + t.kind + "'" +

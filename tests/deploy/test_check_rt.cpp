@@ -145,12 +145,15 @@ TEST_F(FakeTree, RcuNocbsIsReadAsTheKernelReadsIt) {
   EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kPass) << find(run(), "rcu_nocbs").detail;
   put("sys/devices/system/cpu/nohz_full", "(null)\n");
   for (const char* line : {"root=/dev/sda1 rcu_nocbs=all\n", "root=/dev/sda1 \"rcu_nocbs=2-3\"\n",
-                           "root=/dev/sda1 rcu_nocbs=\"2-3\"\n", "root=/dev/sda1 rcu_nocbs=0 rcu_nocbs=2-3\n"}) {
+                           "root=/dev/sda1 rcu_nocbs=\"2-3\"\n", "root=/dev/sda1 rcu_nocbs=0 rcu_nocbs=2-3\n",
+                           "root=/dev/sda1 rcu_nocbs=2-N\n", "root=/dev/sda1 rcu_nocbs=0-3:1/2\n"}) {
     put("proc/cmdline", line);
     EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kPass) << line << find(run(), "rcu_nocbs").detail;
   }
   put("proc/cmdline", "root=/dev/sda1 rcu_nocbs=2-3 rcu_nocbs=0\n");
   EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kWarn) << "the kernel keeps the last";
+  put("proc/cmdline", "root=/dev/sda1 rcu_nocbs=0 -- rcu_nocbs=2-3\n");
+  EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kWarn) << "after -- the words are init's";
 }
 
 TEST_F(FakeTree, RtThrottling) {

@@ -56,6 +56,7 @@ std::optional<std::string> cmdline_value(const std::string& cmdline, const std::
   std::string word;
   std::optional<std::string> value;
   while (ss >> word) {
+    if (word == "--") break;  // what follows goes to init, not the kernel
     word.erase(std::remove(word.begin(), word.end(), '"'), word.end());
     if (word.rfind(key + "=", 0) == 0) value = word.substr(key.size() + 1);
   }
@@ -73,7 +74,13 @@ std::string trimmed(const std::string& s) {
 std::vector<int> rcu_offloaded(const std::string& cmdline, const std::vector<int>& online, const std::vector<int>& nohz_full) {
   std::set<int> cores(nohz_full.begin(), nohz_full.end());
   if (const auto v = cmdline_value(cmdline, "rcu_nocbs")) {
-    const std::vector<int> listed = *v == "all" ? online : parse_cpu_list(*v).value_or(std::vector<int>{});
+    // "N" is the last CPU; a list the kernel cannot parse makes it offload every CPU ("bad CPU
+    // range, all CPUs set"), and so does one this parser cannot (the group form "0-7:1/2").
+    std::string list = *v;
+    const std::string last = online.empty() ? "0" : std::to_string(online.back());
+    for (std::size_t at = list.find('N'); at != std::string::npos; at = list.find('N', at)) list.replace(at, 1, last);
+    const auto parsed = list == "all" ? std::optional<std::vector<int>>(online) : parse_cpu_list(list);
+    const std::vector<int> listed = parsed.value_or(online);
     cores.insert(listed.begin(), listed.end());
   }
   return {cores.begin(), cores.end()};
