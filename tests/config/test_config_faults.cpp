@@ -298,6 +298,12 @@ TEST(ConfigFaults, SimValuesThatWouldBeIgnoredAreNamed) {
     EXPECT_NE(e.find(c[1].first + ": "), std::string::npos) << e;
     EXPECT_NE(e.find(c[1].second), std::string::npos) << e;
   }
+  // A kind that is refused is named once: its keys are not also judged against the default.
+  AppConfig cfg;
+  std::string e;
+  EXPECT_FALSE(parse_app_config(with(base, "sim.targets[0].trajectory", "{kind: sinus, amplitude_x_px: 10}"), "s.yaml", cfg, e));
+  EXPECT_NE(e.find("sim.targets[0].trajectory.kind: "), std::string::npos) << e;
+  EXPECT_EQ(e.find("applies to kind"), std::string::npos) << e;
 }
 
 // A second YAML document (`---`, two configs concatenated) was dropped without a word: the
