@@ -1513,9 +1513,10 @@ TrackingJudged judge_tracking(const pt::SimHarness& h) {
 // whenever the target moved farther than the margin, and the true maximum lies outside the
 // window. Found probing (`tracker.roi_size_px` equal to the pattern's side, accepted): TRACKING
 // poses 6.6 px / 7° off. Equal sizes are refused now, and a place on the edge is not a
-// confirmed maximum: never TRACKING. Judged on the ROI frames; a full-field search frame's pose
-// of a fast target (this test's frequent re-searches) is the search's business (README, Known
-// limitations: a fast target's search pose).
+// confirmed maximum: never TRACKING. The frequent re-searches of a fast target are judged too:
+// the field scan shears it (~10 px across the needle tip's rows at 470 px/s), and its search
+// pose, 3.5-4 px off, was TRACKING 1-2 times a row; it waits for an ROI frame now
+// (Tracker::Impl::sheared_by_motion).
 class NoRoomInTheRoi : public ::testing::TestWithParam<std::tuple<std::string, int>> {};
 
 TEST_P(NoRoomInTheRoi, APlaceOnTheRoisEdgeIsNeverTracking) {
@@ -1540,6 +1541,7 @@ TEST_P(NoRoomInTheRoi, APlaceOnTheRoisEdgeIsNeverTracking) {
               "false on search frames %d\n",
               room, s.target.c_str(), j.tracking, j.false_poses, j.worst_px, j.worst_deg, j.false_on_searches);
   EXPECT_EQ(j.false_poses, 0);
+  EXPECT_EQ(j.false_on_searches, 0) << "a search pose of the sheared fast target was TRACKING";
   // Not by never tracking: with room for the motion the target is followed (65 / 69 / 57 of 80).
   if (room >= 8) {
     EXPECT_GE(j.tracking, 40) << "the edge rule took a target with room for its motion";

@@ -9,6 +9,7 @@
 #include "sempose/pose/fit_level.hpp"
 #include "sempose/pose/loss_policy.hpp"
 #include "sempose/pose/motion_model.hpp"
+#include "sempose/pose/recent_motion.hpp"
 #include "sempose/rt/angle.hpp"
 #include "sempose/pose/track_state.hpp"
 
@@ -111,6 +112,25 @@ TEST(MotionModel, ConstantVelocityAcrossTheAngleWrap) {
   still.accept(1, 1, 0, true);
   still.accept(5, 5, 10, false);
   EXPECT_EQ(still.predicted_x_px(), 5);  // predict_velocity off: the last pose
+}
+
+// The speed a search after a loss judges its shear by: over the kept poses, a spin summed step
+// by step (not folded at 180°), nothing from poses too close in time or too old.
+TEST(RecentMotion, RatesOverTheKeptPosesOnly) {
+  RecentMotion r;
+  double v = 0, w = 0;
+  EXPECT_FALSE(r.rates(0, v, w));
+  r.note(0.000, 0, 0, 170);
+  r.note(0.005, 2, 1.5, -170);  // 5 ms: the poses' noise, not the motion
+  EXPECT_FALSE(r.rates(0.006, v, w));
+  r.note(0.005, 50, 50, 0);  // a standing clock is not a pose
+  for (int k = 2; k <= 10; ++k) r.note(0.005 * k, 4.0 * k, 3.0 * k, rt::wrap_deg(170 + 20.0 * k));
+  ASSERT_TRUE(r.rates(0.06, v, w));
+  EXPECT_NEAR(v, 1000.0, 1e-6);  // 5 px per 5 ms
+  EXPECT_NEAR(w, 4000.0, 1e-6);  // 20° per 5 ms, across ±180° several times
+  EXPECT_FALSE(r.rates(0.05 + RecentMotion::kMaxAge_s + 0.01, v, w)) << "a stale speed was used";
+  r.forget();
+  EXPECT_FALSE(r.rates(0.06, v, w));
 }
 
 TEST(MotionModel, WindowAtThePredictionStaysInTheField) {

@@ -836,6 +836,17 @@ void Tracker::Impl::go_lost() noexcept {
   blur_run_known = false;
 }
 
+bool Tracker::Impl::sheared_by_motion(const PoseFrame& frame, const Roi& roi, const PatternBank& bank, double at_scale) const noexcept {
+  const std::int64_t span = frame.t_scan_end_ns - frame.t_scan_start_ns;
+  double speed_px_s = 0, turn_deg_s = 0;
+  if (span <= 0 || roi.h <= 0 || !recent.rates(1e-9 * static_cast<double>(frame.t_scan_start_ns), speed_px_s, turn_deg_s)) return false;
+  const double rows = bank.size_px() * at_scale;
+  const double rows_s = 1e-9 * static_cast<double>(span) / roi.h * rows;  // the target's rows, scanned
+  // Moved along, and turned (the rows' far ends, half the target's size from its centre, swept).
+  const double shear_px = rows_s * (speed_px_s + turn_deg_s * (std::numbers::pi / 180.0) * 0.5 * rows);
+  return shear_px > kSearchShearPx;
+}
+
 void Tracker::Impl::scan_velocity(const PoseFrame& frame) noexcept {
   row_vx_px = row_vy_px = row_turn_deg = 0;
   const std::int64_t span = frame.t_scan_end_ns - frame.t_scan_start_ns;
@@ -1138,6 +1149,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.reason_bits |= kReasonUnexplained;
       }
       lost_on_tear = false;
+      if (e.state == TrackState::kTracking && sheared_by_motion(frame, roi, bank, e.scale)) {
+        e.state = TrackState::kUncertain;
+        e.reason_bits |= kReasonUnexplained;
+      }
       check_tear_level(m, e);
       judge_lag(e);
     } else {
@@ -1750,6 +1765,7 @@ PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
   if (e.state == TrackState::kTracking) impl_->ever_tracking = true;
   e.followed = impl_->tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
   e.t_beam_ns = beam_time_ns(frame, e);
+  if (e.followed && e.t_beam_ns > 0) impl_->recent.note(1e-9 * static_cast<double>(e.t_beam_ns), e.x_px, e.y_px, e.phi_deg);
   return e;
 }
 

@@ -31,6 +31,7 @@
 #include "sempose/pose/pose_refinement.hpp"
 #include "sempose/pose/pose_uncertainty.hpp"
 #include "sempose/pose/prefilter.hpp"
+#include "sempose/pose/recent_motion.hpp"
 #include "sempose/pose/roi_loader.hpp"
 #include "sempose/pose/roi_rescaler.hpp"
 #include "sempose/pose/scale_probe.hpp"
@@ -525,6 +526,17 @@ struct Tracker::Impl {
   static constexpr double kScaleRateGain = 0.5;
   // The motion model's speed (px per frame) after the last TRACKING frame; -1 after a search.
   double tracking_speed_px = -1;
+  // The followed poses' recent speed and turn rate, kept through a loss for the search after it
+  // (sheared_by_motion; noted by Tracker::update).
+  RecentMotion recent;
+  // A full-field scan takes the target's rows over a long time: a target still moving as it was
+  // last followed is sheared and stretched in it by more than kSearchShearPx across its rows,
+  // and the search's rigid pose of it is biased by about half that, along the target's content
+  // (the needle tip at 470 px/s: ~10 px of shear, poses 3.5-4 px off). Such a search pose waits
+  // for an ROI frame, whose rows take a few ms, to confirm it. 3 px keeps that bias within half
+  // the false-pose rule; the benchmark's gripper (~80 px/s, 2.7 px) stays vouched for.
+  bool sheared_by_motion(const PoseFrame& frame, const Roi& roi, const PatternBank& bank, double at_scale) const noexcept;
+  static constexpr double kSearchShearPx = 3.0;
   double frame_dwell_ns = 0;  // the pixel dwell of the frame being measured (0: not known)
   // The time from the last frame's mid-scan to this one's (0: not known), and that mid-scan.
   double frame_period_s = 0, last_mid_s = 0;
