@@ -600,17 +600,21 @@ double Tracker::Impl::student_t(double z, int nu) noexcept {
 // After a search: the chosen hypothesis must lead the one 180° away by more than the score
 // noise allows (significance_z SDs of one difference), else the check stays open. A trusted
 // angle prior (the last tracked angle: a target does not turn 180° while lost) already chose,
-// unless the check was still open when the target was lost. A search frame whose pattern window
+// unless the check was still open when the target was lost, or the winner is turned from it:
+// the search keeps to the prior only within StartSearch::kFlipTieScore, which one score
+// difference's noise passes at 1 e⁻/px (the lamella on its post coming back into the field
+// after leaving it by a corner: re-found 16 px and 178° off, 0.50 against the target's level
+// of 0.52, followed, and TRACKING on 3 frames: pose_envelope_probe leave_corner_whole). A search frame whose pattern window
 // reaches the field's edge (at_field_edge) decides nothing: the hypothesis that would fit only
 // beyond the edge could not be measured, so the visible part's better match wins there (the
 // lamella on post half out of the field: its 180° look-alike 14-18 px off was taken and kept for
 // ~100 frames after the target came back). The check opens and the frames after it decide.
 // With a shape mask the search's lead is a masked score's only, which can prefer the wrong
 // hypothesis (settle_flip): the check is always opened and decided on ROI frames.
-void Tracker::Impl::open_flip_check(const Measurement& m, bool prior_known, bool censored) noexcept {
+void Tracker::Impl::open_flip_check(const Measurement& m, bool prior_chose, bool censored) noexcept {
   const bool was_open = flip_open;
   flip_open = false;
-  if (!(cfg.max_false_probability > 0) || (m.flip_score < -1.0f && !censored) || (prior_known && !was_open && !censored)) return;
+  if (!(cfg.max_false_probability > 0) || (m.flip_score < -1.0f && !censored) || (prior_chose && !was_open && !censored)) return;
   const double d = m.flip_score < -1.0f ? 0.0 : static_cast<double>(m.score) - m.flip_score;
   if (!shape_masked && d >= significance_z() * flip_sd(m.score) && !censored) return;
   flip_open = true;
@@ -1126,7 +1130,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       scale_reference = scale;
       const bool at_edge = at_field_edge(e, e.scale);
       turned = turned_off_line(m, e, t_mid_s);
-      open_flip_check(m, prior_known, at_edge);
+      open_flip_check(m, prior_known && std::fabs(rt::wrap_deg(e.phi_deg - angle_before.phi_deg)) <= 90.0, at_edge);
       // The search frame's pose is judged like a tracked one (trusted_pose: below the explained
       // bound it waits for the stream's pose noise; above it by its own σ, search_sigma).
       if (flip_open || unconfirmed || !trusted_pose(e, Innovation{})) e.state = TrackState::kUncertain;

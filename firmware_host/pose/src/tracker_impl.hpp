@@ -569,7 +569,8 @@ struct Tracker::Impl {
   double significance_z() const noexcept { return significance_z_value; }
   static double upper_normal_quantile(double p) noexcept;
   static double student_t(double z, int nu) noexcept;
-  void open_flip_check(const Measurement& m, bool prior_known, bool censored) noexcept;
+  // prior_chose: the last tracked angle was known and the search's winner agrees with it.
+  void open_flip_check(const Measurement& m, bool prior_chose, bool censored) noexcept;
 
   // Search check (a real micrograph has look-alikes: the warped lamella-on-post crop at
   // 1 e-/px has one ~200 px away, turned −90°, scoring as the target does): a search's result
