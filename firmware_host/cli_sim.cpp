@@ -87,6 +87,10 @@ bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& sca
       Section s = top.child("sim");
       read_sim(s, sim);
     }
+    // Textures beside the config first, as `sempose run` finds them: the scene builder alone
+    // looked only in the data folders, and recorded the installed or source tree's file of the
+    // same relative name instead of the user's own (found probing).
+    if (errors.empty()) resolve_sim_data(top, path, sim, true);
   }
   error = errors.joined();
   return errors.empty();

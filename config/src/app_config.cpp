@@ -132,29 +132,6 @@ std::string resolve(const std::string& config_path, const std::string& file) {
   return config_path.substr(0, slash + 1) + file;
 }
 
-// Simulator textures and backgrounds: relative paths are found as data_path.hpp says; when the
-// simulator is the source a missing or unusable file is a config error (key, path, places tried)
-// now, before anything starts, not an exception from the scene builder later.
-void resolve_sim_data(Section& root, const std::string& config_path, AppConfig& c) {
-  auto resolve_one = [&](std::string& path, const std::string& key) {
-    std::string resolved, problem;
-    if (find_data_file(path, config_path, resolved, problem)) {
-      path = resolved;
-    } else if (c.source == "sim") {
-      root.error_at(key, path + ": " + problem);
-    }
-  };
-  for (std::size_t i = 0; i < c.sim.targets.size(); ++i) {
-    auto& t = c.sim.targets[i];
-    if (t.enabled && t.texture.source == "image" && !t.texture.path.empty()) {
-      resolve_one(t.texture.path, "sim.targets[" + std::to_string(i) + "].texture.path");
-    }
-  }
-  if (c.sim.background.source == "image" && !c.sim.background.path.empty()) {
-    resolve_one(c.sim.background.path, "sim.background.path");
-  }
-}
-
 }  // namespace
 
 std::vector<OutputProblem> output_problems(const AppConfig& c) {
@@ -249,7 +226,9 @@ bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, A
       check_service_against_scan(root, out.service, out.scan, out.governor.initial_dwell_ns);
       check_governor_against_scan(root, out.governor, out.scan);
       cross_check(root, out, outputs);
-      resolve_sim_data(root, path, out);
+      // A missing or unusable file is a config error (key, path, places tried) now, before
+      // anything starts, not an exception from the scene builder later.
+      resolve_sim_data(root, path, out.sim, out.source == "sim");
     }  // root's destructor reports unknown top-level sections
   } catch (const std::exception& e) {
     errors.add(std::string("cannot be read: ") + e.what());

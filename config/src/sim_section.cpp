@@ -2,6 +2,7 @@
 #include <cmath>
 #include <string>
 
+#include "sempose/config/data_path.hpp"
 #include "sempose/config/reader.hpp"
 #include "sempose/config/sim_config.hpp"
 
@@ -262,6 +263,24 @@ void read_replay(Section& s, ReplayConfig& c) {
   s.opt("frames_dir", c.frames_dir);
   s.opt("loop", c.loop);
   s.opt_choice("clock", c.clock, {"virtual", "real"});
+}
+
+void resolve_sim_data(Section& root, const std::string& config_path, SimConfig& sim, bool required) {
+  auto resolve_one = [&](std::string& path, const std::string& key) {
+    std::string resolved, problem;
+    if (find_data_file(path, config_path, resolved, problem)) {
+      path = resolved;
+    } else if (required) {
+      root.error_at(key, path + ": " + problem);
+    }
+  };
+  for (std::size_t i = 0; i < sim.targets.size(); ++i) {
+    auto& t = sim.targets[i];
+    if (t.enabled && t.texture.source == "image" && !t.texture.path.empty()) {
+      resolve_one(t.texture.path, "sim.targets[" + std::to_string(i) + "].texture.path");
+    }
+  }
+  if (sim.background.source == "image" && !sim.background.path.empty()) resolve_one(sim.background.path, "sim.background.path");
 }
 
 }  // namespace sempose::config

@@ -978,6 +978,45 @@ TEST(CliFaults, SimRefusesASectionGivenTwice) {
   EXPECT_FALSE(fs::exists(dir + "/rec"));
 }
 
+// `sempose sim` looked for a texture given by a relative path in the data folders only, not beside
+// its config as `sempose run` does (README, Configuration): a texture of the user's own beside the
+// config was "not found", and one named as the built-in micrograph is (data/sem/...) was silently
+// replaced by the built-in: a recording of another scene than `run` tracks (found probing).
+TEST(CliFaults, SimFindsATextureBesideItsConfigAsRunDoes) {
+  const std::string dir = work_dir() + "/beside";
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/data/sem");
+  const auto write_texture = [](const std::string& file) {  // bright diagonal bands: no built-in looks so
+    std::ofstream f(file, std::ios::binary);
+    f << "P5\n200 200\n255\n";
+    for (int y = 0; y < 200; ++y)
+      for (int x = 0; x < 200; ++x) f.put(static_cast<char>(((x + y) / 10) % 2 ? 230 : 20));
+  };
+  write_texture(dir + "/data/sem/needle_contact_eb.pgm");
+  write_texture(dir + "/own.pgm");
+  const auto config = [&](const std::string& name, const std::string& texture) {
+    std::ofstream(dir + "/" + name) << "scan: {field_w: 320, field_h: 240, max_roi_w: 160, max_roi_h: 160}\n"
+                                       "sim:\n  clock: virtual\n  targets:\n"
+                                       "    - {texture: {source: image, path: " << texture
+                                    << ", crop: [0, 0, 120, 160], mask: full}, size: [90, 120], start: [160, 120, 0]}\n";
+    return dir + "/" + name;
+  };
+  const auto frame = [&](const std::string& cfg, const std::string& out) {
+    const Outcome r = run({"sim", "--out", dir + "/" + out, "--frames", "1", "--seed", "3", "--config", cfg}, 60);
+    EXPECT_EQ(r.code, 0) << cfg << "\n" << r.err;
+    return slurp(dir + "/" + out + "/frame_000000.pgm");
+  };
+  const std::string relative = frame(config("rel.yaml", "data/sem/needle_contact_eb.pgm"), "rel");
+  const std::string absolute = frame(config("abs.yaml", dir + "/data/sem/needle_contact_eb.pgm"), "abs");
+  ASSERT_FALSE(relative.empty());
+  EXPECT_TRUE(relative == absolute) << "the relative path did not take the texture beside the config";
+  frame(config("own.yaml", "own.pgm"), "own");
+  const Outcome r = run({"sim", "--out", dir + "/none", "--frames", "1", "--config", config("none.yaml", "none.pgm")}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("sim.targets[0].texture.path: none.pgm: not found (tried: " + dir + "/none.pgm"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/none"));
+}
+
 // Two sims into one folder at once both passed the "already holds a recording" check and mixed
 // their frames under one run's frames.csv and truth (found probing). The folder is locked while
 // recorded: the second is refused by name. The other recorder here is this test.

@@ -150,6 +150,11 @@ struct ReplayConfig {
 };
 
 void read_sim(Section& section, SimConfig& out);
+// The simulator's image textures and background given by a relative path, resolved as
+// data_path.hpp says, beside config_path first (the file that names them). One not found is an
+// error at its key under root when required (`sempose sim`, or `run` with the simulator as its
+// source); otherwise it is left as written.
+void resolve_sim_data(Section& root, const std::string& config_path, SimConfig& sim, bool required);
 void read_replay(Section& section, ReplayConfig& out);
 
 }  // namespace sempose::config
