@@ -174,7 +174,9 @@ int run_replay(int argc, char** argv) {
     std::string errors;
     // A run's config: its outputs are not replay's (it writes --out), so one this user cannot
     // write (the service's /var/log/sempose) is no error here.
-    if (!config::load_app_config(config_path, app, errors, config::OutputCheck::kLeaveToCaller)) {
+    // Its schedule names the --pattern targets when they are given (checked below), not its own.
+    if (!config::load_app_config(config_path, app, errors, config::OutputCheck::kLeaveToCaller,
+                                 patterns.empty() ? config::TargetCheck::kAgainstTheConfig : config::TargetCheck::kLeaveToCaller)) {
       std::fprintf(stderr, "sempose replay: %s", errors.c_str());
       return 2;
     }
@@ -209,8 +211,8 @@ int run_replay(int argc, char** argv) {
     std::fprintf(stderr, "sempose replay: %zu targets, at most %d\n", app.targets.size(), hal::kMaxTargets);
     return 2;
   }
-  // The config's schedule was checked against its own targets; --pattern may give more (a
-  // target it never names got no frame and no pose, without a word) or fewer.
+  // With --pattern the config's schedule names those targets (a target it never names would get
+  // no frame and no pose, and an index beyond them none at all).
   for (std::size_t t = 0; t < app.targets.size() && !app.pipeline.schedule.empty(); ++t) {
     const auto& s = app.pipeline.schedule;
     if (std::find(s.begin(), s.end(), static_cast<int>(t)) == s.end()) {

@@ -15,7 +15,7 @@ namespace {
 constexpr int kMaxTrackedTargets = 4;  // hal::kMaxTargets (config does not depend on hal)
 
 // Checks that need more than one section (run after every section is read).
-void cross_check(Section& root, const AppConfig& c, OutputCheck outputs) {
+void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetCheck target_check) {
   if (c.source == "replay" && c.replay.frames_dir.empty()) {
     root.error_at("replay.frames_dir", "required when source is replay");
   }
@@ -97,8 +97,11 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs) {
     root.error_at("pipeline.schedule",
                   std::to_string(c.pipeline.schedule.size()) + " entries; at most 16 are allowed");
   }
+  if (target_check == TargetCheck::kLeaveToCaller) return;  // the schedule's targets are the caller's
+  std::vector<int> named;  // each index beyond the targets said once, however often it is named
   for (int t : c.pipeline.schedule) {
-    if (t >= targets) {
+    if (t >= targets && std::find(named.begin(), named.end(), t) == named.end()) {
+      named.push_back(t);
       root.error_at("pipeline.schedule", std::to_string(t) + " is not a target index (targets: " +
                                              std::to_string(targets) + ", allowed [0, " +
                                              std::to_string(std::max(0, targets - 1)) + "])");
@@ -155,7 +158,7 @@ std::vector<OutputProblem> output_problems(const AppConfig& c) {
 
 namespace {
 bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, AppConfig& result,
-                     std::string& error_text, OutputCheck outputs);
+                     std::string& error_text, OutputCheck outputs, TargetCheck targets = TargetCheck::kAgainstTheConfig);
 }  // namespace
 
 const std::vector<std::string>& app_config_sections() {
@@ -174,10 +177,10 @@ std::vector<KeyInfo> config_keys(const std::string& text) {
 }
 
 bool load_app_config(const std::string& path, AppConfig& result, std::string& error_text,
-                     OutputCheck outputs) {
+                     OutputCheck outputs, TargetCheck targets) {
   Errors errors(path);
   YAML::Node node = load_file(path, errors);
-  return read_app_config(path, node, errors, result, error_text, outputs);
+  return read_app_config(path, node, errors, result, error_text, outputs, targets);
 }
 
 bool parse_app_config(const std::string& text, const std::string& path, AppConfig& result,
@@ -189,7 +192,7 @@ bool parse_app_config(const std::string& text, const std::string& path, AppConfi
 
 namespace {
 bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, AppConfig& result,
-                     std::string& error_text, OutputCheck outputs) {
+                     std::string& error_text, OutputCheck outputs, TargetCheck targets) {
   // Read into a fresh struct (defaults), hand it over at the end.
   auto fresh = std::make_unique<AppConfig>();
   AppConfig& out = *fresh;
@@ -225,7 +228,7 @@ bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, A
       read_section(root, "service", read_service, out.service);
       check_service_against_scan(root, out.service, out.scan, out.governor.initial_dwell_ns);
       check_governor_against_scan(root, out.governor, out.scan);
-      cross_check(root, out, outputs);
+      cross_check(root, out, outputs, targets);
       // A missing or unusable file is a config error (key, path, places tried) now, before
       // anything starts, not an exception from the scene builder later.
       resolve_sim_data(root, path, out.sim, out.source == "sim");

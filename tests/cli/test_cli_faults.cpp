@@ -405,6 +405,39 @@ TEST(CliFaults, SimAndPatternNameBadInputBeforeMakingOutputs) {
   return ::testing::AssertionSuccess();
 }
 
+// `replay --pattern A --pattern B --config C` whose C schedules the two: the schedule was refused
+// against C's own targets (none given: the simulator's one), "1 is not a target index (targets:
+// 1)", a count the user never gave, and a repeated index said once per entry (found probing).
+// With --pattern it names those targets, and replay checks it against them.
+TEST(CliFaults, ReplaysScheduleNamesThePatternTargets) {
+  const std::string dir = work_dir() + "/replay_schedule";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 4));
+  const auto replay = [&](const std::string& schedule) {
+    std::ofstream(dir + "/s.yaml") << "pipeline: {schedule: " << schedule << "}\n";
+    return run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--pattern", dir + "/p.pgm", "--config",
+                dir + "/s.yaml", "--out", dir + "/poses.csv"},
+               60);
+  };
+  Outcome r = replay("[0, 0, 1, 1, 1]");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("is not a target index"), std::string::npos) << r.err;
+  r = replay("[0, 0]");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("pipeline.schedule never names target 1"), std::string::npos) << r.err;
+  r = replay("[0, 1, 2, 2]");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("pipeline.schedule names target 2; there are 2"), std::string::npos) << r.err;
+  // Without --pattern the schedule is the config's, each index beyond its targets said once.
+  std::ofstream(dir + "/s.yaml") << "pipeline: {schedule: [0, 1, 1, 1]}\n";
+  r = run({"run", "--config", dir + "/s.yaml", "--duration", "0.1"}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  const std::string said = "pipeline.schedule: 1 is not a target index (targets: 1";
+  ASSERT_NE(r.err.find(said), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(said, r.err.find(said) + 1), std::string::npos) << "said more than once:\n" << r.err;
+}
+
 // A recording of few grey levels (a PGM of maxval 3: a 2-bit detector, a heavily binned ADC):
 // `pattern` rounded the frames' mean back to those levels (samples 0/1/2 written under maxval
 // 255) and the replay with it tracked nothing (found probing). The mean is written stretched,

@@ -46,10 +46,14 @@ inline std::string scan_device_path(const AppConfig& c) { return c.source == "co
 // checks, beside the RT checks an engineer also needs to see (output_problems()).
 enum class OutputCheck { kRefuse, kLeaveToCaller };
 
+// Whether pipeline.schedule is checked against the config's targets (its own, or the
+// simulator's), or left to a caller that tracks other ones (`replay --pattern`).
+enum class TargetCheck { kAgainstTheConfig, kLeaveToCaller };
+
 // Reads and validates `path` into `out`. On failure returns false and error_text holds
 // one line per problem; `out` then holds defaults plus whatever could be read.
 bool load_app_config(const std::string& path, AppConfig& out, std::string& error_text,
-                     OutputCheck outputs = OutputCheck::kRefuse);
+                     OutputCheck outputs = OutputCheck::kRefuse, TargetCheck targets = TargetCheck::kAgainstTheConfig);
 // The same for YAML text already in memory (tests, the fuzz target); `path` names it in
 // messages and is the folder relative pattern paths resolve against.
 bool parse_app_config(const std::string& text, const std::string& path, AppConfig& out,
