@@ -121,6 +121,37 @@ TEST(TrackerSymmetry, CrossIsFourFoldAndATeeIsNot) {
   }
 }
 
+// A fine random texture (2 px grains: a particle field, a rough surface) scores ~0 a pose 3 px
+// off, so its copy turned by 90° at ~0.1 passed the "as well as a pose off the target" rule and
+// order 4 (or 6) was declared: every pose's angle said known modulo 90° only (hostile round 13).
+// A same look must score at least PatternSymmetry::kMinSameLookScore too.
+TEST(TrackerSymmetry, AFineRandomTextureIsNotSymmetric) {
+  const int n = 128;
+  PatternImage im = flat_image(n, n, 0);
+  std::uint32_t state = 2;
+  std::vector<std::uint16_t> grains(static_cast<std::size_t>(n / 2) * (n / 2));
+  for (auto& g : grains) {
+    state = state * 1664525u + 1013904223u;
+    g = static_cast<std::uint16_t>(state >> 24);
+  }
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x)
+      im.pixels[static_cast<std::size_t>(y) * n + x] = grains[static_cast<std::size_t>(y / 2) * (n / 2) + x / 2];
+  hal::ScanLimits lim;
+  lim.field_w = 640;
+  lim.field_h = 480;
+  lim.max_roi_w = lim.max_roi_h = 256;
+  std::vector<PatternSet> sets(1);
+  sets[0].image = im;
+  rt::Status st;
+  auto t = Tracker::create(small_config(), std::move(sets), lim, st);
+  ASSERT_NE(t, nullptr) << st.message;
+  const PatternSymmetry sym = t->symmetry(0);
+  std::printf("random grains: order %d, turned 180/120/90/60: %.3f %.3f %.3f %.3f, same look from %.3f\n", sym.order,
+              sym.self_score[0], sym.self_score[1], sym.self_score[2], sym.self_score[3], sym.same_look_score);
+  EXPECT_EQ(sym.order, 1) << "a turned copy scoring " << sym.self_score[2] << " was declared the same look";
+}
+
 // Start search finds the target at paper-like noise, several doses and angles.
 class Acquire : public ::testing::TestWithParam<std::tuple<double, double>> {};
 TEST_P(Acquire, FindsTargetOnFullField) {

@@ -53,7 +53,9 @@ PatternSymmetry measure_symmetry(const PatternBank& bank, double same_look_score
   }
   const auto same = [&](int order) {
     for (std::size_t i = 0; i < best.size(); ++i)
-      if (order % PatternSymmetry::kOrders[i] == 0 && !(sym.self_score[i] >= same_look_score)) return false;
+      if (order % PatternSymmetry::kOrders[i] == 0 &&
+          !(sym.self_score[i] >= std::max(same_look_score, PatternSymmetry::kMinSameLookScore)))
+        return false;
     return true;
   };
   for (std::size_t i = best.size(); i-- > 0;) {

@@ -415,7 +415,11 @@ struct Tracker::Impl {
   int angle_order = 1;
   // The level learns from every kFitSampleEvery-th ROI frame (fit_frames counts them): the
   // attainable score on the others only when a judgement needs it; ≤ 1/4 of its cost on a
-  // target scoring above the bounds, and the ring's 32 frames span ~130.
+  // target scoring above the bounds, and the ring's 32 frames span ~130. Until the level is
+  // known, from every ROI frame: sampled every 4th it took 32 frames, and a target lost before
+  // that was re-found on another object its χ² would have refused (hostile round 13: the needle
+  // tip tracked 16 frames at 0.85 and lost at the field's edge; the search took another needle
+  // 250 px away, turned 156°, at 0.61, χ² ~2.3× the tip's, and kept it TRACKING).
   static constexpr unsigned kFitSampleEvery = 4;
   unsigned fit_frames = 0;
   void keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept;

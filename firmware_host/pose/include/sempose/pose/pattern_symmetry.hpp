@@ -25,6 +25,11 @@ struct PatternSymmetry {
   // post turned 180° matches its body 15-17 px off): a look-alike the flip check tells apart
   // (tracker.cpp, open_flip_on_jump), not symmetry.
   static constexpr int kNearShiftPx = 4;
+  // And at least this, whatever a pose off the target scores: a fine random texture (a particle
+  // field, a rough surface) scores ~0 a few px off, and its copy turned 90° at 0.07-0.12 passed as
+  // "the same look" (order 4 or 6 declared, the angle then judged modulo 90°: hostile round 13).
+  // The lowest real same look measured is the procedural lamella's 0.74 at 2.5 e-/px.
+  static constexpr double kMinSameLookScore = 0.5;
   int order = 1;  // the pattern looks the same turned by 360°/order: its angle is known modulo that
   std::array<double, 4> self_score{};  // per kOrders: the best ZNCC turned by 360°/n, shifts ≤ kNearShiftPx
   double same_look_score = 1;          // the score a turn must reach to count (nearest_off_pose_score)
