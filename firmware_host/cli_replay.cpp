@@ -189,6 +189,9 @@ int run_replay(int argc, char** argv) {
       add("replay.frames_dir '" + app.replay.frames_dir + "' (--frames '" + frames_dir + "' is replayed)");
     if (app.replay.loop) add("replay.loop (a replay goes through the frames once)");
     if (!app.output.poses_csv.empty()) add("output.poses_csv '" + app.output.poses_csv + "' (the poses go to --out)");
+    // A start_area or a dwell_ns given there and silently not applied (found probing).
+    if (!patterns.empty() && !app.targets.empty())
+      add("targets (" + std::to_string(app.targets.size()) + ", with their start_area, dwell_ns and masks: --pattern gives the targets)");
     if (!unused.empty()) std::fprintf(stderr, "note: %s: not used by replay: %s\n", config_path.c_str(), unused.c_str());
   }
   if (!patterns.empty()) {

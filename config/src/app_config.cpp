@@ -55,8 +55,9 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetC
                       std::to_string(std::min(c.scan.field_w, c.scan.field_h)));
   }
   // Files: checked for their kind before anything opens them (a directory reads as empty, a
-  // FIFO blocks in open(), a device never ends), so a wrong path is a message, not a hang.
-  for (std::size_t i = 0; i < c.targets.size(); ++i) {
+  // FIFO blocks in open(), a device never ends), so a wrong path is a message, not a hang. Not
+  // when the caller gives the targets: this section's files are never opened then.
+  for (std::size_t i = 0; target_check == TargetCheck::kAgainstTheConfig && i < c.targets.size(); ++i) {
     for (std::size_t j = 0; j < c.targets[i].pattern_sets.size(); ++j) {
       const auto& ps = c.targets[i].pattern_sets[j];
       const std::string key = "targets[" + std::to_string(i) + "].pattern_sets[" + std::to_string(j) + "].";

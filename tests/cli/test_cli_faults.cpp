@@ -438,6 +438,28 @@ TEST(CliFaults, ReplaysScheduleNamesThePatternTargets) {
   EXPECT_EQ(r.err.find(said, r.err.find(said) + 1), std::string::npos) << "said more than once:\n" << r.err;
 }
 
+// `replay --pattern P --config C` replaced C's targets: (their start_area, dwell_ns, masks) without
+// the "not used by replay" note it gives for C's other unused keys, and still refused C for a
+// mask file named there that it would never open (found probing).
+TEST(CliFaults, ReplayWithPatternSaysTheConfigsTargetsAreNotUsed) {
+  const std::string dir = work_dir() + "/replay_targets";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 3));
+  std::ofstream(dir + "/t.yaml") << "targets:\n  - {name: n, pattern_sets: [{file: p.pgm, mask: gone.pgm}], start_area: [300, 200, 5]}\n";
+  Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--config", dir + "/t.yaml", "--out",
+                   dir + "/poses.csv"},
+                  60);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("not used by replay: targets (1, with their start_area, dwell_ns and masks: --pattern gives the targets)"),
+            std::string::npos)
+      << r.err;
+  // Without --pattern they are the targets, and the missing mask is an error.
+  r = run({"replay", "--frames", dir + "/rec", "--config", dir + "/t.yaml", "--out", dir + "/poses2.csv"}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("targets[0].pattern_sets[0].mask: '" + dir + "/gone.pgm' is missing"), std::string::npos) << r.err;
+}
+
 // A recording of few grey levels (a PGM of maxval 3: a 2-bit detector, a heavily binned ADC):
 // `pattern` rounded the frames' mean back to those levels (samples 0/1/2 written under maxval
 // 255) and the replay with it tracked nothing (found probing). The mean is written stretched,

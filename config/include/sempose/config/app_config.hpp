@@ -46,8 +46,8 @@ inline std::string scan_device_path(const AppConfig& c) { return c.source == "co
 // checks, beside the RT checks an engineer also needs to see (output_problems()).
 enum class OutputCheck { kRefuse, kLeaveToCaller };
 
-// Whether pipeline.schedule is checked against the config's targets (its own, or the
-// simulator's), or left to a caller that tracks other ones (`replay --pattern`).
+// Whether the config's targets (their files, and pipeline.schedule against them or the
+// simulator's) are checked, or the caller gives other targets and checks them (`replay --pattern`).
 enum class TargetCheck { kAgainstTheConfig, kLeaveToCaller };
 
 // Reads and validates `path` into `out`. On failure returns false and error_text holds
