@@ -13,6 +13,8 @@
 #include <tuple>
 #include <vector>
 
+#include "sempose/hal/cut_file.hpp"
+
 namespace sempose::hal {
 
 namespace {
@@ -197,8 +199,7 @@ void write_pgm(const std::string& path, const Image& image) {
   if (!f) {
     // A cut PGM was left (found probing: `pattern --out` under a file-size limit, 2048 of its
     // bytes); run and replay refuse it later, but it looks like a pattern until then.
-    std::remove(path.c_str());
-    throw std::runtime_error(path + ": write failed (disk full or a file-size limit?); removed the cut file");
+    throw std::runtime_error(path + ": write failed (disk full or a file-size limit?); " + cut_file_outcome(remove_cut_file(path)));
   }
 }
 

@@ -10,6 +10,7 @@
 #include <sys/file.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -1217,6 +1218,14 @@ TEST(CliFaults, AFileSizeLimitIsAWriteErrorNotADeath) {
   EXPECT_NE(pt.code, 0) << pt.err;
   EXPECT_NE(pt.err.find("removed the cut file"), std::string::npos) << pt.err;
   EXPECT_FALSE(fs::exists(dir + "/cut.pgm")) << "a cut pattern is left";
+  // A device named as the output is not a cut file: `pattern --out /dev/full` as root removed the
+  // device node itself (found probing; here a private node of the same device).
+  if (::mknod((dir + "/full").c_str(), S_IFCHR | 0666, makedev(1, 7)) == 0) {
+    const Outcome pd = run({"pattern", "--frames", dir + "/rec", "--center", "160,120", "--size", "64", "--out", dir + "/full"}, 60);
+    EXPECT_NE(pd.code, 0) << pd.err;
+    EXPECT_NE(pd.err.find("nothing removed (not a regular file)"), std::string::npos) << pd.err;
+    EXPECT_TRUE(fs::is_character_file(dir + "/full")) << "the device node was removed";
+  }
   // Through a link the file it leads to is the one cut: removing the link left it (found probing).
   const std::string target = dir + "/dated.csv", link = dir + "/latest.csv";
   fs::create_symlink(target, link);

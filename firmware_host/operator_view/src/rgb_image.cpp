@@ -8,6 +8,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "sempose/hal/cut_file.hpp"
+
 namespace sempose::operator_view {
 
 void RgbImage::plot(int x, int y, Rgb c) {
@@ -46,8 +48,8 @@ void write_png(const std::string& path, const RgbImage& img) {
   if (setjmp(png_jmpbuf(png))) {
     png_destroy_write_struct(&png, &info);
     std::fclose(f);
-    std::remove(path.c_str());  // a cut PNG would look like a picture to a file browser
-    throw std::runtime_error(path + ": PNG write failed (disk full?)");
+    const bool removed = hal::remove_cut_file(path);  // a cut PNG would look like a picture to a file browser
+    throw std::runtime_error(path + ": PNG write failed (disk full?); " + hal::cut_file_outcome(removed));
   }
   png_init_io(png, f);
   png_set_IHDR(png, info, static_cast<png_uint_32>(img.width), static_cast<png_uint_32>(img.height), 8, PNG_COLOR_TYPE_RGB,
@@ -60,8 +62,8 @@ void write_png(const std::string& path, const RgbImage& img) {
   png_destroy_write_struct(&png, &info);
   if (std::fclose(f) != 0) {
     const int err = errno;
-    std::remove(path.c_str());
-    throw std::runtime_error(path + ": cannot write: " + std::strerror(err));
+    const bool removed = hal::remove_cut_file(path);
+    throw std::runtime_error(path + ": cannot write: " + std::strerror(err) + "; " + hal::cut_file_outcome(removed));
   }
 }
 

@@ -10,6 +10,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "sempose/hal/cut_file.hpp"
+
 namespace sempose::operator_view {
 namespace {
 
@@ -120,8 +122,8 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
     }
     dat.close();  // flushed here, so a full disk or a file-size limit shows (it was left cut, found probing)
     if (!dat) {
-      std::remove((stem + ".dat").c_str());
-      throw std::runtime_error(stem + ".dat: cannot write (disk full or a file-size limit?); removed the cut file");
+      throw std::runtime_error(stem + ".dat: cannot write (disk full or a file-size limit?); " +
+                               hal::cut_file_outcome(hal::remove_cut_file(stem + ".dat")));
     }
   }
   // Recordings without timestamps (t_ns all 0) are plotted over the frame number.
@@ -159,8 +161,8 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
     gp << "unset multiplot\n";
     gp.close();
     if (!gp) {
-      std::remove((stem + ".gp").c_str());
-      throw std::runtime_error(stem + ".gp: cannot write (disk full or a file-size limit?); removed the cut file");
+      throw std::runtime_error(stem + ".gp: cannot write (disk full or a file-size limit?); " +
+                               hal::cut_file_outcome(hal::remove_cut_file(stem + ".gp")));
     }
   }
   const std::string cmd = "cd " + shell_quoted(dir) + " && gnuplot " + shell_quoted(leaf + ".gp");
