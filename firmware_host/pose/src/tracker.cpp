@@ -970,7 +970,17 @@ void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, 
   last_dwell_ns = frame_dwell_ns;
   if (fresh) filter.reset();
   const double t_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
-  const PoseSample f = filter.update({t_s, e.x_px, e.y_px, e.phi_deg});
+  PoseSample f = filter.update({t_s, e.x_px, e.y_px, e.phi_deg});
+  // A filter that cannot follow the motion (tuned loosely, within its ranges: meas_sigma_px 100,
+  // gate_sigma 1000) lagged the target by 120-224 px while every pose was TRACKING on its
+  // measurement (hostile round 13). Beyond the false-pose distance from this frame's measurement
+  // it starts again from it; within it, a filtered pose more than half that distance away is
+  // not vouched for (Tracker::update).
+  if (std::hypot(f.x_px - e.x_px, f.y_px - e.y_px) > LossPolicy::kFalsePx ||
+      std::fabs(rt::wrap_deg(f.phi_deg - e.phi_deg)) > LossPolicy::kFalseDeg) {
+    filter.reset();
+    f = filter.update({t_s, e.x_px, e.y_px, e.phi_deg});
+  }
   e.x_px = f.x_px;
   e.y_px = f.y_px;
   e.phi_deg = f.phi_deg;
@@ -1765,6 +1775,14 @@ static std::int64_t beam_time_ns(const PoseFrame& frame, const PoseEstimate& e) 
 
 PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
   PoseEstimate e = impl_->update(frame);
+  // The reported pose is the filtered one when tracker.filter is on: the states judge the
+  // measurement, so a filtered pose far from it is not vouched for (accept() restarts the filter
+  // beyond the false-pose distance).
+  if (e.state == TrackState::kTracking && (std::hypot(e.x_px - e.meas_x_px, e.y_px - e.meas_y_px) > 0.5 * LossPolicy::kFalsePx ||
+                                           std::fabs(rt::wrap_deg(e.phi_deg - e.meas_phi_deg)) > 0.5 * LossPolicy::kFalseDeg)) {
+    e.state = TrackState::kUncertain;
+    e.reason_bits |= kReasonUnexplained;
+  }
   impl_->keep_continuity(frame, e);
   if (e.state == TrackState::kTracking) impl_->ever_tracking = true;
   e.followed = impl_->tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
