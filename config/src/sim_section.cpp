@@ -128,6 +128,16 @@ void read_profile(Section& parent, const char* key, TimeProfile& p, double lo, d
   s.opt("from", p.from, lo, hi);
   s.opt("to", p.to, lo, hi);
   if (!s.has("to") && s.has("from") && !s.has("value")) p.to = p.from;
+  // start_s and ramp_s shape the change from -> to; beside a constant they were read and
+  // dropped without a word (found probing: the frames byte for byte those without them).
+  const bool constant = s.has("value") || (s.has("from") && !s.has("to"));
+  for (const char* shaping : {"start_s", "ramp_s"}) {
+    if (constant && s.has(shaping)) {
+      s.error(shaping, std::string("shapes a change from -> to; ") +
+                           (s.has("value") ? "value is a constant" : "from without to is a constant") +
+                           ": give from and to, or drop " + shaping);
+    }
+  }
   s.opt("start_s", p.start_s, 0.0, 1e6);
   s.opt("ramp_s", p.ramp_s, 0.0, 1e6);
   s.opt("amplitude", p.amplitude, -(hi - lo), hi - lo);

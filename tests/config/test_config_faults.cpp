@@ -290,6 +290,11 @@ TEST(ConfigFaults, SimValuesThatWouldBeIgnoredAreNamed) {
        {"sim.background.grain_px", "applies to background source 'procedural' only, not 'image'"}},
       {{"sim.background", "{mean: 0.3, crop: [0, 0, 10, 10]}"},
        {"sim.background.crop", "applies to background source 'image' only, not 'procedural'"}},
+      // Thirteenth round: a change's shape beside a constant (the frames were those without it).
+      {{"sim.targets[0].scale", "{value: 1.2, start_s: 5}"},
+       {"sim.targets[0].scale.start_s", "shapes a change from -> to; value is a constant"}},
+      {{"sim.targets[0].scale", "{from: 1.2, ramp_s: 3}"},
+       {"sim.targets[0].scale.ramp_s", "shapes a change from -> to; from without to is a constant"}},
   };
   for (const auto& c : cases) {
     AppConfig cfg;
