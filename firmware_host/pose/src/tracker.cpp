@@ -1285,7 +1285,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   // can matter (~30 µs a frame saved), and on every kFitSampleEvery-th ROI frame for the level,
   // whatever it scores (learning only from low-scoring frames would bias the level up).
   const double off = set < off_share.size() ? off_share[set] : 1.0;
-  const bool fit_sample = ++fit_frames % kFitSampleEvery == 0 || !fit_level.known();
+  const bool fit_sample = ++fit_frames % kFitSampleEvery == 0;
   if (e.score < std::max(loss.explained_bound(), off) || fit_sample) {
     const double attainable = attainable_score(frame.pixels, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y, m.j);
     e.chi2 = normalised_chi2(e.score, attainable);

@@ -415,11 +415,12 @@ struct Tracker::Impl {
   int angle_order = 1;
   // The level learns from every kFitSampleEvery-th ROI frame (fit_frames counts them): the
   // attainable score on the others only when a judgement needs it; ≤ 1/4 of its cost on a
-  // target scoring above the bounds, and the ring's 32 frames span ~130. Until the level is
-  // known, from every ROI frame: sampled every 4th it took 32 frames, and a target lost before
-  // that was re-found on another object its χ² would have refused (hostile round 13: the needle
-  // tip tracked 16 frames at 0.85 and lost at the field's edge; the search took another needle
-  // 250 px away, turned 156°, at 0.61, χ² ~2.3× the tip's, and kept it TRACKING).
+  // target scoring above the bounds, and the ring's 32 frames span ~130. Sampling every frame
+  // until the level is known (8 frames, not 32) was tried (2026-12-06): another needle a lost tip
+  // was re-found on went 38 -> 17 false TRACKING poses, but a level learnt over 8 frames in a row
+  // is too narrow for what follows — the needle tip re-found beside another object at its full
+  // score (0.84, χ² 2.5) stayed UNCERTAIN for good, its frames never teaching the level
+  // (pose_envelope_probe: TRACKING 47,299 -> 47,234, other_object_comes_to_60px 40 -> 22 %).
   static constexpr unsigned kFitSampleEvery = 4;
   unsigned fit_frames = 0;
   void keep_continuity(const PoseFrame& frame, PoseEstimate& e) noexcept;
