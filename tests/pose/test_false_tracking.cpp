@@ -243,6 +243,19 @@ pt::Scenario envelope_scene(const char* target, const char* motion, double dose,
   return s;
 }
 
+// The scene's target moving on a straight line at (vx, vy) px/s from where it starts, bouncing
+// when its centre comes margin_px from the field's edge (negative: beyond it).
+void move_linearly(pt::Scenario& s, double vx, double vy, double margin_px) {
+  s.edit_run = [=](sempose::config::SimConfig& sc) {
+    auto& tr = sc.targets[0].trajectory;
+    tr = sempose::config::TrajectoryConfig{};
+    tr.kind = "linear";
+    tr.vx_px_s = vx;
+    tr.vy_px_s = vy;
+    tr.margin_px = margin_px;
+  };
+}
+
 // Runs a scene and prints its TRACKING, false and search counts under a label.
 FalseCount run_and_count(pt::SimHarness& h, const std::string& label) {
   h.run();
@@ -737,13 +750,7 @@ TEST(NoFalseTracking, TargetLeavingTheFieldAcrossAnEdgeIsNotTrackedAtTheEdge) {
   for (const Case& c : {Case{"needle_tip", 6}, Case{"lamella_post", 20}}) {
     pt::Scenario s = envelope_scene(c.target, "static", c.dose, 150);
     s.start_x_px = 200;
-    s.edit_run = [](sempose::config::SimConfig& sc) {
-      auto& tr = sc.targets[0].trajectory;
-      tr = sempose::config::TrajectoryConfig{};
-      tr.kind = "linear";
-      tr.vx_px_s = -300;
-      tr.margin_px = 0;  // bounces when its centre reaches the edge
-    };
+    move_linearly(s, -300, 0, 0);  // bounces when its centre reaches the edge
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
     const FalseCount n = run_and_count(h, std::string(c.target) + " leaving across the edge, dose " + std::to_string(c.dose));
@@ -788,14 +795,7 @@ TEST(NoFalseTracking, ASearchWinnerTurnedFromTheLastAngleOpensTheFlipCheck) {
   pt::Scenario s = envelope_scene("lamella_post", "static", 1.0, 250);
   s.start_x_px = 200;
   s.start_y_px = 180;
-  s.edit_run = [](sempose::config::SimConfig& sc) {
-    auto& tr = sc.targets[0].trajectory;
-    tr = sempose::config::TrajectoryConfig{};
-    tr.kind = "linear";
-    tr.vx_px_s = -300;
-    tr.vy_px_s = -285;
-    tr.margin_px = -170;  // bounces once the whole target has left through the corner
-  };
+  move_linearly(s, -300, -285, -170);  // bounces once the whole target has left through the corner
   pt::SimHarness h(s, default_tracker());
   ASSERT_TRUE(h.status().ok) << h.status().message;
   const FalseCount n = run_and_count(h, "lamella_post leaving through the corner, dose 1");
@@ -1353,13 +1353,7 @@ TEST(NoFalseTracking, PoseTheFitDoesNotExplainAtTheTargetsLevelIsNotTracking) {
   pt::Scenario s = envelope_scene("lamella_post", "static", 20, 130);
   s.start_x_px = 250;
   s.start_y_px = 240;
-  s.edit_run = [](sempose::config::SimConfig& sc) {
-    auto& tr = sc.targets[0].trajectory;
-    tr = sempose::config::TrajectoryConfig{};
-    tr.kind = "linear";
-    tr.vx_px_s = 150;
-    tr.margin_px = 60;
-  };
+  move_linearly(s, 150, 0, 60);
   s.frame_fault = [](std::uint64_t, const sempose::hal::Roi& r, sempose::hal::Pixel* p, sempose::hal::Pixel m) {
     for (int y = 0; y < r.h; ++y)
       for (int x = std::max(0, 400 - r.x); x < r.w; ++x) p[static_cast<std::ptrdiff_t>(y) * r.w + x] = static_cast<sempose::hal::Pixel>(0.04 * m);
