@@ -91,6 +91,7 @@ bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& sca
     // looked only in the data folders, and recorded the installed or source tree's file of the
     // same relative name instead of the user's own (found probing).
     if (errors.empty()) resolve_sim_data(top, path, sim, true);
+    if (errors.empty()) check_sim_room(top, sim, scan.field_w, scan.field_h);
   }
   error = errors.joined();
   return errors.empty();

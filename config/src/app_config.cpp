@@ -233,6 +233,7 @@ bool read_app_config(const std::string& path, YAML::Node node, Errors& errors, A
       // A missing or unusable file is a config error (key, path, places tried) now, before
       // anything starts, not an exception from the scene builder later.
       resolve_sim_data(root, path, out.sim, out.source == "sim");
+      if (out.source == "sim") check_sim_room(root, out.sim, out.scan.field_w, out.scan.field_h);
     }  // root's destructor reports unknown top-level sections
   } catch (const std::exception& e) {
     errors.add(std::string("cannot be read: ") + e.what());

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "sempose/config/data_path.hpp"
@@ -81,6 +82,7 @@ void read_trajectory(Section& s, TrajectoryConfig& t) {
   s.opt("sigma_deg_per_sqrt_s", t.sigma_deg_per_sqrt_s, 0.0, 1e4);
   s.opt("knot_s", t.knot_s, 1e-4, 100.0);
   s.opt("margin_px", t.margin_px, 0.0, 8192.0);
+  t.margin_given = s.has("margin_px");
   // A key its kind does not use was read and dropped (found probing: `{vx_px_s: 100}` without
   // a kind recorded a still target; `vx_px_s` under `kind: sine` did nothing). Which kind reads
   // which key: hal/scan/trajectory.cpp.
@@ -291,6 +293,25 @@ void resolve_sim_data(Section& root, const std::string& config_path, SimConfig& 
     }
   }
   if (sim.background.source == "image" && !sim.background.path.empty()) resolve_one(sim.background.path, "sim.background.path");
+}
+
+void check_sim_room(Section& root, const SimConfig& sim, int field_w, int field_h) {
+  // The bounds are [margin, side - 1 - margin] (hal/scan/trajectory.cpp clamps the margin to
+  // half the side): at half the shorter side or more the target cannot move on that axis, and a
+  // random walk recorded a still target without a word (found probing: 5000 on 320x240).
+  const double room = (std::min(field_w, field_h) - 1) / 2.0;
+  const auto shown = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", v);
+    return std::string(text);
+  };
+  for (std::size_t i = 0; i < sim.targets.size(); ++i) {
+    const TrajectoryConfig& t = sim.targets[i].trajectory;
+    if (!sim.targets[i].enabled || !t.margin_given || t.margin_px < room) continue;
+    root.error_at("sim.targets[" + std::to_string(i) + "].trajectory.margin_px",
+                  shown(t.margin_px) + " px leaves the target no room to move in the " + std::to_string(field_w) + "x" +
+                      std::to_string(field_h) + " field (below " + shown(room) + ", half its shorter side)");
+  }
 }
 
 }  // namespace sempose::config

@@ -295,6 +295,9 @@ TEST(ConfigFaults, SimValuesThatWouldBeIgnoredAreNamed) {
        {"sim.targets[0].scale.start_s", "shapes a change from -> to; value is a constant"}},
       {{"sim.targets[0].scale", "{from: 1.2, ramp_s: 3}"},
        {"sim.targets[0].scale.ramp_s", "shapes a change from -> to; from without to is a constant"}},
+      // A margin that pins the target (a "moving" recording that is a still one).
+      {{"sim.targets[0].trajectory", "{kind: random_walk, margin_px: 240}"},
+       {"sim.targets[0].trajectory.margin_px", "240 px leaves the target no room to move in the 640x480 field (below 239.5"}},
   };
   for (const auto& c : cases) {
     AppConfig cfg;
@@ -302,6 +305,12 @@ TEST(ConfigFaults, SimValuesThatWouldBeIgnoredAreNamed) {
     EXPECT_FALSE(parse_app_config(with(base, c[0].first, c[0].second), "s.yaml", cfg, e)) << c[0].first << ": " << c[0].second;
     EXPECT_NE(e.find(c[1].first + ": "), std::string::npos) << e;
     EXPECT_NE(e.find(c[1].second), std::string::npos) << e;
+  }
+  {  // A margin with room, and the default margin on a small field, are no error.
+    AppConfig ok;
+    std::string e2;
+    EXPECT_TRUE(parse_app_config(with(base, "sim.targets[0].trajectory", "{kind: random_walk, margin_px: 230}"), "s.yaml", ok, e2))
+        << e2;
   }
   // A kind that is refused is named once: its keys are not also judged against the default.
   AppConfig cfg;

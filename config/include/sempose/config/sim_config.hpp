@@ -59,6 +59,7 @@ struct TrajectoryConfig {
   double sigma_px_per_sqrt_s = 4.0, sigma_deg_per_sqrt_s = 2.0, knot_s = 0.05;
   // Bounds for linear/jumps/random_walk: the field minus this margin.
   double margin_px = 96;
+  bool margin_given = false;  // margin_px came from the config (check_sim_room judges it)
 };
 
 // Where a texture comes from: a crop of a PGM image or a procedural shape.
@@ -155,6 +156,9 @@ void read_sim(Section& section, SimConfig& out);
 // error at its key under root when required (`sempose sim`, or `run` with the simulator as its
 // source); otherwise it is left as written.
 void resolve_sim_data(Section& root, const std::string& config_path, SimConfig& sim, bool required);
+// A trajectory margin_px the config gives that leaves its target no room to move on an axis of
+// the field_w x field_h field (the bounds meet: the target pinned there) is an error at its key.
+void check_sim_room(Section& root, const SimConfig& sim, int field_w, int field_h);
 void read_replay(Section& section, ReplayConfig& out);
 
 }  // namespace sempose::config
