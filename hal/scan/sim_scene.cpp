@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "sempose/config/data_path.hpp"
@@ -218,7 +219,9 @@ SimLayer build_layer(const config::SimTargetConfig& t, std::size_t index, const 
       double area = 0;
       for (float a : alpha.v) area += a;
       if (area < 16) {
-        throw std::runtime_error(what + ": threshold mask at mask_level " + std::to_string(t.texture.mask_level) +
+        char level[32];
+        std::snprintf(level, sizeof level, "%g", t.texture.mask_level);  // as written, not six decimals
+        throw std::runtime_error(what + ": threshold mask at mask_level " + level +
                                  " keeps nothing of the crop (lower mask_level or use mask: full)");
       }
     }

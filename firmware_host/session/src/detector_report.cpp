@@ -5,9 +5,10 @@ namespace sempose::session {
 void print_detector_report(std::FILE* out, int t, const std::string& name, const pose::Tracker::DetectorTauStatus& d) {
   if (d.measuring)
     std::fprintf(out,
-                 "detector %d %s: measured line_rho=%.3f lag2_excess=%+.3f tau_px=%.2f tau_ns=%.0f over %.0f ROI frames "
-                 "(0: a fast detector)%s\n",
+                 "detector %d %s: measured line_rho=%.3f lag2_excess=%+.3f tau_px=%.2f tau_ns=%.0f over %.0f ROI frames%s%s\n",
                  t, name.c_str(), d.rho, d.lag2_excess, d.tau_px, d.tau_ns, d.frames,
+                 // Said only of a τ of 0: beside a measured lag it read as the measurement's verdict.
+                 d.tau_px > 0 ? "" : " (0: a fast detector)",
                  d.inconsistent ? "; INCONSISTENT: the lines' correlation is not a detector low-pass's (rho2 != rho1^2: "
                                   "dropped lines?), no lag taken out"
                                 : "");
