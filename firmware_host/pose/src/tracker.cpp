@@ -604,8 +604,8 @@ double Tracker::Impl::student_t(double z, int nu) noexcept {
 // the search keeps to the prior only within StartSearch::kFlipTieScore, which one score
 // difference's noise passes at 1 e⁻/px (the lamella on its post coming back into the field
 // after leaving it by a corner: re-found 16 px and 178° off, 0.50 against the target's level
-// of 0.52, followed, and TRACKING on 3 frames: pose_envelope_probe leave_corner_whole). A search frame whose pattern window
-// reaches the field's edge (at_field_edge) decides nothing: the hypothesis that would fit only
+// of 0.52, followed, and TRACKING on 3 frames: pose_envelope_probe leave_corner_whole).
+// A search frame whose pattern window reaches the field's edge (at_field_edge) decides nothing: the hypothesis that would fit only
 // beyond the edge could not be measured, so the visible part's better match wins there (the
 // lamella on post half out of the field: its 180° look-alike 14-18 px off was taken and kept for
 // ~100 frames after the target came back). The check opens and the frames after it decide.
