@@ -3,6 +3,9 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <string>
 
@@ -43,6 +46,29 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetC
                       "x" + std::to_string(roi_h) + " ROI, larger than scan.max_roi_w/h " +
                       std::to_string(c.scan.max_roi_w) + "x" + std::to_string(c.scan.max_roi_h) +
                       " (allowed: at most the scan limits, or the whole field)");
+  }
+  // A pose rate no ROI scan can reach: the governor's cap on quality lengthening (every target's
+  // turn within 1 / min_pose_rate_hz) is then below the shortest dwell and silently off, and the
+  // rate the user asked for is never kept (100000 Hz was accepted; found probing). The fastest
+  // cycle is every target's ROI at the shortest dwell both the scan and the governor allow. Only a
+  // rate the config gives: the default's cap is moot under a long governor.min_dwell_ns, not wrong.
+  if (c.governor.enabled && c.governor.min_pose_rate_given && c.source != "replay" && targets > 0) {
+    const std::uint64_t step = c.scan.dwell_step_ns == 0 ? 1 : c.scan.dwell_step_ns;
+    const std::uint64_t shortest = (std::max<std::uint64_t>({c.scan.min_dwell_ns, c.governor.min_dwell_ns, 1}) + step - 1) / step * step;
+    const double cycle_ns = static_cast<double>(targets) *
+                            static_cast<double>(c.scan.scan_time_ns(roi_w, roi_h, static_cast<std::uint32_t>(shortest)));
+    const double fastest_hz = 1e9 / cycle_ns;
+    if (c.governor.min_pose_rate_hz > fastest_hz) {
+      char text[320];
+      std::snprintf(text, sizeof text,
+                    "%g Hz a target is more than the ROI scans can give: %d target%s x a %dx%d ROI at the shortest "
+                    "dwell %llu ns (scan.min_dwell_ns, governor.min_dwell_ns) plus scan.line_flyback_ns %u a line take "
+                    "%.3f ms, %.4g Hz a target at most (allowed: 0.01..%.4g)",
+                    c.governor.min_pose_rate_hz, targets, targets == 1 ? "" : "s", roi_w, roi_h,
+                    static_cast<unsigned long long>(shortest), static_cast<unsigned>(c.scan.line_flyback_ns), cycle_ns * 1e-6,
+                    std::floor(fastest_hz * 1e3) / 1e3, std::floor(fastest_hz * 1e3) / 1e3);
+      root.error_at("governor.min_pose_rate_hz", text);
+    }
   }
   // A pattern larger than the field cannot be found in it (found probing: a 16x16 field failed
   // in setup with "render_sim_pattern: size 128 does not fit the field", no key named). A

@@ -22,6 +22,7 @@ void read_governor(Section& s, GovernorConfig& c) {
   s.opt("quality_gain", c.quality_gain, 1.0, 4.0);
   s.opt("max_quality_factor", c.max_quality_factor, 1.0, 100.0);
   s.opt("min_pose_rate_hz", c.min_pose_rate_hz, 0.01, 100'000.0);
+  c.min_pose_rate_given = s.has("min_pose_rate_hz");
   if (c.min_dwell_ns != 0 && c.max_dwell_ns != 0 && c.min_dwell_ns > c.max_dwell_ns) {
     s.error("max_dwell_ns", std::to_string(c.max_dwell_ns) + " is below min_dwell_ns " +
                                 std::to_string(c.min_dwell_ns));

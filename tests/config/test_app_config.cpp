@@ -417,6 +417,32 @@ TEST(AppConfig, GovernorDwellLimitsMustOverlapTheScans) {
   EXPECT_TRUE(parse_app_config(scan + "governor: {enabled: false, initial_dwell_ns: 150}\n", "g.yaml", c, e)) << e;
 }
 
+// A per-target pose rate no ROI scan can give: 100000 Hz was accepted, and the governor's cap
+// on quality lengthening (each target's turn within 1 / min_pose_rate_hz) then lay below the
+// shortest dwell, silently off. Named with what the fastest cycle is made of and its rate.
+TEST(AppConfig, APoseRateNoRoiScanCanGiveIsRefused) {
+  // 192² at 100 ns + 192 × 2 µs flyback = 4.0704 ms a target.
+  const std::string scan = "scan: {min_dwell_ns: 100, max_dwell_ns: 10000, dwell_step_ns: 50, line_flyback_ns: 2000}\n"
+                           "sim: {targets: [{texture: {source: lamella}}, {texture: {source: gripper}}]}\n";
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config(scan + "governor: {min_pose_rate_hz: 100000}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("governor.min_pose_rate_hz: 100000 Hz a target is more than the ROI scans can give: 2 targets x a "
+                   "192x192 ROI at the shortest dwell 100 ns (scan.min_dwell_ns, governor.min_dwell_ns) plus "
+                   "scan.line_flyback_ns 2000 a line take 8.141 ms, 122.8 Hz a target at most (allowed: 0.01..122.8)"),
+            std::string::npos)
+      << e;
+  e.clear();  // just above the two targets' fastest rate; and a governor minimum dwell counts
+  EXPECT_FALSE(parse_app_config(scan + "governor: {min_pose_rate_hz: 123}\n", "g.yaml", c, e));
+  e.clear();
+  EXPECT_TRUE(parse_app_config(scan + "governor: {min_pose_rate_hz: 122}\n", "g.yaml", c, e)) << e;
+  e.clear();
+  EXPECT_FALSE(parse_app_config(scan + "governor: {min_pose_rate_hz: 122, min_dwell_ns: 200}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("at the shortest dwell 200 ns"), std::string::npos) << e;
+  e.clear();  // the governor off scans every ROI at initial_dwell_ns: the rate is not its to keep
+  EXPECT_TRUE(parse_app_config(scan + "governor: {enabled: false, min_pose_rate_hz: 100000}\n", "g.yaml", c, e)) << e;
+}
+
 TEST(AppConfig, MissingFileIsAnError) {
   AppConfig c;
   std::string e;
