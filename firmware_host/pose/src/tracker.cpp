@@ -60,6 +60,9 @@ void Tracker::Impl::forget_everything() noexcept {
   searches_rejected = 0;
   loss.forget_target();
   fit_level.forget();
+  explained_level.forget();
+  refind_level = 0;
+  refind_research = false;
   blur_level.forget();
   scale_sigma_level.forget();
   scale = expected_scale.load(std::memory_order_relaxed);
@@ -1042,6 +1045,9 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     // than waiting, as a first start's does, for an ROI frame to confirm it.
     loss.forget_target();
     fit_level.forget();
+    explained_level.forget();
+    refind_level = 0;
+    refind_research = false;
     lost_after_hold = away_from_held = lost_on_tear = false;
     tear_level = 0;
     blur_level.forget();
@@ -1168,6 +1174,13 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.reason_bits |= kReasonUnexplained;
       }
       check_tear_level(m, e);
+      // A re-find after a loss (the target's level kept through it): judged against that level.
+      if (explained_level.known() && !loss.calibrating()) {
+        refind_level = explained_level.chi2();
+        refind_below_frames = 0;
+      }
+      frame_explained = attainable > 0 ? e.score / attainable : 0.0;
+      check_refind_level(e);
       judge_lag(e);
     } else {
       e.state = TrackState::kAcquiring;
@@ -1286,10 +1299,18 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   // whatever it scores (learning only from low-scoring frames would bias the level up).
   const double off = set < off_share.size() ? off_share[set] : 1.0;
   const bool fit_sample = ++fit_frames % kFitSampleEvery == 0;
-  if (e.score < std::max(loss.explained_bound(), off) || fit_sample) {
+  const bool judged = e.score < std::max(loss.explained_bound(), off) || fit_sample;
+  // s / a is read for its level until known, then with fit_level, and on every frame a re-find's
+  // check is open (check_refind_level): e.chi2 stays what the sampling above gives.
+  const bool explained_sample = fit_sample || refind_level > 0 || (!explained_level.known() && !loss.calibrating());
+  frame_explained = 0;
+  if (judged || explained_sample) {
     const double attainable = attainable_score(frame.pixels, roi.w, roi.h, e.x_px + lag_shift_px - roi.x, e.y_px - roi.y, m.j);
-    e.chi2 = normalised_chi2(e.score, attainable);
-    if (e.score < loss.explained_bound()) m.attainable = static_cast<float>(attainable);
+    if (judged) {
+      e.chi2 = normalised_chi2(e.score, attainable);
+      if (e.score < loss.explained_bound()) m.attainable = static_cast<float>(attainable);
+    }
+    if (explained_sample && attainable > 0) frame_explained = e.score / attainable;
   }
   if (m.unsettled || m.on_window_edge) e.reason_bits |= kReasonAngleUnsettled;
   if (motion.prediction_outside(field.field_w, field.field_h)) e.reason_bits |= kReasonOutOfField;
@@ -1358,9 +1379,12 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         judge_away_from_held(e);
       }
       check_tear_level(m, e);
+      check_refind_level(e);
       judge_lag(e);
       // Learnt from frames tracked well only: a pose the rules doubt would teach the level its lie.
       if (fit_sample && e.state == TrackState::kTracking && e.reason_bits == 0) fit_level.learn(e.chi2);
+      if (frame_explained > 0 && refind_level == 0 && e.state == TrackState::kTracking && e.reason_bits == 0)
+        explained_level.learn(frame_explained);
       if (e.state == TrackState::kTracking && e.reason_bits == 0 && !blur_widened) {
         blur_level.learn(frame_blur);
         scale_sigma_level.learn(frame_scale_sigma);
@@ -1389,6 +1413,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       // 15 px and 175° off at 0.78, TRACKING. Re-armed on every UNCERTAIN frame instead, the
       // opposite vetoed true poses at 1 e-/px (twin_crosses_over_at_45deg: 27 -> 6 % TRACKING).
       if (e.state == TrackState::kUncertain && below_level) resumed_unvouched = true;
+      if (refind_research) {
+        refind_research = false;
+        go_lost();  // reported UNCERTAIN, as followed; the next frame searches the field
+      }
       break;
     }
     case FrameVerdict::kLost:
@@ -1533,6 +1561,26 @@ void Tracker::Impl::judge_scale_drift(const PatternBank& bank, const Measurement
   const bool shown = place_shift_px <= LossPolicy::kFalsePx &&
                      gain + kDriftZ * ev.noise >= kDriftShare * ev.r_away * (1.0 - ev.rho);
   if (shown || place_shift_px <= kDriftPlacePx || e.state != TrackState::kTracking) return;
+  e.state = TrackState::kUncertain;
+  e.reason_bits |= kReasonUnexplained;
+}
+
+// After a loss, a search's re-find (refind_level, opened at the search frame): TRACKING only once
+// a pose reaches the share of the attainable score the target reached before it, less
+// kRefindShare (tracker_impl.hpp says why). No lapse: a target whose look changed while lost is
+// followed, UNCERTAIN, until it explains its window again, or a REACQUIRE or SELECT forgets the
+// level (an operator's word that this is the target).
+void Tracker::Impl::check_refind_level(PoseEstimate& e) noexcept {
+  if (!(refind_level > 0)) return;
+  if (frame_explained > 0 && frame_explained >= refind_level - kRefindShare) {
+    refind_level = 0;
+    return;
+  }
+  if (++refind_below_frames >= kRefindSearchEvery) {
+    refind_below_frames = 0;
+    refind_research = true;
+  }
+  if (e.state != TrackState::kTracking || !(cfg.max_false_probability > 0)) return;
   e.state = TrackState::kUncertain;
   e.reason_bits |= kReasonUnexplained;
 }

@@ -374,6 +374,29 @@ struct Tracker::Impl {
   // (a 90°-turned hypothesis of the lamella on post half under a dark occluder, χ² 16-40 where
   // the target's frames read ~2); forgotten with the target (REACQUIRE, SELECT, a new size).
   FitLevel fit_level;
+  // The share of the attainable score the target reaches (s / a: how much of its window's signal
+  // the pattern explains, relative to what noise allows) on frames it tracked well, in a FitLevel
+  // (the median of the last 32; sampled on every ROI frame until known, 8 frames, then with
+  // fit_level). Kept across a loss and forgotten with the target, as fit_level. A search that
+  // re-finds the target after a loss opens check_refind_level at that level (refind_level): its
+  // poses are TRACKING only once one reaches it less kRefindShare. Another micrograph's needle a
+  // lost needle tip was re-found on (hostile round 13, F2) reads 0.66-0.71 where the tip read
+  // 0.90-0.92 (its χ² only 1.4x the tip's: the other window's lower contrast absorbs the score's
+  // fall, which s / a does not), and was TRACKING 38 of 120 frames, also after the tip came back.
+  // Only the level's median is used, with a fixed margin: its spread over 8 frames in a row is
+  // too narrow to judge by (as fit_level's was: kFitSampleEvery). The margin: pose_accuracy_bench
+  // --quick's rows read, median per row, 0.70-0.99, at most ~0.1 lower at 2.5 e-/px than at 20 on
+  // the same target, and a re-find after a jump within 0.05 of the row's level.
+  FitLevel explained_level;
+  double refind_level = 0;     // the share a re-found target must reach (0: no check open)
+  double frame_explained = 0;  // this frame's s / a (0: not measured)
+  static constexpr double kRefindShare = 0.15;
+  // Followed below it for this many ROI frames, the field is searched again: the target may have
+  // come back (F2: the tip crossed the field twice while its pattern sat on the other needle).
+  int refind_below_frames = 0;
+  bool refind_research = false;  // set by check_refind_level: go_lost() once the frame is judged
+  static constexpr int kRefindSearchEvery = 8;
+  void check_refind_level(PoseEstimate& e) noexcept;
   // The target's blur on frames it tracked well: 1 / PoseSigma::sharpness (the copy's curvature
   // over the fit's on the frame), in a FitLevel (median and spread of its log, the last 32 frames
   // TRACKING with no reason and not themselves widened). A frame significantly blurrier than that
