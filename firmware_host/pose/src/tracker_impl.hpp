@@ -386,7 +386,10 @@ struct Tracker::Impl {
   // Only the level's median is used, with a fixed margin: its spread over 8 frames in a row is
   // too narrow to judge by (as fit_level's was: kFitSampleEvery). The margin: pose_accuracy_bench
   // --quick's rows read, median per row, 0.70-0.99, at most ~0.1 lower at 2.5 e-/px than at 20 on
-  // the same target, and a re-find after a jump within 0.05 of the row's level.
+  // the same target, and a re-find after a jump within 0.05 of the row's level. Judging every
+  // TRACKING frame against the share, not only a re-find's, was measured (2026-12-06): the probe's
+  // false poses 69 -> 68, its TRACKING 47,429 -> 47,318 (1 e-/px rows beside other objects),
+  // --quick identical, F5's crossing needles unchanged, and ~8 us a frame: not landed.
   FitLevel explained_level;
   double refind_level = 0;     // the share a re-found target must reach (0: no check open)
   double frame_explained = 0;  // this frame's s / a (0: not measured)
