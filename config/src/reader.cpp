@@ -67,6 +67,12 @@ std::string describe_range(double lo, double hi) {
   return "[" + num(lo) + ", " + num(hi) + "]";
 }
 
+std::string number_text(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
 bool tag_is_plain(const std::string& tag) {
   return tag.empty() || tag == "?" || tag == "!" || tag == "tag:yaml.org,2002:str" || tag == "tag:yaml.org,2002:int" ||
          tag == "tag:yaml.org,2002:float" || tag == "tag:yaml.org,2002:bool";

@@ -300,17 +300,12 @@ void check_sim_room(Section& root, const SimConfig& sim, int field_w, int field_
   // half the side): at half the shorter side or more the target cannot move on that axis, and a
   // random walk recorded a still target without a word (found probing: 5000 on 320x240).
   const double room = (std::min(field_w, field_h) - 1) / 2.0;
-  const auto shown = [](double v) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%g", v);
-    return std::string(text);
-  };
   for (std::size_t i = 0; i < sim.targets.size(); ++i) {
     const TrajectoryConfig& t = sim.targets[i].trajectory;
     if (!sim.targets[i].enabled || !t.margin_given || t.margin_px < room) continue;
     root.error_at("sim.targets[" + std::to_string(i) + "].trajectory.margin_px",
-                  shown(t.margin_px) + " px leaves the target no room to move in the " + std::to_string(field_w) + "x" +
-                      std::to_string(field_h) + " field (below " + shown(room) + ", half its shorter side)");
+                  number_text(t.margin_px) + " px leaves the target no room to move in the " + std::to_string(field_w) + "x" +
+                      std::to_string(field_h) + " field (below " + number_text(room) + ", half its shorter side)");
   }
 }
 

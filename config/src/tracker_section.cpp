@@ -125,9 +125,7 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
                 "expected [x_px, y_px, radius_px] (where the target is at start, in field pixels)");
         tc.start_area.clear();
       } else if (read_whole && !(tc.start_area[2] >= 1.0)) {
-        char radius[32];
-        std::snprintf(radius, sizeof radius, "%g", tc.start_area[2]);
-        t.error("start_area", std::string("radius_px ") + radius + " is outside [1, 16384] px");
+        t.error("start_area", "radius_px " + number_text(tc.start_area[2]) + " is outside [1, 16384] px");
         tc.start_area.clear();
       }
     }

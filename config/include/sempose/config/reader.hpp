@@ -146,6 +146,8 @@ std::string printable(const std::string& value);
 // ---- template definitions ----
 
 std::string describe_range(double lo, double hi);
+// A number as a message shows it: %g (5000, 1.5, 0.25), not std::to_string's six decimals.
+std::string number_text(double v);
 // "?" (plain), "!" (quoted) and the core schema's scalar tags: a value read as it is written.
 bool tag_is_plain(const std::string& tag);
 
