@@ -158,13 +158,13 @@ TEST(AppConfig, StartSearchScaleSpan) {
 }
 
 // τ not told: measured from the frames unless tracker.measure_detector_tau is false; the scan's
-// motion bias taken out when tracker.correct_scan_motion is true (off by default).
+// motion bias taken out of the reported pose unless tracker.correct_scan_motion is false.
 TEST(AppConfig, MeasureDetectorTauAndCorrectScanMotionAreBools) {
   AppConfig d;
   EXPECT_TRUE(d.tracker.measure_detector_tau);
-  EXPECT_FALSE(d.tracker.correct_scan_motion);
+  EXPECT_TRUE(d.tracker.correct_scan_motion);
   for (const std::string key : {"measure_detector_tau", "correct_scan_motion"}) {
-    const bool value = key == "correct_scan_motion";  // the other way round from the default
+    const bool value = false;  // the other way round from the default
     const auto other = write_yaml(key + ".yaml", "tracker:\n  " + key + ": " + (value ? "true" : "false") + "\n");
     AppConfig c;
     std::string e;

@@ -854,7 +854,7 @@ bool Tracker::Impl::sheared_by_motion(const PoseFrame& frame, const Roi& roi, co
   return shear_px > kSearchShearPx;
 }
 
-void Tracker::Impl::scan_velocity(const PoseFrame& frame) noexcept {
+void Tracker::Impl::scan_velocity(const PoseFrame& frame, const PatternBank& bank) noexcept {
   row_vx_px = row_vy_px = row_turn_deg = 0;
   const std::int64_t span = frame.t_scan_end_ns - frame.t_scan_start_ns;
   // Only on a stream the motion model vouches for: after a held frame or while the continuity
@@ -863,10 +863,18 @@ void Tracker::Impl::scan_velocity(const PoseFrame& frame) noexcept {
   if (!motion.motion_known() || !tracking || held_frames > 0 || anchor.open() || frame_period_s <= 0 || span <= 0 ||
       frame.roi.h <= 0)
     return;
-  const double row_share = 1e-9 * static_cast<double>(span) / frame.roi.h / frame_period_s;  // of a frame period
-  row_vx_px = (motion.predicted_x_px() - motion.x_px()) * row_share;
-  row_vy_px = (motion.predicted_y_px() - motion.y_px()) * row_share;
-  row_turn_deg = rt::wrap_deg(motion.predicted_phi_deg() - motion.phi_deg()) * row_share;
+  // The rates of the continuity trail (the last TRACKING poses the pattern explained, fitted),
+  // not the motion model's two-pose rate, which follows a hum wave's zigzag (ContinuityAnchor::rates).
+  double vx = 0, vy = 0, vphi = 0;
+  if (!anchor.rates(vx, vy, vphi)) return;
+  const double row_s = 1e-9 * static_cast<double>(span) / frame.roi.h;
+  // The bias is linearised (scan_motion.hpp): a target turning by more than kScanTurnMaxDeg while
+  // its rows are scanned is no small shear of the pattern (a spin of 45° a frame, the lamella on
+  // its post at 6 e-/px: a TRACKING pose 10° off with the turn's bias taken out).
+  if (std::fabs(vphi) * row_s * bank.size_px() * scale > kScanTurnMaxDeg) return;
+  row_vx_px = vx * row_s;
+  row_vy_px = vy * row_s;
+  row_turn_deg = vphi * row_s;
 }
 
 // An accepted pose: the motion model and the recent score learn it, then the reported pose
@@ -1001,6 +1009,8 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
   e.y_px = motion.y_px();
   e.phi_deg = motion.phi_deg();
   frame_dwell_ns = static_cast<double>(frame.dwell_ns);
+  row_vx_px = row_vy_px = row_turn_deg = 0;  // set by scan_velocity() on an ROI frame only
+  frame_scan_motion = nullptr;
   {
     const double mid_s = 0.5e-9 * (static_cast<double>(frame.t_scan_start_ns) + static_cast<double>(frame.t_scan_end_ns));
     frame_period_s = last_mid_s > 0 && mid_s > last_mid_s ? mid_s - last_mid_s : 0.0;
@@ -1254,12 +1264,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       out.meas_y_px = out.y_px;
     }
     unlag(out);
-    unskew(out);
   };
   bool swept = false;
   rival_within_noise = false;
   surprised = false;
-  scan_velocity(frame);
+  scan_velocity(frame, bank);
   frame_scan_motion = set < scan_motion.size() ? &scan_motion[set] : nullptr;
   Measurement m = track(bank, swept, set, {load_px, load_stride});
   place(m, e);
@@ -1836,6 +1845,12 @@ PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
   e.followed = impl_->tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
   e.t_beam_ns = beam_time_ns(frame, e);
   if (e.followed && e.t_beam_ns > 0) impl_->recent.note(1e-9 * static_cast<double>(e.t_beam_ns), e.x_px, e.y_px, e.phi_deg);
+  // The scan's motion bias comes out of the reported pose only, after every rule judged the pose
+  // as measured: the rules (continuity line, stillness, split and flip checks) were measured on
+  // uncorrected poses, and a correction that follows a velocity a twin or a glitch bent moved
+  // their inputs (pose_envelope_probe 69 -> 96 false with it inside them; pose README, Motion
+  // during the scan). The next ROI and the motion model keep the measured pose too.
+  if (e.state == TrackState::kTracking || e.state == TrackState::kUncertain) impl_->unskew(e);
   return e;
 }
 

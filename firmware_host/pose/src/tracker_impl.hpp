@@ -96,7 +96,8 @@ struct Tracker::Impl {
   double lag_shift_px = 0;
   // Per pattern set, how a target's motion during the scan biases its measured pose
   // (scan_motion.hpp), and this frame's velocity per scanned row (scan_velocity(), tracker.cpp):
-  // the bias is taken out of every pose as the lag is out of x.
+  // the bias is taken out of the reported pose once the rules have judged the measured one
+  // (Tracker::update).
   std::vector<ScanMotionResponse> scan_motion;
   const ScanMotionResponse* frame_scan_motion = nullptr;
   double row_vx_px = 0, row_vy_px = 0, row_turn_deg = 0;
@@ -293,19 +294,21 @@ struct Tracker::Impl {
     e.x_px -= lag_shift_px;
     e.meas_x_px = e.x_px;
   }
-  // The target's velocity (and turn rate) per scanned row this frame (frame.t_scan_* give the row's time), from
-  // the motion model's velocity once the motion since the search is known (the first velocity
-  // after a search spans the field's scan); 0 before, and without time stamps.
-  void scan_velocity(const PoseFrame& frame) noexcept;
+  // The target's velocity (and turn rate) per scanned row this frame (frame.t_scan_* give the row's
+  // time), from the continuity trail's rates once the motion since the search is known; 0 before,
+  // without time stamps, and beyond kScanTurnMaxDeg of turn over the target's rows.
+  void scan_velocity(const PoseFrame& frame, const PatternBank& bank) noexcept;
+  static constexpr double kScanTurnMaxDeg = 10.0;  // the turn while the target's rows are scanned
   void unskew(PoseEstimate& e) const noexcept {
     if (frame_scan_motion == nullptr || (row_vx_px == 0 && row_vy_px == 0 && row_turn_deg == 0)) return;
     const ScanMotionBias b = frame_scan_motion->bias(e.phi_deg, scale, row_vx_px, row_vy_px, row_turn_deg);
+    // The reported pose and the measurement alike (tracker.filter keeps them apart).
     e.x_px -= b.x_px;
     e.y_px -= b.y_px;
     e.phi_deg = rt::wrap_deg(e.phi_deg - b.phi_deg);
-    e.meas_x_px = e.x_px;
-    e.meas_y_px = e.y_px;
-    e.meas_phi_deg = e.phi_deg;
+    e.meas_x_px -= b.x_px;
+    e.meas_y_px -= b.y_px;
+    e.meas_phi_deg = rt::wrap_deg(e.meas_phi_deg - b.phi_deg);
   }
   // A start search's pose gets σ as an ROI frame's does: the ROI around it cut from the field,
   // loaded at the found scale, the fit's covariance at the search's pose (tracker.cpp). Returns

@@ -70,10 +70,10 @@ struct TrackerConfig {
   // A raster scan's rows follow one another in time: a target moving during the scan shows
   // sheared and stretched, and the rigid fit reads part of that as a turn (0.3° at 200 px/s with
   // 50 µs rows). true: the bias the tracked velocity causes (scan_motion.hpp) is taken out of
-  // every ROI pose. Off by default: on, the benchmark measured better (median and against ViSP,
-  // 0 false either way) but pose_envelope_probe reported more false TRACKING poses (pose
-  // README: Motion during the scan). Not for a scan whose rows do not run top to bottom in time.
-  bool correct_scan_motion = false;
+  // the reported pose, after the rules judged the measured one (taken out before them,
+  // pose_envelope_probe reported more false TRACKING poses; pose README: Motion during the scan).
+  // false for a scan whose rows do not run top to bottom in time.
+  bool correct_scan_motion = true;
   // Start search (full field): box pyramid, coarse angles, best candidates refined.
   std::int32_t search_downsample = 8;
   double search_angle_step_deg = 20.0;

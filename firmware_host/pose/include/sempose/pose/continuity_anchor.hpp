@@ -329,20 +329,38 @@ class ContinuityAnchor {
     agreed_ = rested_ = 0;
     return true;
   }
+  // The trail's newest rates, end to end over its kRatePoses newest poses: px/s along x and y,
+  // deg/s; false with fewer. For the scan's motion bias (Tracker::Impl::scan_velocity): a
+  // two-pose rate follows a hum wave's zigzag (±2.5 px frame to frame read as 5 px a frame,
+  // pose_envelope_probe hum_wave_3px: 69 -> 76 false with the bias taken out at it), a rate over
+  // three cancels an alternating error; the whole trail's least-squares slope lags a fast
+  // target's turns (pose_accuracy_bench --quick angle 3.56 -> 3.64x the bound, the fast rows).
+  static constexpr int kRatePoses = 3;
+  bool rates(double& vx, double& vy, double& vphi) const noexcept {
+    double span = 0;
+    return n_ >= kRatePoses && newest_rates(kRatePoses, vx, vy, vphi, span);
+  }
   // The trail's velocity (end to end), px/s, and its mean frame interval, s; false while the
   // trail is not full.
   bool velocity(double& vx, double& vy, double& frame_s) const noexcept {
-    if (n_ < kTrail) return false;
-    const int tail = (head_ - (n_ - 1) + kTrail) % kTrail;
-    const double span = t_[head_] - t_[tail];
-    if (!(span > 0)) return false;
-    vx = (x_[head_] - x_[tail]) / span;
-    vy = (y_[head_] - y_[tail]) / span;
+    double vphi = 0, span = 0;
+    if (n_ < kTrail || !newest_rates(n_, vx, vy, vphi, span)) return false;
     frame_s = span / (n_ - 1);
     return true;
   }
 
  private:
+  // End to end over the trail's `poses` newest poses (at most n_): px/s, deg/s (the angles as
+  // trusted() unwrapped them along the trail) and the time they span, s; false over no time.
+  bool newest_rates(int poses, double& vx, double& vy, double& vphi, double& span) const noexcept {
+    const int from = (head_ - (poses - 1) + kTrail) % kTrail;
+    span = t_[head_] - t_[from];
+    if (!(span > 0)) return false;
+    vx = (x_[head_] - x_[from]) / span;
+    vy = (y_[head_] - y_[from]) / span;
+    vphi = (phi_[head_] - phi_[from]) / span;
+    return true;
+  }
   double t_[kTrail] = {}, x_[kTrail] = {}, y_[kTrail] = {}, phi_[kTrail] = {}, score_[kTrail] = {}, log_scale_[kTrail] = {}, log_scale_sd_[kTrail] = {};
   double first_t_ = 0, first_x_ = 0, first_y_ = 0;  // the first of the agreeing poses in a row
   int head_ = 0, n_ = 0, agreed_ = 0;
