@@ -863,8 +863,9 @@ void Tracker::Impl::scan_velocity(const PoseFrame& frame, const PatternBank& ban
   if (!motion.motion_known() || !tracking || held_frames > 0 || anchor.open() || frame_period_s <= 0 || span <= 0 ||
       frame.roi.h <= 0)
     return;
-  // The rates of the continuity trail (the last TRACKING poses the pattern explained, fitted),
-  // not the motion model's two-pose rate, which follows a hum wave's zigzag (ContinuityAnchor::rates).
+  // The rates of the continuity trail over its three newest poses (TRACKING, explained by the
+  // pattern), not the motion model's two-pose rate, which follows a hum wave's zigzag
+  // (ContinuityAnchor::rates).
   double vx = 0, vy = 0, vphi = 0;
   if (!anchor.rates(vx, vy, vphi)) return;
   const double row_s = 1e-9 * static_cast<double>(span) / frame.roi.h;
