@@ -430,6 +430,31 @@ TEST(ConfigFaults, ControlCharactersAreRefusedInEveryTextValue) {
   EXPECT_GE(text_keys, 15);
 }
 
+// Every error line is printable, whatever text of the file it quotes: a key's name, a value a
+// number or bool key refused, and yaml-cpp's syntax messages came out raw — a terminal escape
+// (retitling the window, clearing the screen), a bidirectional override, and a newline in a key
+// that forged a line of its own on stderr ("summary: poses=999 ok: unknown key"; found probing).
+TEST(ConfigFaults, ErrorLinesQuoteTheFilesTextEscaped) {
+  const std::string dir = temp_dir();
+  struct Case {
+    std::string yaml;
+    const char* says;  // part of the line, escaped
+  };
+  for (const Case& c : {Case{with(base_yaml(dir), "sim.seed", "\"1\\e]0;pwned\\a\""), "sim.seed: '1\\x1b]0;pwned\\x07' is not"},
+                        Case{base_yaml(dir) + "service: {\"\\e[2J\\u202eevil\": 1}\n", "service.\\x1b[2J\\u202eevil: unknown key"},
+                        Case{base_yaml(dir) + "\"a\\nsummary: poses=999 ok\": 1\n", "a\\nsummary: poses=999 ok: unknown key"},
+                        Case{base_yaml(dir) + "x: \"\\\x1b\"\n", "(syntax): unknown escape character: \\x1b"}}) {
+    AppConfig cfg;
+    std::string e;
+    EXPECT_FALSE(parse_app_config(c.yaml, dir + "/c.yaml", cfg, e)) << c.yaml;
+    EXPECT_NE(e.find(c.says), std::string::npos) << e;
+    for (const char ch : e) EXPECT_TRUE(ch == '\n' || static_cast<unsigned char>(ch) >= 0x20) << "raw control byte in:\n" << e;
+    EXPECT_EQ(e.find("\u202e"), std::string::npos) << "raw bidirectional override in:\n" << e;
+    // One line per error: no line of the output starts with the forged text.
+    EXPECT_EQ(e.find("\nsummary:"), std::string::npos) << e;
+  }
+}
+
 // The review of the Unicode rule: more invisible and bidirectional characters (U+061C, U+00AD,
 // U+180E, a tag character); zero-width joiners are ordinary spelling in Persian and Indic scripts
 // and allowed in paths (a target name refuses them); printable() is one pass (it restarted from
