@@ -180,7 +180,10 @@ ParsedOptions parse_options(const std::vector<OptionSpec>& spec, int argc, char*
           continue;
         }
       } else if (s->kind == OptionKind::kReal) {
-        if (!parse_real(v.text, v.real) || !(v.real >= s->min_real && v.real <= s->max_real)) {
+        // -0 compares equal to 0 but was written negative: `run --duration -0` ran until a signal
+        // where -1 is refused (found probing).
+        if (!parse_real(v.text, v.real) || !(v.real >= s->min_real && v.real <= s->max_real) ||
+            (std::signbit(v.real) && s->min_real >= 0)) {
           fail(std::string(a) + ": '" + v.text + "' is not " + range_text(*s), false);
           continue;
         }

@@ -243,6 +243,9 @@ int sempose::cli::run(int argc, char** argv) {
     }
     if (const std::string ctl = config::control_character_problem(opt.hist_dir); !ctl.empty()) {
       bad += "  --hist-dir: " + ctl + "\n";
+    } else if (opt.hist_dir == "-") {
+      // As --can-log: '-' reads as standard output elsewhere; a folder named '-' was made.
+      bad += "  --hist-dir: '-' (standard output) is not a folder: histograms are files; name a directory\n";
     } else if (!opt.hist_dir.empty()) {
       if (const std::string why = config::output_dir_problem(opt.hist_dir); !why.empty())
         bad += "  --hist-dir: '" + opt.hist_dir + "' cannot hold histograms: it is " + why + "\n";

@@ -117,6 +117,10 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetC
                   "'-' (standard output) is not supported here: stdout carries the run's status "
                   "lines; name a file");
   }
+  if (c.output.hist_dir == "-") {
+    // A folder named '-' was made in the working folder (found probing).
+    root.error_at("output.hist_dir", "'-' (standard output) is not a folder: histograms are files; name a directory");
+  }
   if (outputs == OutputCheck::kRefuse) {
     for (const OutputProblem& p : output_problems(c)) root.error_at(p.key, p.what);
   }

@@ -281,7 +281,7 @@ TEST(CliFaults, FifoDirectoryOrDeviceAsAPathIsRefusedAtOnce) {
 
 TEST(CliFaults, DurationMustBeAFiniteNumberOfSeconds) {
   const std::string dir = work_dir();
-  for (const char* d : {"nan", "inf", "1e10", "-1", "abc", ""}) {
+  for (const char* d : {"nan", "inf", "1e10", "-1", "-0", "-0.0", "abc", ""}) {  // -0: ran until a signal
     const Outcome r = run({"run", "--config", small_config(dir, ""), "--duration", d}, 20);
     ASSERT_FALSE(r.hung) << d;
     EXPECT_EQ(r.code, 2) << d << "\n" << r.err;
@@ -695,6 +695,15 @@ TEST(CliFaults, DashAsOutIsStandardOutputOrRefused) {
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("output.poses_csv"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("standard output"), std::string::npos) << r.err;
+  // The histograms' folder too: '-' made a folder called '-' (found probing).
+  for (const auto& [args, key] : {std::pair{std::vector<std::string>{"run", "--config", small_config(dir, ""), "--duration", "1", "--hist-dir", "-"}, "--hist-dir"},
+                                  std::pair{std::vector<std::string>{"run", "--config", small_config(dir, "output: {hist_dir: '-'}\n"), "--duration", "1"}, "output.hist_dir"}}) {
+    r = run(args, 60);
+    EXPECT_EQ(r.code, 2) << key << ": " << r.err;
+    EXPECT_NE(r.err.find(key), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("is not a folder"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists("-")) << key << " made a folder called '-'";
+  }
 }
 
 // Patterns the tracker cannot use are refused at setup by what is wrong with them (exit 2,
@@ -746,6 +755,8 @@ TEST(CliFaults, UntrackablePatternsAreRefusedByName) {
     ASSERT_FALSE(r.hung) << c.expect;
     EXPECT_EQ(r.code, 2) << c.expect << "\n" << r.err;
     EXPECT_NE(r.err.find(c.expect), std::string::npos) << r.err;
+    // And the file it is about (found probing: only "pattern set 0" was named).
+    EXPECT_NE(r.err.find(c.pattern_args.back()), std::string::npos) << "the file is not named:\n" << r.err;
     EXPECT_FALSE(fs::exists(dir + "/o.csv")) << "output made before the pattern was refused: " << c.expect;
   }
 }

@@ -66,17 +66,22 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
                                std::to_string(limits.max_roi_h) + " (scan.max_roi_w/h)");
   }
   std::vector<std::vector<pose::PatternSet>> per_target;
+  std::vector<std::string> set_files;  // per target, for a refusal: each set's pattern and mask
   if (!cfg.targets.empty()) {
     for (const auto& t : cfg.targets) {
       std::vector<pose::PatternSet> sets;
-      std::string origins;
-      for (const auto& ps : t.pattern_sets) {
+      std::string origins, files;
+      for (std::size_t k = 0; k < t.pattern_sets.size(); ++k) {
+        const auto& ps = t.pattern_sets[k];
         pose::PatternSet set;
         const rt::Status loaded = load_pattern_set(ps, set);
         if (!loaded.ok) return rt::Status::failure(cfg.path + ": targets: " + t.name + ": " + loaded.message);
         sets.push_back(std::move(set));
         origins += (origins.empty() ? "" : ", ") + ps.file;
+        files += (files.empty() ? "" : "; ") + ("set " + std::to_string(k) + " " + ps.file) +
+                 (ps.mask.empty() ? "" : ", mask " + ps.mask);
       }
+      set_files.push_back(files);
       per_target.push_back(std::move(sets));
       out.names.push_back(t.name);
       out.pattern_origins.push_back(origins);
@@ -104,6 +109,7 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
       per_target.push_back({std::move(set)});
       out.names.push_back("sim" + std::to_string(i));
       out.pattern_origins.push_back("recorded from simulator target " + std::to_string(i));
+      set_files.push_back("its pattern recorded from simulator target " + std::to_string(i));
     }
   }
   if (per_target.empty()) {
@@ -117,7 +123,12 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
   for (std::size_t i = 0; i < per_target.size(); ++i) {
     rt::Status st;
     auto tracker = pose::Tracker::create(tracker_cfg, std::move(per_target[i]), limits, st);
-    if (!tracker) return rt::Status::failure("target " + out.names[i] + ": " + st.message);
+    // The config and the pattern files named: the tracker's refusal (a pattern not square, flat,
+    // larger than the ROI, a mask of another size) knows only the set's index (found probing:
+    // "target t: tracker: pattern set 0: the pattern is 128x64; patterns must be square").
+    if (!tracker) {
+      return rt::Status::failure(cfg.path + ": target " + out.names[i] + ": " + st.message + " (" + set_files[i] + ")");
+    }
     if (i < cfg.targets.size() && cfg.targets[i].start_area.size() == 3) {
       const auto& a = cfg.targets[i].start_area;
       // The field is the source's (a recording's frames set it): checked here, not in the config.
