@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -99,7 +100,13 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetC
     struct stat st {};
     if (::stat(c.replay.frames_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
       const std::string why = path_kind_problem(c.replay.frames_dir);
-      root.error_at("replay.frames_dir", "'" + c.replay.frames_dir + "' is " +
+      // A relative folder is the working folder's (patterns are the config's): say where it looked.
+      std::error_code ec;
+      const std::filesystem::path abs = std::filesystem::absolute(c.replay.frames_dir, ec);
+      const std::string looked = std::filesystem::path(c.replay.frames_dir).is_relative() && !ec
+                                     ? " (" + abs.lexically_normal().string() + ", from the working folder)"
+                                     : "";
+      root.error_at("replay.frames_dir", "'" + c.replay.frames_dir + "'" + looked + " is " +
                                              (why.empty() ? std::string("a file") : why) +
                                              " (need a directory of PGM frames)");
     }

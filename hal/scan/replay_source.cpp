@@ -39,7 +39,11 @@ std::vector<std::string> list_pgm_frames(const std::string& dir) {
     throw std::runtime_error(dir + ": not a directory of recorded frames (missing?)");
   }
   std::vector<std::string> names;
-  for (const auto& e : fs::directory_iterator(dir)) {
+  // Unreadable (no read or search permission): said as the other faults are, not the library's
+  // "filesystem error: directory iterator cannot open directory" (found probing).
+  fs::directory_iterator it(dir, ec);
+  if (ec) throw std::runtime_error(dir + ": the recording's folder cannot be read: " + ec.message());
+  for (const auto& e : it) {
     if (!is_pgm_name(e.path().string())) continue;
     std::error_code kind_ec;
     if (e.is_regular_file(kind_ec)) {

@@ -2330,6 +2330,16 @@ TEST(CliFaults, AnUnreadableInputSaysWhy) {
     EXPECT_NE(r.code, 0) << c.file;
     EXPECT_NE(r.err.find(c.file + ": cannot open (Permission denied)"), std::string::npos) << c.file << "\n" << r.err;
   }
+  // The recording's folder itself: the library's "filesystem error: directory iterator cannot
+  // open directory" came out as it was (found probing).
+  fs::permissions(dir + "/rec", fs::perms::none);
+  g_child_uid = uid;
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/o4.csv"}, 60);
+  g_child_uid = -1;
+  fs::permissions(dir + "/rec", fs::perms::owner_all);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find(dir + "/rec: the recording's folder cannot be read: Permission denied"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/o4.csv"));
 }
 
 // SIGUSR1 writes the histograms while running and says so on a status line; a dump that failed

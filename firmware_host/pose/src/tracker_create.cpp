@@ -106,7 +106,9 @@ std::unique_ptr<Tracker> Tracker::create(const config::TrackerConfig& cfg, std::
   // actually given rather than tracker.pattern_size_px.
   const config::SettingProblem problem = config::check_tracker_sizes(cfg, pattern_px);
   if (problem) return fail("tracker." + problem.key + ": " + problem.message);
-  if (limits.field_w < pattern_px || limits.field_h < pattern_px) return fail("the scan field is smaller than the pattern");
+  if (limits.field_w < pattern_px || limits.field_h < pattern_px)
+    return fail("the scan field (" + std::to_string(limits.field_w) + "x" + std::to_string(limits.field_h) +
+                " px) is smaller than the pattern (" + std::to_string(pattern_px) + "x" + std::to_string(pattern_px) + " px)");
   // The ROI is at most the field's shorter side: a field as small as the pattern leaves it one
   // place, every pose on the ROI's edge and never TRACKING, without a word (review of the edge rule).
   if (std::min({cfg.roi_size_px, limits.field_w, limits.field_h}) <= pattern_px)
