@@ -363,6 +363,13 @@ class DocumentContent final : public YAML::EventHandler {
 }  // namespace
 
 YAML::Node load_text(const std::string& text, Errors& errors) {
+  // Lines ended by CR alone (an old Mac editor's) read as one line: the error said only that the
+  // top level is not a mapping (found probing). CRLF is read as it should be.
+  if (text.find('\r') != std::string::npos && text.find('\n') == std::string::npos) {
+    errors.add("its lines end in a carriage return alone (CR, old Mac line endings), so YAML reads one line: "
+               "convert them to LF (e.g. tr '\\r' '\\n')");
+    return {};
+  }
   try {
     YAML::Node root = YAML::Load(text);
     // One config per file: YAML::Load reads the first document of a multi-document stream and

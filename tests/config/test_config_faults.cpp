@@ -455,6 +455,21 @@ TEST(ConfigFaults, ErrorLinesQuoteTheFilesTextEscaped) {
   }
 }
 
+// A file whose lines end in CR alone (old Mac endings) is one YAML line: said as such, not only
+// "the top level must be a mapping" (found probing); CRLF reads as LF does.
+TEST(ConfigFaults, LinesEndedByACarriageReturnAloneAreNamed) {
+  const std::string dir = temp_dir();
+  std::string cr = base_yaml(dir), crlf;
+  for (char& ch : cr) if (ch == '\n') ch = '\r';
+  for (const char ch : base_yaml(dir)) crlf += ch == '\n' ? std::string("\r\n") : std::string(1, ch);
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config(cr, dir + "/c.yaml", c, e));
+  EXPECT_NE(e.find("carriage return alone"), std::string::npos) << e;
+  e.clear();
+  EXPECT_TRUE(parse_app_config(crlf, dir + "/c.yaml", c, e)) << e;
+}
+
 // The review of the Unicode rule: more invisible and bidirectional characters (U+061C, U+00AD,
 // U+180E, a tag character); zero-width joiners are ordinary spelling in Persian and Indic scripts
 // and allowed in paths (a target name refuses them); printable() is one pass (it restarted from
