@@ -137,6 +137,27 @@ int sempose::cli::sim(int argc, char** argv) {
   }
   if (seed_given) sim_cfg.seed = seed;
   sim_cfg.clock = "virtual";
+  {
+    // The dwell against the scan limits, as the scans below will check it, before the output
+    // folder is made (found probing: `--dwell 1` made the folder, frames.csv and
+    // ground_truth.csv, then failed, and that half recording refused the next sim into it), and
+    // before the scene is built: a 16384² field took 32 s to build before it was said.
+    const hal::Roi whole_field{0, 0, scan.field_w, scan.field_h};
+    std::uint32_t rounded = 0;
+    if (hal::check_scan_request(scan, {whole_field, static_cast<std::uint32_t>(dwell), 0},
+                                static_cast<std::size_t>(scan.field_w) * scan.field_h, rounded) != hal::StartResult::kStarted) {
+      std::fprintf(stderr, "sempose sim: --dwell: %llu ns is outside the scan limits [%u, %u] ns (scan.min_dwell_ns, "
+                   "scan.max_dwell_ns)\n", dwell, scan.min_dwell_ns, scan.max_dwell_ns);
+      return 2;
+    }
+    // The scan generator sets dwells in steps (found probing: `--dwell 123` with 50 ns steps
+    // recorded "dwell 123 ns" for frames scanned at another dwell).
+    if (rounded != dwell) {
+      std::fprintf(stderr, "sempose sim: --dwell: %llu ns is not a multiple of scan.dwell_step_ns (%u ns): the scan "
+                   "generator would scan at %u ns; give a multiple\n", dwell, scan.dwell_step_ns, rounded);
+      return 2;
+    }
+  }
   // The scene first (textures, crops): bad input is named before the output folder is made.
   std::unique_ptr<hal::SimSource> scene;
   try {
@@ -156,26 +177,7 @@ int sempose::cli::sim(int argc, char** argv) {
                    "and ground_truth.csv has no row\n", sim_cfg.targets.empty() ? "" : " is enabled");
     }
   }
-  {
-    // The dwell against the scan limits, as the scans below will check it, before the output
-    // folder is made (found probing: `--dwell 1` made the folder, frames.csv and
-    // ground_truth.csv, then failed, and that half recording refused the next sim into it).
-    const hal::Roi whole_field{0, 0, scan.field_w, scan.field_h};
-    std::uint32_t rounded = 0;
-    if (hal::check_scan_request(scene->limits(), {whole_field, static_cast<std::uint32_t>(dwell), 0},
-                                static_cast<std::size_t>(scan.field_w) * scan.field_h, rounded) != hal::StartResult::kStarted) {
-      std::fprintf(stderr, "sempose sim: --dwell: %llu ns is outside the scan limits [%u, %u] ns (scan.min_dwell_ns, "
-                   "scan.max_dwell_ns)\n", dwell, scan.min_dwell_ns, scan.max_dwell_ns);
-      return 2;
-    }
-    // The scan generator sets dwells in steps (found probing: `--dwell 123` with 50 ns steps
-    // recorded "dwell 123 ns" for frames scanned at another dwell).
-    if (rounded != dwell) {
-      std::fprintf(stderr, "sempose sim: --dwell: %llu ns is not a multiple of scan.dwell_step_ns (%u ns): the scan "
-                   "generator would scan at %u ns; give a multiple\n", dwell, scan.dwell_step_ns, rounded);
-      return 2;
-    }
-  }
+
   bool made_dir = false;  // --out did not exist: made here (and removed again on a signal)
   {
     // Frames of an earlier, longer recording would stay beside the new ones (the next replay
