@@ -5,6 +5,7 @@
 #include <sys/vfs.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -340,11 +341,15 @@ class DocumentContent final : public YAML::EventHandler {
  public:
   bool content = false;
   YAML::Mark mark;
+  std::vector<YAML::Mark> quoted;  // where each quoted scalar starts
   void OnDocumentStart(const YAML::Mark&) override {}
   void OnDocumentEnd() override {}
   void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
   void OnAlias(const YAML::Mark& m, YAML::anchor_t) override { note(m); }
-  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t, const std::string&) override { note(m); }
+  void OnScalar(const YAML::Mark& m, const std::string& tag, YAML::anchor_t, const std::string&) override {
+    note(m);
+    if (tag == "!") quoted.push_back(m);  // the non-specific tag: a quoted scalar
+  }
   void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
     note(m);
   }
@@ -362,12 +367,45 @@ class DocumentContent final : public YAML::EventHandler {
 };
 }  // namespace
 
+namespace {
+// Whether the quoted scalar opening at text[pos] ('"' or '\'') has its closing quote: yaml-cpp
+// takes the end of the file for it, so an unclosed quote swallowed every line after it into one
+// value and was reported as that value (`source: 'sim scan: {field_w: 1024} ' is not one of ...`).
+bool quote_closed(const std::string& text, std::size_t pos) {
+  if (pos >= text.size() || (text[pos] != '"' && text[pos] != '\'')) return true;  // not where we think
+  const char q = text[pos];
+  for (std::size_t i = pos + 1; i < text.size(); ++i) {
+    if (q == '"' && text[i] == '\\') {
+      ++i;  // an escaped character, \" among them
+    } else if (text[i] == q) {
+      if (q == '\'' && i + 1 < text.size() && text[i + 1] == '\'') {
+        ++i;  // '' is a quote inside single quotes
+      } else {
+        return true;
+      }
+    }
+  }
+  return false;
+}
+}  // namespace
+
 YAML::Node load_text(const std::string& text, Errors& errors) {
   // Lines ended by CR alone (an old Mac editor's) read as one line: the error said only that the
   // top level is not a mapping (found probing). CRLF is read as it should be.
   if (text.find('\r') != std::string::npos && text.find('\n') == std::string::npos) {
     errors.add("its lines end in a carriage return alone (CR, old Mac line endings), so YAML reads one line: "
                "convert them to LF (e.g. tr '\\r' '\\n')");
+    return {};
+  }
+  // A NUL byte is no text (a binary file, or a file cut by a crash): YAML stopped at it and called
+  // it "unknown escape character", the message cut there too (found probing).
+  if (const std::size_t nul = text.find('\0'); nul != std::string::npos) {
+    YAML::Mark at;
+    at.pos = static_cast<int>(nul);
+    at.line = static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(nul), '\n'));
+    const std::size_t line_start = text.rfind('\n', nul == 0 ? 0 : nul - 1);
+    at.column = static_cast<int>(line_start == std::string::npos || nul == 0 ? nul : nul - line_start - 1);
+    errors.add(at, "(text)", "a NUL byte: a config is text (is this a binary file, or one cut by a crash?)");
     return {};
   }
   try {
@@ -380,7 +418,14 @@ YAML::Node load_text(const std::string& text, Errors& errors) {
     std::istringstream in(text);
     YAML::Parser parser(in);
     DocumentContent first, second;
-    if (parser.HandleNextDocument(first) && parser.HandleNextDocument(second) && second.content) {
+    const bool read_first = parser.HandleNextDocument(first);
+    for (const YAML::Mark& m : first.quoted) {
+      if (m.pos >= 0 && !quote_closed(text, static_cast<std::size_t>(m.pos))) {
+        errors.add(m, "(syntax)", "a quote opened here is never closed (the value ran to the end of the file)");
+        return {};
+      }
+    }
+    if (read_first && parser.HandleNextDocument(second) && second.content) {
       errors.add(second.mark, "(document 2)", "a second YAML document (after ---); a config file holds one document");
       return {};
     }

@@ -91,8 +91,16 @@ void read_tracker(Section& s, TrackerConfig& c) {
 constexpr std::size_t kMaxPatternSets = 16;  // ipc::kMaxPatternSets (config does not depend on ipc)
 
 void read_targets(Section& root, std::vector<TargetConfig>& out) {
+  const std::size_t errors_before_list = root.errors().messages().size();
   std::vector<Section> list = root.children("targets");
-  if (list.empty()) return;
+  if (list.empty()) {
+    // Given but empty: on the simulator the run tracked the simulator's own targets without a
+    // word, the opposite of what the line says (found probing); elsewhere it said only "no target".
+    if (root.has("targets") && root.errors().messages().size() == errors_before_list)
+      root.error("targets", "an empty list: no target to track (list each target with its pattern_sets, or leave "
+                            "targets: out to track the simulator's own targets)");
+    return;
+  }
   out.clear();
   for (auto& t : list) {
     TargetConfig tc;

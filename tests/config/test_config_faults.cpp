@@ -470,6 +470,38 @@ TEST(ConfigFaults, LinesEndedByACarriageReturnAloneAreNamed) {
   EXPECT_TRUE(parse_app_config(crlf, dir + "/c.yaml", c, e)) << e;
 }
 
+// Three forms found probing that were read as something else: a NUL byte (the message stopped at
+// it, "unknown escape character"), a quote never closed (yaml-cpp ran the value to the end of the
+// file and the error quoted every line after it as that value), and `targets: []` (the simulator's
+// own targets were tracked without a word). Quotes that close, across lines or escaped, still read.
+TEST(ConfigFaults, NulUnclosedQuoteAndEmptyTargetsAreNamed) {
+  const std::string dir = temp_dir();
+  const std::string base = base_yaml(dir);
+  struct Case {
+    std::string yaml;
+    const char* says;
+  };
+  const std::string nul = base + std::string("x: 1\0\0\n", 10);
+  for (const Case& c : {Case{nul, "c.yaml:20:5: (text): a NUL byte"},
+                        Case{"source: \"sim\nscan: {field_w: 1024}\n", "c.yaml:1:9: (syntax): a quote opened here is never closed"},
+                        Case{"source: 'sim\nscan: {field_w: 1024}\n", "c.yaml:1:9: (syntax): a quote opened here is never closed"},
+                        Case{"source: sim\ntracker:\n  subpixel: \"gaussian\n  roi_size_px: 160\n", "c.yaml:3:13: (syntax): a quote opened here is never closed"},
+                        Case{"source: sim\ntargets: []\n", "c.yaml:2:10: targets: an empty list: no target to track"}}) {
+    AppConfig cfg;
+    std::string e;
+    EXPECT_FALSE(parse_app_config(c.yaml, dir + "/c.yaml", cfg, e)) << c.yaml;
+    EXPECT_NE(e.find(c.says), std::string::npos) << e;
+  }
+  for (const std::string& fine : {std::string("source: \"si\n  m\"\n"), std::string("source: sim\nreplay: {frames_dir: \"a\\\"b\"}\n"),
+                                  std::string("source: sim\nreplay: {frames_dir: 'it''s'}\n"), std::string("source: sim # it's \"\n")}) {
+    AppConfig cfg;
+    std::string e;
+    parse_app_config(fine, dir + "/c.yaml", cfg, e);
+    EXPECT_EQ(e.find("never closed"), std::string::npos) << fine << "\n" << e;
+    EXPECT_EQ(e.find("NUL"), std::string::npos) << e;
+  }
+}
+
 // The review of the Unicode rule: more invisible and bidirectional characters (U+061C, U+00AD,
 // U+180E, a tag character); zero-width joiners are ordinary spelling in Persian and Indic scripts
 // and allowed in paths (a target name refuses them); printable() is one pass (it restarted from
