@@ -759,6 +759,20 @@ TEST(CliFaults, UntrackablePatternsAreRefusedByName) {
     EXPECT_NE(r.err.find(c.pattern_args.back()), std::string::npos) << "the file is not named:\n" << r.err;
     EXPECT_FALSE(fs::exists(dir + "/o.csv")) << "output made before the pattern was refused: " << c.expect;
   }
+  // On the simulator the user wrote no pattern: one recorded flat from a clipped scene names the
+  // keys that clip it (found probing: `sim.output_offset: 1` said only "the pattern is flat").
+  const std::string clipped = dir + "/clipped.yaml";
+  std::ofstream(clipped) << "scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}\n"
+                            "sim:\n  clock: virtual\n  output_offset: 1\n"
+                            "  targets:\n    - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}\n"
+                            "tracker: {pattern_size_px: 64, roi_size_px: 96}\n"
+                            "output: {poses_csv: " << dir << "/clipped.csv}\n";
+  const Outcome r = run({"run", "--config", clipped, "--duration", "1"}, 60);
+  ASSERT_FALSE(r.hung);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("flat (constant grey level)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("sim.output_offset 1 + sim.output_white 0.85"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/clipped.csv")) << "output made before the pattern was refused";
 }
 
 // An option given twice is refused by name (exit 2, nothing made) rather than the later one

@@ -109,7 +109,19 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
       per_target.push_back({std::move(set)});
       out.names.push_back("sim" + std::to_string(i));
       out.pattern_origins.push_back("recorded from simulator target " + std::to_string(i));
-      set_files.push_back("its pattern recorded from simulator target " + std::to_string(i));
+      std::string recorded = "its pattern recorded from simulator target " + std::to_string(i);
+      // A pattern the tracker refuses as flat is, on the simulator, most often a clipped scene:
+      // the user wrote no pattern, so the keys that clip it are named (found probing:
+      // `sim.output_offset: 1` said only "pattern set 0: the pattern is flat").
+      if (cfg.sim.output_offset + cfg.sim.output_white > 1.0) {
+        char clip[200];
+        std::snprintf(clip, sizeof clip,
+                      "; sim.output_offset %g + sim.output_white %g = %g of full scale: the simulated detector clips "
+                      "the bright parts",
+                      cfg.sim.output_offset, cfg.sim.output_white, cfg.sim.output_offset + cfg.sim.output_white);
+        recorded += clip;
+      }
+      set_files.push_back(recorded);
     }
   }
   if (per_target.empty()) {
