@@ -89,11 +89,12 @@ Section::Section(YAML::Node node, std::string path, Errors& errors)
     errors_->add(node_.Mark(), path_.empty() ? "(top level)" : path_,
                  "expected a mapping of keys (key: value)");
     node_ = YAML::Node();
+    not_a_mapping_ = true;
   }
 }
 
 Section::Section(Section&& o) noexcept
-    : node_(std::move(o.node_)), path_(std::move(o.path_)), errors_(o.errors_),
+    : node_(std::move(o.node_)), not_a_mapping_(o.not_a_mapping_), path_(std::move(o.path_)), errors_(o.errors_),
       read_(std::move(o.read_)), finished_(o.finished_) {
   o.finished_ = true;
 }

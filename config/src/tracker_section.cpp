@@ -102,7 +102,16 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
     return;
   }
   out.clear();
-  for (auto& t : list) {
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    auto& t = list[i];
+    // An item that is not a mapping was said when read, and an empty one (~) is said as such:
+    // both also said "a target needs at least one pattern set", the first without a line.
+    if (!t.present()) {
+      if (!t.not_a_mapping())
+        root.error("targets", "item " + std::to_string(i) + " is empty (~ or nothing): give its name and pattern_sets, or leave the item out");
+      out.emplace_back();
+      continue;
+    }
     TargetConfig tc;
     tc.name = "target" + std::to_string(out.size());
     t.opt("name", tc.name);

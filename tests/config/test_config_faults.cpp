@@ -473,7 +473,8 @@ TEST(ConfigFaults, LinesEndedByACarriageReturnAloneAreNamed) {
 // Three forms found probing that were read as something else: a NUL byte (the message stopped at
 // it, "unknown escape character"), a quote never closed (yaml-cpp ran the value to the end of the
 // file and the error quoted every line after it as that value), and `targets: []` (the simulator's
-// own targets were tracked without a word). Quotes that close, across lines or escaped, still read.
+// own targets were tracked without a word); a target item that is empty or no mapping is said once.
+// Quotes that close, across lines or escaped, still read.
 TEST(ConfigFaults, NulUnclosedQuoteAndEmptyTargetsAreNamed) {
   const std::string dir = temp_dir();
   const std::string base = base_yaml(dir);
@@ -486,11 +487,16 @@ TEST(ConfigFaults, NulUnclosedQuoteAndEmptyTargetsAreNamed) {
                         Case{"source: \"sim\nscan: {field_w: 1024}\n", "c.yaml:1:9: (syntax): a quote opened here is never closed"},
                         Case{"source: 'sim\nscan: {field_w: 1024}\n", "c.yaml:1:9: (syntax): a quote opened here is never closed"},
                         Case{"source: sim\ntracker:\n  subpixel: \"gaussian\n  roi_size_px: 160\n", "c.yaml:3:13: (syntax): a quote opened here is never closed"},
-                        Case{"source: sim\ntargets: []\n", "c.yaml:2:10: targets: an empty list: no target to track"}}) {
+                        Case{"source: sim\ntargets: []\n", "c.yaml:2:10: targets: an empty list: no target to track"},
+                        Case{"source: sim\ntargets: [~]\n", "c.yaml:2:10: targets: item 0 is empty"},
+                        Case{"source: sim\ntargets: [p.pgm]\n", "c.yaml:2:11: targets[0]: expected a mapping of keys"}}) {
     AppConfig cfg;
     std::string e;
     EXPECT_FALSE(parse_app_config(c.yaml, dir + "/c.yaml", cfg, e)) << c.yaml;
     EXPECT_NE(e.find(c.says), std::string::npos) << e;
+    // One error for one fault: a target item that is no mapping also said "needs at least one
+    // pattern set", on a line of its own without a line number.
+    EXPECT_EQ(e.find("needs at least one pattern set"), std::string::npos) << e;
   }
   for (const std::string& fine : {std::string("source: \"si\n  m\"\n"), std::string("source: sim\nreplay: {frames_dir: \"a\\\"b\"}\n"),
                                   std::string("source: sim\nreplay: {frames_dir: 'it''s'}\n"), std::string("source: sim # it's \"\n")}) {

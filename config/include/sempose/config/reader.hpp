@@ -55,6 +55,8 @@ class Section {
   Section(Section&&) noexcept;
 
   bool present() const noexcept { return node_.IsDefined() && !node_.IsNull(); }
+  // Given as something other than a mapping (a scalar or a list: already reported when read).
+  bool not_a_mapping() const noexcept { return not_a_mapping_; }
   bool has(const char* key) const { return present() && node_[key].IsDefined(); }
   std::string key_path(const char* key) const { return path_.empty() ? key : path_ + "." + key; }
 
@@ -108,6 +110,7 @@ class Section {
   }
 
   YAML::Node node_;
+  bool not_a_mapping_ = false;
   std::string path_;
   Errors* errors_;
   std::set<std::string> read_;
