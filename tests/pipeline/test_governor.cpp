@@ -161,6 +161,34 @@ TEST(Governor, ALostRoiPoseLengthensTheNextRoiDwell) {
   EXPECT_EQ(gov.next_dwell_ns(0, 128, 128), settled) << "recovers once the poses are good again";
 }
 
+// A target's detector floor (its tracker's shortest correctable dwell, a slow detector's) holds
+// its ROI dwell at or above it, only that target's, within the minimum pose rate's cap; 0 lifts it.
+TEST(Governor, ADetectorFloorHoldsTheDwellWithinThePoseRateCap) {
+  config::GovernorConfig c;
+  c.min_pose_rate_hz = 50;  // 20 ms a pose: the cap on a 128² ROI lies at ~1170 ns
+  const auto l = limits();
+  ScanSpeedGovernor gov(c, l, 2);
+  auto settle = [&](std::uint8_t t) {
+    std::uint32_t d = 0;
+    for (int k = 0; k < 200; ++k) {
+      gov.observe(t, 800'000, 0.9f, 9.0f, true);
+      d = gov.next_dwell_ns(t, 128, 128);
+    }
+    return d;
+  };
+  const std::uint32_t free_dwell = settle(0);
+  ASSERT_LT(free_dwell, 200u) << "the compute alone must want a short dwell for the case to mean anything";
+  gov.set_dwell_floor(0, 430);
+  EXPECT_EQ(settle(0), 450u) << "the floor, on the generator's 50 ns step";
+  EXPECT_EQ(settle(1), free_dwell) << "another target's floor";
+  gov.set_dwell_floor(0, 5'000);
+  const std::uint32_t capped = settle(0);
+  EXPECT_LT(capped, 5'000u);
+  EXPECT_LE(l.scan_time_ns(128, 128, capped), 20'000'000 + 128 * 50 * 128) << "the pose rate's cap holds over the floor";
+  gov.set_dwell_floor(0, 0);
+  EXPECT_EQ(settle(0), free_dwell) << "no floor: back to the compute's dwell";
+}
+
 TEST(Governor, TwoTargetsShareTheRateBudget) {
   config::GovernorConfig c;
   c.min_pose_rate_hz = 50;

@@ -156,5 +156,44 @@ TEST(TrackingStep, AStillTargetStaysTrackingWhileTheGovernorShortensItsDwell) {
   EXPECT_GE(tracking, frames * 95 / 100);
 }
 
+// A slow detector (sim.detector_tau_ns 1000: 4 px of lag at 250 ns, 9.5 px at the governor's
+// 100 ns floor). The governor shortened the dwell to 100 ns, where the lag is beyond what sempose
+// corrects and every pose UNCERTAIN (afe0cba: 0.2 % TRACKING in `sempose run`); the tracker's
+// shortest correctable dwell now floors the ROI dwell. Told τ right (the simulator's, as setup
+// tells it), and told 1 px while the frames lag 4 (the frames' measured τ used): both follow.
+TEST(TrackingStep, ASlowDetectorKeepsTheDwellWhereItsLagIsCorrected) {
+  for (const double told_tau_ns : {0.0, 250.0}) {
+    config::AppConfig cfg = scene(0);
+    cfg.scan.min_dwell_ns = 100;  // the generator's shortest, which the governor goes to here
+    cfg.sim.detector_tau_ns = 1000;
+    cfg.tracker.detector_tau_ns = told_tau_ns;
+    Scanner still(cfg);
+    TrackerSetup setup;
+    ASSERT_TRUE(make_trackers(cfg, still.source->limits(), setup).ok);
+    const std::unique_ptr<StageClock> clock = make_stage_clock(cfg);
+    TrackingStep step(cfg.governor, still.source->limits(), {setup.trackers[0].get()}, *clock);
+    int tracking = 0, frames = 0, off = 0;
+    std::uint32_t shortest = ~0u;
+    for (int i = 0; i < 400; ++i) {
+      hal::FrameSlot& slot = still.scan(step.next_scan(0));
+      slot.meta.t_seen_ns = slot.meta.t_scan_end_ns;
+      const pose::PoseEstimate e = step.track(slot.meta, slot.pixels).est;
+      if (e.searched || i < 100) continue;  // from the 100th frame: the floor settled
+      shortest = std::min(shortest, slot.meta.dwell_ns);
+      ++frames;
+      tracking += e.state == pose::TrackState::kTracking;
+      off += e.state == pose::TrackState::kTracking && std::hypot(e.x_px - kPlaceX, e.y_px - kPlaceY) >= 3;
+    }
+    const std::uint32_t floor_ns = setup.trackers[0]->shortest_correctable_dwell_ns();
+    std::printf("slow detector, told %.0f ns: %d of %d ROI frames TRACKING (%d > 3 px off), shortest dwell %u ns, floor %u ns\n",
+                told_tau_ns, tracking, frames, off, shortest, floor_ns);
+    EXPECT_GT(floor_ns, 150u) << "τ 1000 ns: lag 3.6 px at ~236 ns";
+    EXPECT_LT(floor_ns, 400u);
+    EXPECT_GE(shortest, floor_ns) << "a ROI scanned below the detector's floor";
+    EXPECT_GE(tracking, frames * 9 / 10) << "told " << told_tau_ns;
+    EXPECT_EQ(off, 0);
+  }
+}
+
 }  // namespace
 }  // namespace sempose::pipeline

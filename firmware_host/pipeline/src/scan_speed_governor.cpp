@@ -95,10 +95,13 @@ std::uint32_t ScanSpeedGovernor::wanted_dwell_ns(std::uint8_t target, std::int32
   // From the dwell the scan would get without it (the compute-matched one, or the generator's
   // floor when that is longer): lengthening a compute dwell below the floor bought nothing (a
   // 400 us compute on 128² matches 27 ns; 4× that is still under a 100 ns floor).
-  const double quality = targets_[clamp_target(target)].quality;
+  const TargetState& t = targets_[clamp_target(target)];
   const double unlengthened = std::max(compute_dwell, static_cast<double>(min_dwell_ns_));
   double dwell = compute_dwell;
-  if (quality > 1.0) dwell = std::max(compute_dwell, std::min(unlengthened * quality, rate_cap_dwell));
+  if (t.quality > 1.0) dwell = std::max(compute_dwell, std::min(unlengthened * t.quality, rate_cap_dwell));
+  // The detector's floor (set_dwell_floor), within the same pose-rate cap: below it the poses
+  // are not vouched for at all, so a faster scan buys nothing.
+  if (t.dwell_floor_ns > 0) dwell = std::max(dwell, std::min(static_cast<double>(t.dwell_floor_ns), rate_cap_dwell));
   return quantize_up(dwell);
 }
 

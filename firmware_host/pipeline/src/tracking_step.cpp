@@ -64,6 +64,7 @@ TrackingStep::Outcome TrackingStep::track(hal::FrameMeta& m, const hal::Pixel* p
   prev_pose_done_ns_ = m.t_pose_done_ns;
   const bool tracking = o.est.state == pose::TrackState::kTracking;
   governor_.observe(o.target, o.compute_ns, o.est.score, o.est.psr, tracking && !o.est.searched);
+  governor_.set_dwell_floor(o.target, trackers_[o.target]->shortest_correctable_dwell_ns());
   // A bad frame is the source's fault, not the dwell's.
   if (o.est.state == pose::TrackState::kLost && !o.est.searched && (o.est.reason_bits & pose::kReasonBadFrame) == 0)
     governor_.lost_on_roi(o.target);

@@ -922,10 +922,18 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
   return tau_estimate.lag_px(frame_dwell_ns) - pattern_lag;
 }
 
-// Told τ checked: the frames' lag as told (their readings disagreeing are reported, not used:
-// tracker_impl.hpp); a set overruled at setup counts its own reading, and a reading within
-// kSameDetectorRho of the frames' is the same detector at the same dwell: nothing between them.
-// A set not overruled: exactly the told lags, as without the check.
+// Told τ checked: the frames' lag as told until their readings disagree with it (reported,
+// tracker_impl.hpp); then, while the readings are a low-pass's (the lag-2 check), the lag they
+// show — a detector swapped or its bandwidth switched since the calibration (τ 4 px told 1 px:
+// the told lag left +1.6…+2.3 px in x, 9 TRACKING poses 3.2–3.9 px off over the probe's rows).
+// Frames whose lines were dropped read a lag too, mostly not a low-pass's (the told lag stays);
+// the few that pass the lag-2 check (every 4th line dropped under a told τ of 1–2 px) read 7–8
+// px, beyond the lag sempose corrects (kMaxCorrectedLagPx), so their poses are UNCERTAIN
+// (judge_lag): a slow detector at a short dwell reads the same (τ 1000 ns told 250 at the
+// governor's 100 ns: 9 px of lag, the told 2 px taken out), and its poses, 7 px off, must not be
+// TRACKING (NoFalseTracking.DroppedLinesDoNotOverruleAToldDetectorTau). A set overruled at setup counts
+// its own reading, and a reading within kSameDetectorRho of the frames' is the same detector at
+// the same dwell: nothing between them. A set not overruled: its told lag.
 double Tracker::Impl::told_checked_lag_shift(std::uint8_t set) noexcept {
   if (!(frame_dwell_ns > 0) || set >= pattern_lag_px.size()) return 0.0;
   const double told_rho = std::exp(-frame_dwell_ns / cfg.detector_tau_ns);
@@ -934,11 +942,42 @@ double Tracker::Impl::told_checked_lag_shift(std::uint8_t set) noexcept {
     frames_disagree = true;
     frames_disagree_status.store(true, std::memory_order_relaxed);
   }
-  const double frame_lag = DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns);
+  const bool measured = frames_disagree && tau_estimate.has_reading() && tau_estimate.consistent();
+  frames_lag_measured.store(measured, std::memory_order_relaxed);
+  const double frame_rho = measured ? tau_estimate.rho_at(frame_dwell_ns) : told_rho;
+  const double frame_lag = measured ? tau_estimate.lag_px(frame_dwell_ns) : DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns);
   if (!pattern_told_overruled[set]) return frame_lag - pattern_lag_px[set];
   const double pattern_rho = pattern_measured_rho[set];
-  if (pattern_rho > 0 && std::fabs(told_rho - pattern_rho) < DetectorTauEstimator::kSameDetectorRho) return 0.0;
+  if (pattern_rho > 0 && std::fabs(frame_rho - pattern_rho) < DetectorTauEstimator::kSameDetectorRho) return 0.0;
   return frame_lag - DetectorTauEstimator::lag_of_rho(pattern_rho);
+}
+
+// The detector's τ in use (told, measured, or measured in place of a told one the frames
+// contradict) and the pattern's lag (what this frame's shift leaves of the frames' lag at its
+// dwell) give the shortest dwell at which the frames lag the pattern by at most
+// kFloorLagShare × kMaxCorrectedLagPx: ρ = e^(−d/τ) ≤ L / (1 + L), L that lag plus the
+// pattern's. The governor keeps a target's ROI dwell at or above it (TrackingStep): at the
+// governor's shortest dwell a slow detector's lag is beyond correction and every pose UNCERTAIN
+// (the simulator with sim.detector_tau_ns 1000 at 100 ns: 9.4 px, 0.2 % TRACKING). The share
+// leaves the reading's noise room below the limit. 0: no lag known (a fast detector, τ untold and
+// not yet read, or readings that are no low-pass's).
+void Tracker::Impl::update_dwell_floor() noexcept {
+  double tau_ns = 0;
+  if (check_told_tau) {
+    tau_ns = frames_lag_measured.load(std::memory_order_relaxed) ? tau_estimate.tau_ns() : cfg.detector_tau_ns;
+  } else if (measure_tau) {
+    tau_ns = tau_estimate.has_reading() && tau_estimate.consistent() ? tau_estimate.tau_ns() : 0.0;
+  } else {
+    tau_ns = cfg.detector_tau_ns;
+  }
+  if (!(tau_ns > 0) || !(frame_dwell_ns > 0)) {
+    correctable_dwell_floor_ns.store(0, std::memory_order_relaxed);
+    return;
+  }
+  const double pattern_lag = std::max(0.0, DetectorLag::px(tau_ns, frame_dwell_ns) - lag_shift_px);
+  const double lag = pattern_lag + Tracker::kFloorLagShare * Tracker::kMaxCorrectedLagPx;
+  const double floor_ns = tau_ns * std::log((1.0 + lag) / lag);
+  correctable_dwell_floor_ns.store(static_cast<std::uint32_t>(std::min(std::ceil(floor_ns), 4.0e9)), std::memory_order_relaxed);
 }
 
 // The lag taken out of x is the low-pass's mean delay; the smeared target's correlation peak
@@ -1018,6 +1057,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     last_mid_s = mid_s;
   }
   lag_shift_px = lag_shift_of(frame, set);
+  update_dwell_floor();
   if (frame.field_w > 0 && frame.field_h > 0) {
     field.field_w = frame.field_w;
     field.field_h = frame.field_h;
@@ -1904,6 +1944,10 @@ void Tracker::request_reacquire(bool commanded) noexcept {
   impl_->reacquire.store(true, std::memory_order_relaxed);
 }
 
+std::uint32_t Tracker::shortest_correctable_dwell_ns() const noexcept {
+  return impl_->correctable_dwell_floor_ns.load(std::memory_order_relaxed);
+}
+
 Tracker::DetectorTauStatus Tracker::detector_tau_status() const noexcept {
   const Impl& t = *impl_;
   DetectorTauStatus s{t.measure_tau || t.check_told_tau, t.measured_rho.load(std::memory_order_relaxed),
@@ -1911,6 +1955,7 @@ Tracker::DetectorTauStatus Tracker::detector_tau_status() const noexcept {
                       t.measured_tau_frames.load(std::memory_order_relaxed)};
   s.told_tau_ns = t.cfg.detector_tau_ns > 0 ? t.cfg.detector_tau_ns : 0.0;
   s.frames_disagree = t.frames_disagree_status.load(std::memory_order_relaxed);
+  s.frames_lag_measured = t.frames_lag_measured.load(std::memory_order_relaxed);
   s.lag2_excess = t.measured_lag2_excess.load(std::memory_order_relaxed);
   s.inconsistent = t.measured_inconsistent.load(std::memory_order_relaxed);
   s.patterns_told_overruled = t.patterns_overruled;

@@ -114,12 +114,15 @@ struct Tracker::Impl {
   // shows (pattern_told_overruled, decided at setup). Frames whose readings disagree with τ at
   // their dwell (a detector swapped, a dwell changed without the config — or a scan fault the
   // gate lets through: every 4th line dropped reads ρ 0.73–0.79 at 20 e⁻/px) are reported
-  // (frames_disagree, sticky) and the told lag kept: used, that reading put 110 poses > 3 px off
-  // (README). Decided on the kept estimate from kToldCheckFrames on.
+  // (frames_disagree, sticky) and, while the readings are a low-pass's (the lag-2 check), their
+  // lag used in place of the told one (frames_lag_measured); dropped lines are not a low-pass's
+  // and keep the told lag (used, their reading put 110 poses > 3 px off, README). Decided on the
+  // kept estimate from kToldCheckFrames on.
   bool check_told_tau = false;
   bool frames_disagree = false;
   std::vector<char> pattern_told_overruled;
   std::atomic<bool> frames_disagree_status{false};
+  std::atomic<bool> frames_lag_measured{false};
   int patterns_overruled = 0;
   DetectorTauEstimator tau_estimate;
   int tau_band_line = 0;
@@ -129,6 +132,10 @@ struct Tracker::Impl {
   std::atomic<double> measured_lag2_excess{0};
   std::atomic<bool> measured_inconsistent{false};
   std::atomic<double> lag_beyond_frames{0}, lag_beyond_max_px{0};
+  // The shortest dwell whose lag against the active set's pattern stays within what sempose
+  // corrects (Tracker::shortest_correctable_dwell_ns; 0: no detector lag known).
+  std::atomic<std::uint32_t> correctable_dwell_floor_ns{0};
+  void update_dwell_floor() noexcept;
   // A TRACKING pose of a frame whose lag against the pattern is beyond kMaxCorrectedLagPx: UNCERTAIN.
   void judge_lag(PoseEstimate& e) noexcept;
   // The frames' lag told; the set's lag told or, overruled, its own.

@@ -15,7 +15,10 @@ void print_detector_report(std::FILE* out, int t, const std::string& name, const
   if (d.measuring && d.told_tau_ns > 0)
     std::fprintf(out, "detector %d %s: told tau_ns=%.0f: frames %s; pattern sets whose own noise overruled their dwell_ns: %d\n", t,
                  name.c_str(), d.told_tau_ns,
-                 d.frames_disagree ? "DISAGREE (the told lag kept: check tracker.detector_tau_ns and the scan)" : "agree or not settled",
+                 !d.frames_disagree ? "agree or not settled"
+                 : d.frames_lag_measured
+                     ? "DISAGREE (their measured lag used in place of the told one: check tracker.detector_tau_ns)"
+                     : "DISAGREE (the told lag kept, the readings are no low-pass's: check tracker.detector_tau_ns and the scan)",
                  d.patterns_told_overruled);
   if (d.beyond_frames > 0)
     std::fprintf(out,

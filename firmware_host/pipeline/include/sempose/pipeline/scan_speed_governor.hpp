@@ -40,6 +40,13 @@ class ScanSpeedGovernor {
   // search, LOST ROI frame at 100 ns again, ... half the frames slow full-field searches).
   void lost_on_roi(std::uint8_t target) noexcept;
 
+  // The shortest dwell `target`'s poses can use (its tracker's shortest_correctable_dwell_ns:
+  // a slow detector's lag beyond what sempose corrects makes every pose UNCERTAIN below it). ROI
+  // dwells stay at or above it, short of the min_pose_rate_hz cap; 0: none.
+  void set_dwell_floor(std::uint8_t target, std::uint32_t floor_ns) noexcept {
+    targets_[clamp_target(target)].dwell_floor_ns = floor_ns;
+  }
+
   // Dwell for the next w×h ROI of `target` (updates that target's hysteresis state).
   std::uint32_t next_dwell_ns(std::uint8_t target, std::int32_t w, std::int32_t h) noexcept;
 
@@ -66,6 +73,7 @@ class ScanSpeedGovernor {
     double quality = 1.0;           // >= 1: dwell lengthening for poor match quality
     std::uint32_t dwell_ns = 0;     // current commanded dwell (0: none yet)
     bool decreasing = false;        // left the hysteresis band downward; approaching
+    std::uint32_t dwell_floor_ns = 0;  // set_dwell_floor (0: none)
   };
   std::size_t clamp_target(std::uint8_t t) const noexcept {
     return t < static_cast<std::uint8_t>(target_count_) ? t : 0;

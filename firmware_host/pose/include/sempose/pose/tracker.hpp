@@ -157,8 +157,9 @@ class Tracker {
   // frames (settled from kSettledFrames). Readable from any thread.
   // τ told (tracker.detector_tau_ns): the same measurement checks it (measuring unless
   // tracker.measure_detector_tau is off); frames_disagree: the frames' readings disagreed with
-  // it (a detector swapped, a dwell changed without the config, or a scan fault: reported, the
-  // told lag kept); patterns_told_overruled: the pattern sets whose own noise disagreed with
+  // it (a detector swapped, a dwell changed without the config, or a scan fault: reported);
+  // frames_lag_measured: the frames' measured lag is in use in place of the told one (they
+  // disagree and read as a low-pass; a scan fault that does not keeps the told lag); patterns_told_overruled: the pattern sets whose own noise disagreed with
   // the lag their dwell_ns implies (a clean crop given a dwell) and whose reading is used.
   // inconsistent: the readings' lag-2 correlation is not a first-order low-pass's (ρ2 − ρ1²,
   // lag2_excess, above DetectorTauEstimator's kLag2 bound: dropped lines): no lag is
@@ -168,6 +169,7 @@ class Tracker {
     double rho = 0, tau_px = 0, tau_ns = 0, frames = 0;
     double told_tau_ns = 0;
     bool frames_disagree = false;
+    bool frames_lag_measured = false;
     int patterns_told_overruled = 0;
     double lag2_excess = 0;
     bool inconsistent = false;
@@ -182,6 +184,12 @@ class Tracker {
   // 3–6 px (hostile round 12). 4.5: a reading's noise at 4 px stays below it. A frame beyond it
   // is UNCERTAIN.
   static constexpr double kMaxCorrectedLagPx = 4.5;
+  // The shortest pixel dwell at which the frames' detector lag against the active pattern stays
+  // within kFloorLagShare × kMaxCorrectedLagPx, from the τ in use (told or measured) — the
+  // governor's floor for this target's ROIs (0: no detector lag known). Updated every frame;
+  // readable from any thread.
+  std::uint32_t shortest_correctable_dwell_ns() const noexcept;
+  static constexpr double kFloorLagShare = 0.8;
   // Bank + spectra + FFT buffers, bytes (printed at start).
   std::size_t memory_bytes() const noexcept;
   // Setup (not RT): how much another target's patterns look like this one's — the best ZNCC
