@@ -482,7 +482,7 @@ TEST(ConfigFaults, NulUnclosedQuoteAndEmptyTargetsAreNamed) {
     std::string yaml;
     const char* says;
   };
-  const std::string nul = base + std::string("x: 1\0\0\n", 10);
+  const std::string nul = base + std::string("x: 1\0\0\n", 7);
   for (const Case& c : {Case{nul, "c.yaml:20:5: (text): a NUL byte"},
                         Case{"source: \"sim\nscan: {field_w: 1024}\n", "c.yaml:1:9: (syntax): a quote opened here is never closed"},
                         Case{"source: 'sim\nscan: {field_w: 1024}\n", "c.yaml:1:9: (syntax): a quote opened here is never closed"},
