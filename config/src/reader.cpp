@@ -404,8 +404,8 @@ YAML::Node load_text(const std::string& text, Errors& errors) {
     YAML::Mark at;
     at.pos = static_cast<int>(nul);
     at.line = static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(nul), '\n'));
-    const std::size_t line_start = text.rfind('\n', nul == 0 ? 0 : nul - 1);
-    at.column = static_cast<int>(line_start == std::string::npos || nul == 0 ? nul : nul - line_start - 1);
+    const std::size_t line_start = nul == 0 ? std::string::npos : text.rfind('\n', nul - 1);
+    at.column = static_cast<int>(line_start == std::string::npos ? nul : nul - line_start - 1);
     errors.add(at, "(text)", "a NUL byte: a config is text (is this a binary file, or one cut by a crash?)");
     return {};
   }

@@ -882,7 +882,9 @@ void Tracker::Impl::scan_velocity(const PoseFrame& frame, const PatternBank& ban
 // goes through the temporal filter (a pass-through unless tracker.filter is on), timed at
 // mid-scan: with a varying dwell the ROI's centre is scanned mid-frame.
 double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noexcept {
+  frame_tau_ns = 0;
   if (!measure_tau && !check_told_tau) {
+    frame_tau_ns = cfg.detector_tau_ns;
     // Told τ: the lag at this dwell against the pattern's (0 when either dwell is unknown).
     return frame.dwell_ns > 0 && set < pattern_lag_px.size()
                ? DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns) - pattern_lag_px[set]
@@ -911,6 +913,7 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
   // The frames' correlation is not a low-pass's (dropped lines: the lag-2 check): their
   // lag is not known, and neither is what the pattern's would cancel. No lag taken out.
   if (!tau_estimate.consistent()) return 0.0;
+  frame_tau_ns = tau_estimate.tau_ns();
   const double set_dwell = set < pattern_dwell_ns.size() ? pattern_dwell_ns[set] : 0.0;
   if (!(set_dwell > 0)) {
     const double pattern_rho = set < pattern_measured_rho.size() ? pattern_measured_rho[set] : 0.0;
@@ -935,6 +938,7 @@ double Tracker::Impl::lag_shift_of(const PoseFrame& frame, std::uint8_t set) noe
 // its own reading, and a reading within kSameDetectorRho of the frames' is the same detector at
 // the same dwell: nothing between them. A set not overruled: its told lag.
 double Tracker::Impl::told_checked_lag_shift(std::uint8_t set) noexcept {
+  frame_tau_ns = cfg.detector_tau_ns;
   if (!(frame_dwell_ns > 0) || set >= pattern_lag_px.size()) return 0.0;
   const double told_rho = std::exp(-frame_dwell_ns / cfg.detector_tau_ns);
   if (!frames_disagree && tau_estimate.frames_kept() >= DetectorTauEstimator::kToldCheckFrames &&
@@ -944,6 +948,7 @@ double Tracker::Impl::told_checked_lag_shift(std::uint8_t set) noexcept {
   }
   const bool measured = frames_disagree && tau_estimate.has_reading() && tau_estimate.consistent();
   frames_lag_measured.store(measured, std::memory_order_relaxed);
+  if (measured) frame_tau_ns = tau_estimate.tau_ns();
   const double frame_rho = measured ? tau_estimate.rho_at(frame_dwell_ns) : told_rho;
   const double frame_lag = measured ? tau_estimate.lag_px(frame_dwell_ns) : DetectorLag::px(cfg.detector_tau_ns, frame_dwell_ns);
   if (!pattern_told_overruled[set]) return frame_lag - pattern_lag_px[set];
@@ -962,14 +967,7 @@ double Tracker::Impl::told_checked_lag_shift(std::uint8_t set) noexcept {
 // leaves the reading's noise room below the limit. 0: no lag known (a fast detector, τ untold and
 // not yet read, or readings that are no low-pass's).
 void Tracker::Impl::update_dwell_floor() noexcept {
-  double tau_ns = 0;
-  if (check_told_tau) {
-    tau_ns = frames_lag_measured.load(std::memory_order_relaxed) ? tau_estimate.tau_ns() : cfg.detector_tau_ns;
-  } else if (measure_tau) {
-    tau_ns = tau_estimate.has_reading() && tau_estimate.consistent() ? tau_estimate.tau_ns() : 0.0;
-  } else {
-    tau_ns = cfg.detector_tau_ns;
-  }
+  const double tau_ns = frame_tau_ns;
   if (!(tau_ns > 0) || !(frame_dwell_ns > 0)) {
     correctable_dwell_floor_ns.store(0, std::memory_order_relaxed);
     return;

@@ -136,6 +136,9 @@ struct Tracker::Impl {
   // corrects (Tracker::shortest_correctable_dwell_ns; 0: no detector lag known).
   std::atomic<std::uint32_t> correctable_dwell_floor_ns{0};
   void update_dwell_floor() noexcept;
+  // The detector τ this frame's lag was taken at (lag_shift_of: told, measured, or measured in
+  // place of a told one the frames contradict; 0 when no lag is known): the floor's τ.
+  double frame_tau_ns = 0;
   // A TRACKING pose of a frame whose lag against the pattern is beyond kMaxCorrectedLagPx: UNCERTAIN.
   void judge_lag(PoseEstimate& e) noexcept;
   // The frames' lag told; the set's lag told or, overruled, its own.
