@@ -948,6 +948,21 @@ TEST(NoFalseTracking, TwinOfThePatternPassingByDoesNotCarryThePoseAway) {
   }
 }
 
+// The same twin passing 70 px below the lamella on its post (pose_envelope_probe twin_passes_70px,
+// 6 e-/px): its body entering the window drew the pose up over 4 UNCERTAIN frames, then 2 poses
+// 13 px off were TRACKING at χ² 4.1-4.5 (the target's level 2.5): significant, but their scores
+// kept 0.86 of what the target reaches there, more than a pose 3 px off keeps, so judge_fit's
+// material test passed them (1479eab). After a doubted pose such a fit is TRACKING only on the
+// continuity line (Tracker::Impl::keep_continuity).
+TEST(NoFalseTracking, TwinBelowTheTargetDoesNotDragAPoseBackToTracking) {
+  const pt::Scenario s = twin_scene("lamella_post", 6, 70, -300, 0, 760);
+  pt::SimHarness h(s, default_tracker());
+  ASSERT_TRUE(h.status().ok) << h.status().message;
+  const FalseCount n = run_and_count(h, "lamella_post with a twin passing 70 px below, dose 6");
+  EXPECT_EQ(n.false_n, 0) << "TRACKING while dragged by the twin (2 before)";
+  EXPECT_GE(n.tracked, 0.75 * s.frames) << "tracked before, while and after the twin passes (88.9 % before)";
+}
+
 // The same twin passing over the lamella on post at twice the speed (pose_envelope_probe
 // twin_passes_over_fast): the target is covered, held and lost, and the search after the loss
 // finds the merged image 14 px off, on the twin; it forgot the line, so the poses followed the
@@ -1029,23 +1044,22 @@ TEST(NoFalseTracking, TwinPullingTheScaleIsNotTracking) {
 // (50 / 31 poses at 6 / 2.5 e-/px, 3347a57). Now the line is drawn through poses the pattern
 // explains only, and once a pose broke the run the probation closes only on five poses in a row
 // within 3 px of the kept velocity's line (ContinuityAnchor::keeps_velocity_after_break). The
-// dragged poses before the loss (12-15 px off, 3 at 6 e-/px) are what is left. The needle tip
-// crossed the same way kept a line bent by the drag and stayed UNCERTAIN to the end once the twin
-// had left (35 % TRACKING at 20 and 6 e-/px, 3347a57).
+// needle tip crossed the same way kept a line bent by the drag and stayed UNCERTAIN to the end
+// once the twin had left (35 % TRACKING at 20 and 6 e-/px, 3347a57). The poses dragged before the
+// loss were left after that: the lamella on its post 12-15 px off and the needle tip 4.6-5.4 px
+// off at 6 e-/px (2 and 3 poses, 1479eab), each after UNCERTAIN frames, at χ² significantly above
+// the target's level but with a score too near the target's for the material test; now such a
+// pose is TRACKING only within 3 px of the line (Tracker::Impl::keep_continuity).
 TEST(NoFalseTracking, TwinCrossingAt90DegreesIsNotFollowedAfterTheSearch) {
   struct Row {
     const char* target;
     double dose;
     int before_after_search;
     double min_tracked_share;
-    int max_dragged;  // the poses dragged under the twin before the loss (Known limitations)
+    int dragged_before;  // the poses dragged under the twin before the loss, 1479eab
   };
-  // The needle tip at 6 e-/px: 4 dragged poses since the scale hold and the return to the line
-  // (frames 86-89, 4.0-5.4 px off at χ² 1.1-1.25× its level while the twin pulls its scale
-  // reading up 0.6 % a frame, which closes the split check's steady-scale gate); 7d5091f: 1, its
-  // frames 87-89 caught by the split check where its scale had run away on the twin.
-  for (const Row& r : {Row{"lamella_post", 6.0, 47, 0.25, 3}, Row{"lamella_post", 2.5, 30, 0.25, 3},
-                       Row{"needle_tip", 20.0, 0, 0.6, 3}, Row{"needle_tip", 6.0, 0, 0.6, 4}}) {
+  for (const Row& r : {Row{"lamella_post", 6.0, 47, 0.25, 2}, Row{"lamella_post", 2.5, 30, 0.25, 0},
+                       Row{"needle_tip", 20.0, 0, 0.6, 0}, Row{"needle_tip", 6.0, 0, 0.6, 3}}) {
     const pt::Scenario s = twin_scene(r.target, r.dose, 270, 0, -300, 310);
     pt::SimHarness h(s, default_tracker());
     ASSERT_TRUE(h.status().ok) << h.status().message;
@@ -1066,7 +1080,7 @@ TEST(NoFalseTracking, TwinCrossingAt90DegreesIsNotFollowedAfterTheSearch) {
     }
     std::printf("  %s: false after the re-acquiring search %d\n", what, false_after_search);
     EXPECT_EQ(false_after_search, 0) << what << ": TRACKING on the twin after the search (" << r.before_after_search << " before)";
-    EXPECT_LE(n.false_n, r.max_dragged) << what << ": the poses dragged before the loss are the most left";
+    EXPECT_EQ(n.false_n, 0) << what << ": TRACKING while dragged by the twin (" << r.dragged_before << " before)";
     EXPECT_GE(n.tracked, r.min_tracked_share * s.frames) << what << ": tracked before the twin came and after it left";
   }
 }

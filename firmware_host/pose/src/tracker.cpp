@@ -1709,6 +1709,21 @@ void Tracker::Impl::keep_continuity(const PoseFrame& frame, PoseEstimate& e) noe
   // 20 and 6 e-/px; now 73 %). Cost: a line gone stale on a target slowing down beside another
   // object, whose fit is in excess there, holds it UNCERTAIN longer after a hold
   // (target_moves_to_other_object_90px, the procedural lamella at 6 e-/px, 90 -> 70 %).
+  // A pose after one the rules doubted whose fit is significantly worse than the target's level
+  // (judge_fit's first test, its second not met) is TRACKING only where the line puts the target:
+  // the material test forgives a stream vouched for up to this frame (those fast-scan poses
+  // continued TRACKING streams), not one whose last pose was already doubted. A twin passing
+  // below the lamella on its post (6 e-/px, pose_envelope_probe twin_passes_70px and
+  // twin_crosses_over_at_90deg) drew the pose off over 2-4 UNCERTAIN frames, then poses 12-15 px
+  // off at χ² 3.7-4.5 (the level 2.2-2.5, 3.7-4.5 SDs above it) kept 0.86 of the score the target
+  // reaches there, more than the 0.83 a pose 3 px off keeps: TRACKING. Another object near a
+  // target that keeps to its line raises its χ² as much (the procedural lamella with an object 90 px
+  // away at 20 e-/px: shares 0.83-0.93 either way); there the line vouches, as it does after a hold.
+  if (fit_in_excess && !last_reported_tracking && e.state == TrackState::kTracking && anchor.line_at(t_s, line) &&
+      std::hypot(e.x_px - line.x_px, e.y_px - line.y_px) > ContinuityAnchor::kFalsePx) {
+    e.state = TrackState::kUncertain;
+    e.reason_bits |= kReasonUnexplained;
+  }
   if (e.state == TrackState::kTracking && !fit_in_excess) anchor.trusted(t_s, e.x_px, e.y_px, e.phi_deg, e.score, e.scale, e.sigma_scale);
 }
 
@@ -1881,6 +1896,7 @@ PoseEstimate Tracker::update(const PoseFrame& frame) noexcept {
   }
   impl_->keep_continuity(frame, e);
   if (e.state == TrackState::kTracking) impl_->ever_tracking = true;
+  impl_->last_reported_tracking = e.state == TrackState::kTracking;
   e.followed = impl_->tracking && (e.state == TrackState::kTracking || e.state == TrackState::kUncertain);
   e.t_beam_ns = beam_time_ns(frame, e);
   if (e.followed && e.t_beam_ns > 0) impl_->recent.note(1e-9 * static_cast<double>(e.t_beam_ns), e.x_px, e.y_px, e.phi_deg);

@@ -442,6 +442,9 @@ struct Tracker::Impl {
   // or not its second made the pose UNCERTAIN): the pose is not one the continuity line is drawn
   // through (keep_continuity says why).
   bool fit_in_excess = false;
+  // The last pose reported was TRACKING (Tracker::update): a significant χ² that is not material
+  // is forgiven off the continuity line only a stream vouched for up to this frame (keep_continuity).
+  bool last_reported_tracking = false;
   // The detector noise's share of one frame's log χ² SD at score s (FitLevel's floor_sd):
   // log(1 − s²) moves by 2s/√N_eff, and log(1 − a²) as much again.
   double fit_floor_sd(double s) const noexcept { return 2.0 * std::sqrt(2.0) * s / std::sqrt(std::max(1.0, score_samples)); }
