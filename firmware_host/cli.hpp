@@ -153,4 +153,32 @@ inline std::string output_overwrites_input(const std::string& what, const std::s
   return "";
 }
 
+// Standard output or error redirected onto one of the command's inputs (found probing: `replay
+// --out - >> REC/frames.csv` and `run >> CONFIG` exited 0 with the recording's time stamps or
+// the config replaced or grown by what they wrote). A message naming the stream and the input,
+// or "" when neither stream is a file among the inputs.
+inline std::string stream_overwrites_input(const std::vector<NamedPath>& inputs) {
+  for (const auto& [fd, name] : {std::pair{1, "standard output"}, std::pair{2, "standard error"}}) {
+    struct stat s {};
+    if (::fstat(fd, &s) != 0 || !S_ISREG(s.st_mode)) continue;
+    for (const auto& in : inputs) {
+      struct stat t {};
+      if (!in.path.empty() && ::stat(in.path.c_str(), &t) == 0 && t.st_dev == s.st_dev && t.st_ino == s.st_ino) {
+        return std::string(name) + " is " + in.what + " ('" + in.path +
+               "'): what this command writes there would destroy that input; redirect it elsewhere";
+      }
+    }
+  }
+  return "";
+}
+
+// Whether standard output was closed when the process started (a wrapper's `>&-`): main() puts
+// a closed stream on /dev/null so that no file takes its number, and a command whose product is
+// standard output itself (`replay --out -`) refuses rather than lose every line (found probing:
+// exit 0, the poses gone). Set once by main() before any command runs.
+inline bool& stdout_started_closed() {
+  static bool closed = false;
+  return closed;
+}
+
 }  // namespace sempose::cli

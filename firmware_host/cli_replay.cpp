@@ -275,6 +275,15 @@ int run_replay(int argc, char** argv) {
       std::fprintf(stderr, "sempose replay: %s\n", problem.c_str());
       return 2;
     }
+    if (const std::string problem = cli::stream_overwrites_input(inputs); !problem.empty()) {
+      std::fprintf(stderr, "sempose replay: %s\n", problem.c_str());
+      return 2;
+    }
+    if (out_path == "-" && cli::stdout_started_closed()) {
+      std::fprintf(stderr, "sempose replay: --out '-': standard output is closed, and every pose line would be lost; "
+                   "name a file or give the process a standard output\n");
+      return 2;
+    }
     // A new .pgm in the frames folder is read as a frame by the next replay of it.
     // Through a link too: where the CSV lands, and under the name it lands as.
     if (out_path != "-" && hal::is_pgm_name(cli::resolved_output(out_path).string()) &&

@@ -271,6 +271,7 @@ int sempose::cli::run(int argc, char** argv) {
     for (const auto& [key, path] : file_outputs) {
       if (const std::string why = output_overwrites_input(key, path, inputs); !why.empty()) bad += "  " + why + "\n";
     }
+    if (const std::string why = cli::stream_overwrites_input(inputs); !why.empty()) bad += "  " + why + "\n";
     // A new .pgm in the recording's frames folder is read as a frame by the next replay or run
     // of it (found probing: output.poses_csv REC/frame_999999.pgm, or --can-log REC/zz.pgm, ran
     // and every replay of REC after failed on its "wrong magic"). Through a link too.

@@ -31,7 +31,9 @@ constexpr Command kCommands[] = {
 int usage(std::FILE* out) {
   std::fprintf(out, "usage: sempose <command> [options]   (sempose <command> --help; sempose --version)\n\ncommands:\n");
   for (const auto& c : kCommands) std::fprintf(out, "  %-9s %s\n", c.name, c.help);
-  return out == stdout ? 0 : 2;
+  // The help asked for and lost (stdout on a full disk) is no success (found probing: exit 0).
+  if (out == stdout) return std::fflush(stdout) == 0 && !std::ferror(stdout) ? 0 : 4;
+  return 2;
 }
 
 // A standard stream started closed (a wrapper's `>&-`, a supervisor that closes them) left its
@@ -42,6 +44,7 @@ int usage(std::FILE* out) {
 void keep_standard_streams_open() {
   for (int fd = 0; fd <= 2; ++fd) {
     if (::fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+    if (fd == 1) sempose::cli::stdout_started_closed() = true;
     // open() takes the lowest free number: fd itself, since every number below it is open by now.
     ::open("/dev/null", fd == 0 ? O_RDONLY : O_WRONLY);
   }
@@ -58,8 +61,13 @@ int main(int argc, char** argv) {
   if (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) return usage(stdout);
   // Which build a lab runs (a bug report, the package against the binary): the package's version.
   if (std::strcmp(argv[1], "--version") == 0) {
+    // A stray word after it was ignored (found probing): refused, as every command refuses one.
+    if (argc > 2) {
+      std::fprintf(stderr, "sempose: unexpected argument '%s' after --version\n", argv[2]);
+      return 2;
+    }
     std::printf("sempose %s\n", SEMPOSE_VERSION);
-    return 0;
+    return std::fflush(stdout) == 0 && !std::ferror(stdout) ? 0 : 4;
   }
   for (const auto& c : kCommands) {
     if (std::strcmp(argv[1], c.name) != 0) continue;

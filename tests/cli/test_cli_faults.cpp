@@ -68,6 +68,7 @@ long g_child_process_limit = -1;  // RLIMIT_NPROC of the child: its user's threa
 int g_child_closed_fd = -1;  // a standard stream the child starts with closed (-1: none)
 long g_child_uid = -1;  // the child runs as this user and group (-1: as this process; root ignores RLIMIT_NPROC)
 std::string g_child_stdout;  // the child's standard output instead of the capture file ("": captured)
+bool g_child_stdout_append = false;  // g_child_stdout opened as the shell's `>>` does (else `>`)
 Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int signal_after_ms = -1, int sig = SIGTERM) {
   const std::string dir = work_dir();
   const std::string out_path = dir + "/stdout.txt", err_path = dir + "/stderr.txt";
@@ -78,7 +79,8 @@ Outcome run(const std::vector<std::string>& args, double timeout_s = 60, int sig
   const auto t0 = std::chrono::steady_clock::now();
   const pid_t pid = fork();
   if (pid == 0) {
-    const int o = ::open(g_child_stdout.empty() ? out_path.c_str() : g_child_stdout.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int o = ::open(g_child_stdout.empty() ? out_path.c_str() : g_child_stdout.c_str(),
+                         O_WRONLY | O_CREAT | (g_child_stdout_append ? O_APPEND : O_TRUNC), 0644);
     const int e = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     dup2(o, 1);
     dup2(e, 2);
@@ -189,7 +191,10 @@ std::string field(const std::string& text, const std::string& key) {
 TEST(CliFaults, VersionIsPrinted) {
   const Outcome r = run({"--version"});
   EXPECT_EQ(r.code, 0) << r.err;
-  EXPECT_TRUE(std::regex_match(r.out, std::regex(R"(sempose \d+\.\d+\.\d+\n)"))) << r.out;
+  EXPECT_TRUE(std::regex_match(r.out, std::regex(R"(sempose \d+\.\d+\.\d+\n)"))) << r.out;  // A stray word after it is refused, not ignored (found probing).
+  const Outcome stray = run({"--version", "extra"});
+  EXPECT_EQ(stray.code, 2) << stray.out;
+  EXPECT_NE(stray.err.find("unexpected argument 'extra' after --version"), std::string::npos) << stray.err;
 }
 
 TEST(CliFaults, CsvOnAFullDiskIsReportedAndFailsTheRun) {
@@ -635,6 +640,13 @@ TEST(CliFaults, AReportLostOnStandardOutputIsSaid) {
   EXPECT_NE(pt.err.find("sempose pattern: standard output: the report could not be written"), std::string::npos) << pt.err;
   EXPECT_EQ(vw.code, 4) << vw.err;
   EXPECT_NE(vw.err.find("sempose view: standard output: the report could not be written"), std::string::npos) << vw.err;
+  // sim's line saying what it wrote (the recording itself is whole: exit 4, not 1).
+  g_child_stdout = "/dev/full";
+  const Outcome sm = run({"sim", "--out", dir + "/rec2", "--frames", "2", "--config", small_config(dir, "")});
+  g_child_stdout.clear();
+  EXPECT_EQ(sm.code, 4) << sm.err;
+  EXPECT_NE(sm.err.find("sempose sim: standard output: the report could not be written"), std::string::npos) << sm.err;
+  EXPECT_TRUE(fs::exists(dir + "/rec2/frames.csv"));
 }
 
 // A 16 px pattern was refused naming tracker.refine's fit with refinement off (found probing):
@@ -1898,6 +1910,47 @@ TEST(CliFaults, AClosedStandardStreamIsNotWrittenIntoAnOutput) {
     EXPECT_EQ(slurp(dir + "/r.csv").rfind("frame,", 0), 0u) << "fd " << fd << " closed: replay's CSV does not begin with its header";
     EXPECT_EQ(only(slurp(dir + "/r.csv"), csv_line), "") << "fd " << fd << " closed: replay's CSV holds other lines";
   }
+}
+
+// Standard output as the product (`replay --out -`) or as the report's stream, redirected with
+// `>>` or onto one of the command's own inputs, or closed (found probing: `replay --out - >>
+// FILE` emptied FILE; `>> REC/frames.csv` replaced the recording's time stamps and `run >>
+// CONFIG` grew the config with status lines, each exit 0; with stdout closed every pose line
+// went to /dev/null, exit 0). Appended to; refused naming the input; refused as closed.
+TEST(CliFaults, StandardOutputAppendedToOntoAnInputOrClosedIsHandled) {
+  const std::string dir = work_dir() + "/stdout_targets";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + dir + "/p.csv}\ncan: {log_file: " + dir + "/can.log}\n");
+  ASSERT_TRUE(record_with_pattern(dir, cfg, 4));
+  std::ofstream(dir + "/kept.txt") << "a line that must stay\n";
+  g_child_stdout = dir + "/kept.txt";
+  g_child_stdout_append = true;
+  Outcome r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "-"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(slurp(dir + "/kept.txt").rfind("a line that must stay\nframe,t_ns,", 0), 0u) << slurp(dir + "/kept.txt").substr(0, 200);
+
+  const std::string stamps = slurp(dir + "/rec/frames.csv"), config_text = slurp(cfg);
+  g_child_stdout = dir + "/rec/frames.csv";
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "-"});
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("standard output is the time stamps of --frames"), std::string::npos) << r.err;
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", dir + "/r.csv"});
+  EXPECT_EQ(r.code, 2) << "the report onto the recording: " << r.err;
+  EXPECT_EQ(slurp(dir + "/rec/frames.csv"), stamps);
+  g_child_stdout = cfg;
+  r = run({"run", "--config", cfg, "--duration", "0.3"});
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("standard output is the config"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(cfg), config_text);
+  g_child_stdout.clear();
+  g_child_stdout_append = false;
+
+  g_child_closed_fd = 1;
+  r = run({"replay", "--frames", dir + "/rec", "--pattern", dir + "/p.pgm", "--out", "-"});
+  g_child_closed_fd = -1;
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--out '-': standard output is closed"), std::string::npos) << r.err;
 }
 
 // `run --hist-dir h > h/latency_hist.txt`: the dump at exit was renamed over the captured status

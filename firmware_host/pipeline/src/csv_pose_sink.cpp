@@ -59,8 +59,11 @@ rt::Status CsvPoseSink::begin() {
   // A regular file is emptied now (a device or a pipe has nothing to empty), and can be cut back
   // to its last whole line after a failed write (below); a pipe or terminal cannot and need not
   // (a pipe takes a line whole or fails with EPIPE).
+  // Standard output is the caller's stream, not ours to empty or cut back: the shell's `>` has
+  // emptied it already, `>>` asks for the lines after what is there (found probing: `replay
+  // --out - >> FILE` emptied FILE, exit 0), and its offset is not where an appending write lands.
   struct stat st{};
-  regular_file_ = ::fstat(::fileno(file_), &st) == 0 && S_ISREG(st.st_mode);
+  regular_file_ = file_ != stdout && ::fstat(::fileno(file_), &st) == 0 && S_ISREG(st.st_mode);
   if (regular_file_ && ::ftruncate(::fileno(file_), 0) != 0)
     return rt::Status::failure("output.poses_csv: cannot empty '" + path_ + "': " + std::strerror(errno));
   good_offset_ = regular_file_ ? std::ftell(file_) : 0;
