@@ -77,6 +77,7 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("attainable_pattern_noise", c.attainable_pattern_noise);
   s.opt_choice("subpixel", c.subpixel, {"gaussian", "quadratic"});
   s.opt("fit_noise_correction", c.fit_noise_correction);
+  s.opt("fit_background_plane", c.fit_background_plane);
   s.opt("sigma_tile_px", c.sigma_tile_px, 1, 64);
   s.opt("sigma_calibration", c.sigma_calibration, 0.0, 100.0);
   s.opt("sigma_noise_factor", c.sigma_noise_factor, 0.0, 100.0);

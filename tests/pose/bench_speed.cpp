@@ -164,6 +164,20 @@ int main(int argc, char** argv) {
                     roi, refined.p50_us, refined.p99_us, peer.p50_us, peer.p50_us / refined.p50_us, source,
                     refined.p50_us / ours.p50_us, tracked_r);
       }
+      // The background plane on (tracker.fit_background_plane, off by default): what it costs on
+      // these frames (the plane's share of the fits it is significant in).
+      {
+        config::TrackerConfig tp = tc;
+        tp.fit_background_plane = true;
+        SimHarness hp(s, tp);
+        hp.run();
+        Tracker& tkp = *hp.tracker();
+        int tracked_p = 0;
+        const Timing flat =
+            time_it(400, [&] { tracked_p += tkp.update(pipeline::to_pose_frame(meta, scan())).state == TrackState::kTracking; });
+        std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us | %6.1fx   tracker.fit_background_plane on: %.2fx the default's p50 (tracked %d/400)\n",
+                    roi, flat.p50_us, flat.p99_us, peer.p50_us, peer.p50_us / flat.p50_us, flat.p50_us / ours.p50_us, tracked_p);
+      }
       // Learned appearance: a tracker that learned its support over 120 moving frames, then the
       // same replay (each update also feeds the appearance observer: its RT cost is included).
       config::TrackerConfig ta = tc;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -203,6 +204,26 @@ TEST(Zncc, FlatAndSaturatedScoreZeroNotNan) {
   EXPECT_FALSE(normalize_pattern(flat.data(), m2));
 }
 
+// A 16² pattern's bank without prefilter, copies at 0° and 90°: its pattern 0 is the raw
+// pattern (bicubic at 0° is exact). The masks and correlators it was cut for, kept beside it.
+struct RawBank {
+  static constexpr int n = 16;
+  PatternMask fine, half, coarse;
+  FftCorrelator hc, cc;
+  std::string why;
+  std::unique_ptr<const PatternBank> bank;
+  RawBank(const PatternImage& pattern, bool circular)
+      : fine(n, circular, 8, 0), half(n / 2, circular), coarse(n / 4, circular),
+        hc(good_fft_size(32), good_fft_size(32), half), cc(good_fft_size(16), good_fft_size(16), coarse) {
+    PatternBankSpec spec;
+    spec.pattern = pattern;
+    spec.angle_step_deg = 90;
+    spec.coarse_step_deg = 90;
+    spec.coarse_factor = 4;
+    bank = PatternBank::build(spec, {fine, half, hc, coarse, cc}, why);
+  }
+};
+
 // The exact scorer the tracker runs (walk, fit, start search) against a brute-force ZNCC at
 // every displacement, circle and full square; a flat window scores 0, a window leaving the
 // ROI has no score.
@@ -222,17 +243,10 @@ TEST_P(ExactBrute, MatchesBruteForceEverywhere) {
       pattern.pixels[y * n + x] = static_cast<std::uint16_t>((4 * img[(9 + y) * w + 11 + x] + other[y * n + x]) / 5);
       raw[y * n + x] = pattern.pixels[y * n + x];
     }
-  // No prefilter and a 0° copy: the bank's pattern 0 is the raw pattern (bicubic at 0° is exact).
-  const PatternMask fine(n, circular, 8, 0), half(n / 2, circular), coarse(n / 4, circular);
-  FftCorrelator hc(good_fft_size(32), good_fft_size(32), half), cc(good_fft_size(16), good_fft_size(16), coarse);
-  PatternBankSpec spec;
-  spec.pattern = pattern;
-  spec.angle_step_deg = 90;
-  spec.coarse_step_deg = 90;
-  spec.coarse_factor = 4;
-  std::string why;
-  const auto bank = PatternBank::build(spec, {fine, half, hc, coarse, cc}, why);
-  ASSERT_NE(bank, nullptr) << why;
+  const RawBank raw_bank(pattern, circular);
+  ASSERT_NE(raw_bank.bank, nullptr) << raw_bank.why;
+  const auto& bank = raw_bank.bank;
+  const PatternMask& fine = raw_bank.fine;
   ExactScorer scorer(fine, 64);
   std::vector<std::int32_t> roi(img.begin(), img.end());
   scorer.load(roi.data(), w, h);
@@ -254,6 +268,56 @@ TEST_P(ExactBrute, MatchesBruteForceEverywhere) {
   EXPECT_EQ(scorer.score(*bank, 0, 3, 3), 0.0f);
 }
 INSTANTIATE_TEST_SUITE_P(CircleAndSquare, ExactBrute, ::testing::Values(true, false));
+
+// The background plane's products (SubpixelFit's nuisance ramp): Σ (x − mean x)·f and the same
+// in y over the support, x and y in pattern widths from the centre, against a brute-force sum on
+// the raw image (the regressors are centred, so any offset of f drops out); the nine places of
+// plane_parts_3x3 against one place at a time; none where a place leaves the ROI.
+TEST(ExactScorer, PlaneProductsMatchBruteForceAtNinePlaces) {
+  const int n = 16, w = 40, h = 34;
+  const auto img = texture(w, h, 11);
+  PatternImage pattern;
+  pattern.width = pattern.height = n;
+  pattern.pixels.assign(img.begin(), img.begin() + n * n);  // any textured square
+  const RawBank raw_bank(pattern, true);
+  ASSERT_NE(raw_bank.bank, nullptr) << raw_bank.why;
+  const auto& bank = raw_bank.bank;
+  const PatternMask& fine = raw_bank.fine;
+  ExactScorer scorer(fine, 64);
+  std::vector<std::int32_t> roi(img.begin(), img.end());
+  scorer.load(roi.data(), w, h);
+  const double c = (n - 1) / 2.0;
+  double mx = 0, my = 0;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x)
+      if (fine.inside(x, y)) mx += (x - c) / n, my += (y - c) / n;
+  mx /= static_cast<double>(fine.count());
+  my /= static_cast<double>(fine.count());
+  const int ux = 9, uy = 7;
+  PlaneParts nine[9];
+  scorer.plane_parts_3x3(*bank, 0, ux, uy, nine);
+  for (int oy = -1; oy <= 1; ++oy)
+    for (int ox = -1; ox <= 1; ++ox) {
+      double bx = 0, by = 0;
+      for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x)
+          if (fine.inside(x, y)) {
+            const double f = img[static_cast<std::size_t>(uy + oy + y) * w + ux + ox + x];
+            bx += ((x - c) / n - mx) * f;
+            by += ((y - c) / n - my) * f;
+          }
+      const PlaneParts one = scorer.plane_parts(*bank, 0, ux + ox, uy + oy, scorer.parts(*bank, 0, ux + ox, uy + oy));
+      const PlaneParts& k = nine[(ox + 1) + 3 * (oy + 1)];
+      ASSERT_TRUE(one.inside && k.inside);
+      const double tol = 1e-4 * (std::fabs(bx) + std::fabs(by) + 1.0);
+      EXPECT_NEAR(one.xf, bx, tol) << ox << "," << oy;
+      EXPECT_NEAR(one.yf, by, tol) << ox << "," << oy;
+      EXPECT_NEAR(k.xf, bx, tol) << ox << "," << oy;
+      EXPECT_NEAR(k.yf, by, tol) << ox << "," << oy;
+    }
+  scorer.plane_parts_3x3(*bank, 0, 0, uy, nine);  // the column left of the window's is outside
+  for (const PlaneParts& k : nine) EXPECT_FALSE(k.inside);
+}
 
 TEST(Zncc, TooSmallRegionIsRejected) {
   const PatternMask mask(16, true);

@@ -40,6 +40,29 @@ SEMPOSE_CLONES double masked_dot(const float* t, int size,
   return total;
 }
 
+// Σ x·f and Σ y·f over support bands (x, y in pixels from the pattern's centre c): the
+// background plane's products, for the sub-pixel fit only.
+SEMPOSE_CLONES void plane_moments(const float* f, std::ptrdiff_t stride, const MaskBand* bands, int n_bands, float c,
+                                  double& xf, double& yf) noexcept {
+  double sx = 0, sy = 0;
+  for (int k = 0; k < n_bands; ++k) {
+    const MaskBand& b = bands[k];
+    for (int y = b.y0; y <= b.y1; ++y) {
+      const float* fr = f + static_cast<std::ptrdiff_t>(y) * stride;
+      float rx = 0, r = 0;
+#pragma omp simd reduction(+ : rx, r)
+      for (int x = b.x0; x <= b.x1; ++x) {
+        rx += (static_cast<float>(x) - c) * fr[x];
+        r += fr[x];
+      }
+      sx += rx;
+      sy += (static_cast<double>(y) - c) * r;
+    }
+  }
+  xf = sx;
+  yf = sy;
+}
+
 // Σ v over n integers, in independent lanes (vectorised; exact, so any order gives the same).
 SEMPOSE_CLONES std::int64_t integer_sum(const std::int32_t* v, std::size_t n) noexcept {
   std::int64_t lanes[kChunkPx] = {};
@@ -71,6 +94,7 @@ void ExactScorer::load(const std::int32_t* filtered, int w, int h) noexcept {
   // The ROI's mean, exact (integer sum; a running double sum is a serial chain of dependent adds).
   const std::size_t n = static_cast<std::size_t>(roi_w_) * roi_h_;
   const float mean = static_cast<float>(static_cast<double>(integer_sum(filtered, n)) / static_cast<double>(n));
+  roi_mean_ = mean;
   for (std::size_t i = 0; i < n; ++i) roi_[i] = static_cast<float>(filtered[i]) - mean;
 }
 
@@ -93,8 +117,64 @@ ScoreParts ExactScorer::parts(const PatternBank& bank, int j, int ux, int uy) co
                     chunk_bands_.data(), static_cast<int>(chunk_bands_.size()));
   p.count = static_cast<double>(bank.support_count(j));
   p.var = static_cast<double>(s2) - static_cast<double>(s1) * static_cast<double>(s1) / p.count;
+  p.sum = static_cast<double>(s1);
   p.inside = true;
   return p;
+}
+
+PlaneParts ExactScorer::plane_parts(const PatternBank& bank, int j, int ux, int uy, const ScoreParts& p) const noexcept {
+  PlaneParts out;
+  if (!p.inside || ux < 0 || uy < 0 || ux > roi_w_ - pattern_px_ || uy > roi_h_ - pattern_px_) return out;
+  double xf = 0, yf = 0;
+  plane_moments(roi_.data() + static_cast<std::size_t>(uy) * roi_w_ + ux, roi_w_, bank.support_bands(j),
+                bank.support_band_count(j), static_cast<float>((pattern_px_ - 1) / 2.0), xf, yf);
+  // The dots ran on the mean-free ROI: Σ f over the support from the tables' sum, and the
+  // regressors centred by their means times it.
+  const PatternBank::PlaneGram& g = bank.plane_gram(j);
+  const double sum_f = p.sum - p.count * roi_mean_;
+  out.xf = xf / pattern_px_ - g.mean_x * sum_f;
+  out.yf = yf / pattern_px_ - g.mean_y * sum_f;
+  out.inside = true;
+  return out;
+}
+
+void ExactScorer::plane_parts_3x3(const PatternBank& bank, int j, int ux, int uy, PlaneParts* out) const noexcept {
+  for (int k = 0; k < 9; ++k) out[k] = PlaneParts{};
+  if (ux < 1 || uy < 1 || ux + 1 > roi_w_ - pattern_px_ || uy + 1 > roi_h_ - pattern_px_) return;
+  const double c = (pattern_px_ - 1) / 2.0;
+  double m0[9] = {}, mx[9] = {}, my[9] = {};  // Σ f, Σ (x − c)·f, Σ (y − c)·f per place
+  const MaskBand* bands = bank.support_bands(j);
+  for (int b = 0; b < bank.support_band_count(j); ++b) {
+    const MaskBand& band = bands[b];
+    const int x0 = band.x0, x1 = band.x1;
+    for (int y = band.y0; y <= band.y1; ++y) {
+      for (int oy = -1; oy <= 1; ++oy) {
+        const float* fr = roi_.data() + static_cast<std::size_t>(uy + oy + y) * roi_w_ + ux;
+        float s0 = 0, s1 = 0;
+#pragma omp simd reduction(+ : s0, s1)
+        for (int x = x0; x <= x1; ++x) {
+          s0 += fr[x];
+          s1 += static_cast<float>(x) * fr[x];
+        }
+        // Place ox reads columns x0 + ox … x1 + ox of this row as the window's x0 … x1.
+        const double lo = fr[x0 - 1], hi = fr[x1 + 1], first = fr[x0], last = fr[x1];
+        const double a0[3] = {s0 + lo - last, s0, s0 + hi - first};
+        const double a1[3] = {s1 + (x0 - 1) * lo - x1 * last, s1, s1 + (x1 + 1) * hi - x0 * first};
+        for (int ox = -1; ox <= 1; ++ox) {
+          const int k = (ox + 1) + 3 * (oy + 1);
+          m0[k] += a0[ox + 1];
+          mx[k] += a1[ox + 1] - (ox + c) * a0[ox + 1];
+          my[k] += (y - c) * a0[ox + 1];
+        }
+      }
+    }
+  }
+  const PatternBank::PlaneGram& g = bank.plane_gram(j);
+  for (int k = 0; k < 9; ++k) {
+    out[k].xf = mx[k] / pattern_px_ - g.mean_x * m0[k];
+    out[k].yf = my[k] / pattern_px_ - g.mean_y * m0[k];
+    out[k].inside = true;
+  }
 }
 
 float ExactScorer::zncc(const ScoreParts& p) noexcept {

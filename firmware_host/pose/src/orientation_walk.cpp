@@ -59,8 +59,10 @@ Measurement OrientationWalk::measure(const PatternBank& bank, int j, const Peak&
   bool fitted = false;
   for (int pass = 0; pass < 2; ++pass) {
     double dx = 0, dy = 0, dj = 0;
-    if (!fit_.fit_at(cache, ux, uy, j, dx, dy, dj)) break;
+    bool plane = false;
+    if (!fit_.fit_at(cache, ux, uy, j, dx, dy, dj, &plane)) break;
     fitted = true;
+    m.background_plane = plane;
     m.dx = std::clamp(dx, -1.0, 1.0);
     m.dy = std::clamp(dy, -1.0, 1.0);
     m.dj = std::clamp(dj, -1.0, 1.0);

@@ -163,7 +163,36 @@ bool PatternBank::fill(const PatternBankSpec& spec, const BankLevels& levels, st
       coarse_wide->make_spectrum(small.data(), coarse_wide_spectra_.get() + static_cast<std::size_t>(k) * coarse_wide_len_);
   }
   model_pattern_noise(pattern, spec.prefilter_passes, norm);
+  measure_plane_grams();
   return true;
+}
+
+void PatternBank::measure_plane_grams() {
+  const int n = size_;
+  const double c = (n - 1) / 2.0;
+  plane_gram_.assign(static_cast<std::size_t>(angles_), PlaneGram{});
+  for (int j = 0; j < angles_; ++j) {
+    const float* t = pattern(j);
+    double sum[3] = {}, cross[3][3] = {};
+    for (int k = 0; k < support_band_count(j); ++k) {
+      const MaskBand& b = support_bands(j)[k];
+      for (int y = b.y0; y <= b.y1; ++y)
+        for (int x = b.x0; x <= b.x1; ++x) {
+          const double r[3] = {t[static_cast<std::size_t>(y) * n + x], (x - c) / n, (y - c) / n};
+          for (int p = 0; p < 3; ++p) {
+            sum[p] += r[p];
+            for (int q = 0; q < 3; ++q) cross[p][q] += r[p] * r[q];
+          }
+        }
+    }
+    const double count = static_cast<double>(support_count(j));
+    PlaneGram& pg = plane_gram_[static_cast<std::size_t>(j)];
+    const double mean[3] = {sum[0] / count, sum[1] / count, sum[2] / count};
+    pg.mean_x = mean[1];
+    pg.mean_y = mean[2];
+    for (int p = 0; p < 3; ++p)
+      for (int q = 0; q < 3; ++q) pg.g[p][q] = cross[p][q] - count * mean[p] * mean[q];
+  }
 }
 
 void PatternBank::model_pattern_noise(const PatternImage& pattern, int prefilter_passes, const std::vector<double>& norm) {
@@ -353,6 +382,7 @@ std::unique_ptr<const PatternBank> PatternBank::with_support(const PatternBank& 
   }
   b.pattern_noise_var_ = base.pattern_noise_var_ * noise_factor;
   b.pattern_noise_rho_ = base.pattern_noise_rho_;
+  b.measure_plane_grams();
   return bank;
 }
 
@@ -365,7 +395,8 @@ double PatternBank::mean_support_count() const noexcept {
 std::size_t PatternBank::memory_bytes() const noexcept {
   return spatial_.size() * sizeof(float) + sizeof(Complex) * (spectrum_len_ * angles_ + (coarse_len_ + coarse_wide_len_) * coarse_angles_) +
          support_.size() * sizeof(MaskBand) + support_begin_.size() * sizeof(std::size_t) +
-         support_count_.size() * sizeof(std::int64_t) + noise_gram_.size() * sizeof(double);
+         support_count_.size() * sizeof(std::int64_t) + noise_gram_.size() * sizeof(double) +
+         plane_gram_.size() * sizeof(PlaneGram);
 }
 
 }  // namespace sempose::pose

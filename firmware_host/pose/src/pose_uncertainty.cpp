@@ -17,6 +17,7 @@ struct RowInputs {
   int x0, x1, P;
   bool has_up, has_dn;
   float yc, c, per_deg, offset, g, dx, dy, ds, dphi;
+  float px = 0, py = 0;  // the background plane's slopes per pixel (0: the fit used none)
 };
 
 // The row's Jacobian (gradients: central differences inside the support, one-sided where a
@@ -47,7 +48,8 @@ template <bool kWithH>
     const float a1 = wy * (td - tu);
     const float a2 = in.per_deg * (in.tp[u] - in.tm[u]);
     const float a3 = (static_cast<float>(u) - in.c) * a0 + in.yc * a1;
-    const float r = in.f[u] - in.offset - in.g * (tc - in.dx * a0 - in.dy * a1 - in.ds * a3 + in.dphi * a2);
+    const float r = in.f[u] - (in.offset + in.px * (static_cast<float>(u) - in.c) + in.py * in.yc) -
+                    in.g * (tc - in.dx * a0 - in.dy * a1 - in.ds * a3 + in.dphi * a2);
     col[u] += a0 * r;
     col[P + u] += a1 * r;
     col[2 * P + u] += a2 * r;
@@ -167,6 +169,54 @@ PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int 
       h0_cache_(static_cast<std::size_t>(std::max(0, max_angles)) * kParams * kParams, 0.0),
       h0_valid_(static_cast<std::size_t>(std::max(0, max_angles)), 0) {}
 
+namespace {
+
+// Gain, level (the offset at the pattern's centre) and the plane's slopes per pixel of a window
+// whose pattern-only fit gave gain = Σtf and level = Σf / n: f regressed on the copy and the
+// centred x, y of the bank's plane Gram (their Σ with f over the support, one more pass).
+void plane_fit(const PatternBank::PlaneGram& pg, const float* roi, int w, const Measurement& m, int P, const MaskBand* bands,
+               int n_bands, double& gain, double& level, double& slope_x, double& slope_y) noexcept {
+  const double c = 0.5 * (P - 1);
+  double sxf = 0, syf = 0, sf = 0;
+  for (int b = 0; b < n_bands; ++b) {
+    const MaskBand& band = bands[b];
+    for (int v = band.y0; v <= band.y1; ++v) {
+      const float* f = roi + static_cast<std::size_t>(m.uy + v) * w + m.ux;
+      float rx = 0, r = 0;
+#pragma omp simd reduction(+ : rx, r)
+      for (int u = band.x0; u <= band.x1; ++u) {
+        rx += (static_cast<float>(u) - static_cast<float>(c)) * f[u];
+        r += f[u];
+      }
+      sxf += rx;
+      syf += (v - c) * r;
+      sf += r;
+    }
+  }
+  const double b[3] = {gain, sxf / P - pg.mean_x * sf, syf / P - pg.mean_y * sf};
+  double a[3][3];
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) a[i][k] = pg.g[i][k];
+  // z = G⁻¹ b by Cramer's rule (3×3, positive definite when the support is not degenerate).
+  const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                     a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+  if (!(det > 1e-12 * a[0][0] * a[1][1] * a[2][2])) return;
+  double z[3];
+  for (int col = 0; col < 3; ++col) {
+    double m3[3][3];
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) m3[i][k] = k == col ? b[i] : a[i][k];
+    z[col] = (m3[0][0] * (m3[1][1] * m3[2][2] - m3[1][2] * m3[2][1]) - m3[0][1] * (m3[1][0] * m3[2][2] - m3[1][2] * m3[2][0]) +
+              m3[0][2] * (m3[1][0] * m3[2][1] - m3[1][1] * m3[2][0])) / det;
+  }
+  gain = z[0];
+  level -= z[1] * pg.mean_x + z[2] * pg.mean_y;
+  slope_x = z[1] / P;
+  slope_y = z[2] / P;
+}
+
+}  // namespace
+
 PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& m, double scale_factor) noexcept {
   PoseSigma out;
   const int P = pattern_px_;
@@ -200,9 +250,14 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
       n += band.x1 - band.x0 + 1;
     }
   }
-  const double gain = sum_tf;
+  double gain = sum_tf, level = sum_f / n, slope_x = 0, slope_y = 0;
+  // A pose the walk fitted with the background plane (SubpixelFit) is judged with it: gain,
+  // offset and the plane's slopes fitted together (the regressors of PatternBank::PlaneGram).
+  // Without it the ramp stays in the residual, whose pull on x and y (δ below) is the very bias
+  // the plane took off the pose: σ doubled and tripled on the charging gradient's frames.
+  if (m.background_plane && n > 0) plane_fit(bank.plane_gram(j), roi, w, m, P, bands, n_bands, gain, level, slope_x, slope_y);
   if (n < kParams * 4 || !(std::fabs(gain) > 1e-6)) return out;
-  const float offset = static_cast<float>(sum_f / n);
+  const float offset = static_cast<float>(level);
   const float g = static_cast<float>(gain);
   const float dx = static_cast<float>(m.dx), dy = static_cast<float>(m.dy);
   const float dphi = static_cast<float>(m.dj * step_deg);
@@ -284,6 +339,8 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
       in.c = c;
       in.per_deg = per_deg;
       in.offset = offset;
+      in.px = static_cast<float>(slope_x);
+      in.py = static_cast<float>(slope_y);
       in.g = g;
       in.dx = dx;
       in.dy = dy;

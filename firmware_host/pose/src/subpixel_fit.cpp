@@ -33,8 +33,8 @@ void SubpixelFit::terms(double x, double y, double j, double* t) noexcept {
 }
 
 // (AᵀA)⁻¹Aᵀ of the fixed 19-sample design, by Gauss-Jordan elimination.
-SubpixelFit::SubpixelFit(bool gaussian, bool noise_correction) noexcept
-    : gaussian_(gaussian), noise_correction_(noise_correction) {
+SubpixelFit::SubpixelFit(bool gaussian, bool noise_correction, bool background_plane) noexcept
+    : gaussian_(gaussian), noise_correction_(noise_correction), background_plane_(background_plane) {
   double a[kSamples][kTerms];
   for (int i = 0; i < kSamples; ++i) terms(kOffsets[i][0], kOffsets[i][1], kOffsets[i][2], a[i]);
   double m[kTerms][2 * kTerms] = {};
@@ -104,8 +104,69 @@ bool SubpixelFit::joint_fit(const float* s, bool log_scores, double& dx, double&
   return true;
 }
 
-bool SubpixelFit::fit_at(ScoreCache& cache, int ux, int uy, int j, double& dx, double& dy,
-                         double& dj) const noexcept {
+namespace {
+
+// Σ² the pattern and the background plane explain together: bᵀG⁻¹b, b = (Σtf, Σxf, Σyf), G their
+// Gram (Cholesky). At least the pattern's alone, (Σtf)²; that when G is not positive definite.
+double explained_with_plane(const ScoreParts& p, const PlaneParts& q, const PatternBank::PlaneGram& pg) noexcept {
+  double l[3][3] = {};
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k <= i; ++k) {
+      double v = pg.g[i][k];
+      for (int m = 0; m < k; ++m) v -= l[i][m] * l[k][m];
+      if (i != k) {
+        l[i][k] = v / l[k][k];
+      } else if (v > 1e-12 * pg.g[i][i]) {
+        l[i][i] = std::sqrt(v);
+      } else {
+        return p.tf * p.tf;
+      }
+    }
+  const double b[3] = {p.tf, q.xf, q.yf};
+  double w[3], quad = 0;
+  for (int i = 0; i < 3; ++i) {
+    double v = b[i];
+    for (int m = 0; m < i; ++m) v -= l[i][m] * w[m];
+    w[i] = v / l[i][i];
+    quad += w[i] * w[i];
+  }
+  return std::max(p.tf * p.tf, quad);
+}
+
+}  // namespace
+
+bool SubpixelFit::plane_scores(ScoreCache& cache, int ux, int uy, const CachedScore* ev, float* fs) const noexcept {
+  const PatternBank& bank = cache.bank();
+  const ExactScorer& scorer = cache.scorer();
+  const ScoreParts& c = ev[4].parts;
+  const PlaneParts centre = scorer.plane_parts(bank, ev[4].j, ux, uy, c);
+  if (!centre.inside) return false;
+  const double explained = explained_with_plane(c, centre, bank.plane_gram(ev[4].j));
+  const double rss = c.var - explained;
+  if (!(rss > 0) || (explained - c.tf * c.tf) / rss * c.count <= kPlaneSignificance) return false;
+  // The circle's support is the same at every angle: its plane products depend on the place
+  // only (the 19 samples sit at 9 places), all nine from three passes. A turned shape's differ
+  // by angle: one pass per sample.
+  PlaneParts at_place[9];
+  const bool per_place = !bank.has_shape();
+  if (per_place) scorer.plane_parts_3x3(bank, ev[4].j, ux, uy, at_place);
+  const double noise_var = noise_correction_ ? rss : 0.0;
+  float plane_fs[kSamples];
+  for (int i = 0; i < kSamples; ++i) {
+    const int ox = kOffsets[i][0], oy = kOffsets[i][1];
+    const PlaneParts q = per_place ? at_place[(ox + 1) + 3 * (oy + 1)]
+                                   : scorer.plane_parts(bank, ev[i].j, ux + ox, uy + oy, ev[i].parts);
+    if (!q.inside) return false;
+    const double v = ev[i].parts.var - noise_var;
+    if (!(v > 1e-9 * c.var)) return false;
+    plane_fs[i] = static_cast<float>(std::sqrt(explained_with_plane(ev[i].parts, q, bank.plane_gram(ev[i].j)) / v));
+  }
+  std::copy(plane_fs, plane_fs + kSamples, fs);
+  return true;
+}
+
+bool SubpixelFit::fit_at(ScoreCache& cache, int ux, int uy, int j, double& dx, double& dy, double& dj,
+                         bool* plane_used) const noexcept {
   CachedScore ev[kSamples];
   for (int i = 0; i < kSamples; ++i) {
     ev[i] = cache.evaluate(j + kOffsets[i][2], ux + kOffsets[i][0], uy + kOffsets[i][1]);
@@ -119,6 +180,8 @@ bool SubpixelFit::fit_at(ScoreCache& cache, int ux, int uy, int j, double& dx, d
     if (!(v > 1e-9 * c.var) || !(ev[i].parts.var > 0.25 * ev[i].parts.count)) return false;
     fs[i] = static_cast<float>(ev[i].parts.tf / std::sqrt(v));
   }
+  const bool plane = background_plane_ && c.tf > 0 && plane_scores(cache, ux, uy, ev, fs);
+  if (plane_used) *plane_used = plane;
   float peak = 0;
   return joint_fit(fs, gaussian_, dx, dy, dj, peak) || (gaussian_ && joint_fit(fs, false, dx, dy, dj, peak));
 }

@@ -242,7 +242,7 @@ struct Tracker::Impl {
         scale_probe(scorer),
         scale_evidence(scorer),
         maps(static_cast<std::size_t>(s.half_fft_px) * s.half_fft_px),
-        fit(c.subpixel == "gaussian", c.fit_noise_correction),
+        fit(c.subpixel == "gaussian", c.fit_noise_correction, c.fit_background_plane),
         walk(scorer, fit, angles),
         sweep(half, walk, angles, maps),
         search(cfg, sizes, angles, coarse, coarse_wide.get(), half, loader, rescaler, scale_probe, scale_evidence, walk, sweep, maps),

@@ -123,6 +123,10 @@ struct TrackerConfig {
   // Fit on Σtf/√(var − noise var) rather than the ZNCC, noise var estimated at the best
   // match: removes the pull of noisy windows towards more signal/noise variance.
   bool fit_noise_correction = true;
+  // Score the fit's samples with a brightness ramp across the window (the background plane) as
+  // nuisance where it is significant: takes the pull of charging gradients off the pose. Off:
+  // measured, another object crossing the window then drew the pose onto it (pose README).
+  bool fit_background_plane = false;
   // Optional temporal filter of the reported pose (tracker.filter:); the ROI placement keeps
   // using the raw measurements, so the filter cannot feed back into tracking.
   PoseFilterConfig filter;

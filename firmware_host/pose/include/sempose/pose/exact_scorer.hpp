@@ -22,6 +22,14 @@ namespace sempose::pose {
 struct ScoreParts {
   bool inside = false;  // false: the window leaves the ROI (no score)
   double tf = 0, var = 0, count = 0;
+  double sum = 0;  // Σ f over the support (filtered units, before the ROI's mean is taken off)
+};
+
+// The background plane's products with one window (PatternBank::PlaneGram): Σ (x − mean_x)·f
+// and Σ (y − mean_y)·f over the support, x and y in pattern widths from its centre.
+struct PlaneParts {
+  bool inside = false;
+  double xf = 0, yf = 0;
 };
 
 class ExactScorer {
@@ -44,6 +52,12 @@ class ExactScorer {
   ScoreParts parts(const PatternBank& bank, int j, int ux, int uy) const noexcept;
   // ZNCC from the parts; a flat window (std under half a filtered unit) scores 0.
   static float zncc(const ScoreParts& p) noexcept;
+  // RT: the plane's products for the window whose parts() are p (a pass over the support).
+  PlaneParts plane_parts(const PatternBank& bank, int j, int ux, int uy, const ScoreParts& p) const noexcept;
+  // RT: the plane's products at the 3×3 places around (ux, uy) — out[(ox + 1) + 3·(oy + 1)] —
+  // for angle j's support, three passes over it (one per row offset; the column offsets from
+  // each row's sums and its two end pixels). All nine not inside when one place leaves the ROI.
+  void plane_parts_3x3(const PatternBank& bank, int j, int ux, int uy, PlaneParts* out) const noexcept;
   // RT: the score itself, -2 outside the ROI.
   float score(const PatternBank& bank, int j, int ux, int uy) const noexcept;
 
@@ -54,6 +68,7 @@ class ExactScorer {
   int max_roi_px_ = 0;
   std::vector<MaskBand> chunk_bands_;  // the circle widened to 16-float chunks
   int roi_w_ = 0, roi_h_ = 0;
+  double roi_mean_ = 0;                // what load() took off the filtered ROI
   std::vector<float> roi_;             // prefiltered ROI minus its mean (row stride roi_w_)
   mutable SummedAreaTables tables_;     // on demand (cover() in parts())
 };

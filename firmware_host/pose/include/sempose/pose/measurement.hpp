@@ -17,6 +17,7 @@ struct Measurement {
   int steps = 0;                  // correlations and exact scores spent
   bool unsettled = false;         // the walk hit its per-frame bound
   bool on_window_edge = false;    // the walk's place is on the loaded window's edge: a maximum not confirmed
+  bool background_plane = false;  // the sub-pixel fit scored with a brightness ramp as nuisance (SubpixelFit)
   // The ZNCC the noise model says the target reaches in the window at this pose (Tracker:
   // attainable score); < 0: not measured yet (the walk's own decisions run without it).
   float attainable = -1.0f;

@@ -115,12 +115,23 @@ class PatternBank {
   double pattern_noise_var() const noexcept { return pattern_noise_var_; }
   double pattern_noise_rho() const noexcept { return pattern_noise_rho_; }
 
+  // The background plane's regressors (SubpixelFit): with the copy t, the window's x and y (in
+  // pattern widths from the centre), each centred over the support. Per angle: their means and
+  // the Gram of (t, x, y) (Σt² = 1, Σt = 0).
+  struct PlaneGram {
+    double mean_x = 0, mean_y = 0;
+    double g[3][3] = {};
+  };
+  const PlaneGram& plane_gram(int j) const noexcept { return plane_gram_[static_cast<std::size_t>(j)]; }
+
  private:
   PatternBank() = default;
   bool fill(const PatternBankSpec& spec, const BankLevels& levels, std::string& why);
   // Setup: pattern_noise_var_ and noise_gram_ of this bank (norm: each copy's factor from the
   // prefiltered, turned pattern to the copy, i.e. 1 / its norm over the support).
   void model_pattern_noise(const PatternImage& pattern, int prefilter_passes, const std::vector<double>& norm);
+  // Setup: plane_gram_ from the copies and their supports.
+  void measure_plane_grams();
 
   int size_ = 0, angles_ = 0, coarse_angles_ = 0;
   double coarse_step_deg_ = 20;
@@ -132,6 +143,7 @@ class PatternBank {
   std::vector<std::int64_t> support_count_;  // pixels per angle's support
   double pattern_noise_var_ = 0, pattern_noise_rho_ = 0;
   std::vector<double> noise_gram_;  // angles_ × kNoiseParams², empty: not measured
+  std::vector<PlaneGram> plane_gram_;  // per angle
   // Shared with banks made by with_support() (the spectra do not depend on the fine support).
   std::shared_ptr<Complex> spectra_;
   std::shared_ptr<Complex> coarse_spectra_;

@@ -23,6 +23,7 @@ class ScoreCache {
       : scorer_(scorer), bank_(bank), angles_(angles) {}
 
   const PatternBank& bank() const noexcept { return bank_; }
+  const ExactScorer& scorer() const noexcept { return scorer_; }
 
   CachedScore evaluate(int j, int x, int y) noexcept {
     j = angles_.wrap(j);
