@@ -123,15 +123,18 @@ ScoreParts ExactScorer::parts(const PatternBank& bank, int j, int ux, int uy) co
 }
 
 PlaneParts ExactScorer::plane_parts(const PatternBank& bank, int j, int ux, int uy, const ScoreParts& p) const noexcept {
+  // The tables summed the ROI before its mean was taken off.
+  return p.inside ? plane_parts_given_sum(bank, j, ux, uy, p.sum - p.count * roi_mean_) : PlaneParts{};
+}
+
+PlaneParts ExactScorer::plane_parts_given_sum(const PatternBank& bank, int j, int ux, int uy, double sum_f) const noexcept {
   PlaneParts out;
-  if (!p.inside || ux < 0 || uy < 0 || ux > roi_w_ - pattern_px_ || uy > roi_h_ - pattern_px_) return out;
+  if (ux < 0 || uy < 0 || ux > roi_w_ - pattern_px_ || uy > roi_h_ - pattern_px_) return out;
   double xf = 0, yf = 0;
   plane_moments(roi_.data() + static_cast<std::size_t>(uy) * roi_w_ + ux, roi_w_, bank.support_bands(j),
                 bank.support_band_count(j), static_cast<float>((pattern_px_ - 1) / 2.0), xf, yf);
-  // The dots ran on the mean-free ROI: Σ f over the support from the tables' sum, and the
-  // regressors centred by their means times it.
+  // The dots ran on the mean-free ROI: the regressors centred by their means times its sum.
   const PatternBank::PlaneGram& g = bank.plane_gram(j);
-  const double sum_f = p.sum - p.count * roi_mean_;
   out.xf = xf / pattern_px_ - g.mean_x * sum_f;
   out.yf = yf / pattern_px_ - g.mean_y * sum_f;
   out.inside = true;

@@ -192,7 +192,42 @@ void PatternBank::measure_plane_grams() {
     pg.mean_y = mean[2];
     for (int p = 0; p < 3; ++p)
       for (int q = 0; q < 3; ++q) pg.g[p][q] = cross[p][q] - count * mean[p] * mean[q];
+    pg.factored = true;
+    for (int i = 0; i < 3 && pg.factored; ++i)
+      for (int k = 0; k <= i; ++k) {
+        double v = pg.g[i][k];
+        for (int m = 0; m < k; ++m) v -= pg.chol[i][m] * pg.chol[k][m];
+        if (i != k) {
+          pg.chol[i][k] = v / pg.chol[k][k];
+        } else if (v > 1e-12 * pg.g[i][i]) {
+          pg.chol[i][i] = std::sqrt(v);
+        } else {
+          pg.factored = false;
+          break;
+        }
+      }
   }
+}
+
+bool PatternBank::PlaneGram::whiten(const double b[3], double w[3]) const noexcept {
+  if (!factored) return false;
+  for (int i = 0; i < 3; ++i) {
+    double v = b[i];
+    for (int m = 0; m < i; ++m) v -= chol[i][m] * w[m];
+    w[i] = v / chol[i][i];
+  }
+  return true;
+}
+
+bool PatternBank::PlaneGram::solve(const double b[3], double z[3]) const noexcept {
+  double w[3];
+  if (!whiten(b, w)) return false;
+  for (int i = 2; i >= 0; --i) {
+    double v = w[i];
+    for (int m = i + 1; m < 3; ++m) v -= chol[m][i] * z[m];
+    z[i] = v / chol[i][i];
+  }
+  return true;
 }
 
 void PatternBank::model_pattern_noise(const PatternImage& pattern, int prefilter_passes, const std::vector<double>& norm) {

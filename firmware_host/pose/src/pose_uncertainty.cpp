@@ -172,43 +172,16 @@ PoseUncertainty::PoseUncertainty(const ExactScorer& scorer, int pattern_px, int 
 namespace {
 
 // Gain, level (the offset at the pattern's centre) and the plane's slopes per pixel of a window
-// whose pattern-only fit gave gain = Σtf and level = Σf / n: f regressed on the copy and the
-// centred x, y of the bank's plane Gram (their Σ with f over the support, one more pass).
-void plane_fit(const PatternBank::PlaneGram& pg, const float* roi, int w, const Measurement& m, int P, const MaskBand* bands,
-               int n_bands, double& gain, double& level, double& slope_x, double& slope_y) noexcept {
-  const double c = 0.5 * (P - 1);
-  double sxf = 0, syf = 0, sf = 0;
-  for (int b = 0; b < n_bands; ++b) {
-    const MaskBand& band = bands[b];
-    for (int v = band.y0; v <= band.y1; ++v) {
-      const float* f = roi + static_cast<std::size_t>(m.uy + v) * w + m.ux;
-      float rx = 0, r = 0;
-#pragma omp simd reduction(+ : rx, r)
-      for (int u = band.x0; u <= band.x1; ++u) {
-        rx += (static_cast<float>(u) - static_cast<float>(c)) * f[u];
-        r += f[u];
-      }
-      sxf += rx;
-      syf += (v - c) * r;
-      sf += r;
-    }
-  }
-  const double b[3] = {gain, sxf / P - pg.mean_x * sf, syf / P - pg.mean_y * sf};
-  double a[3][3];
-  for (int i = 0; i < 3; ++i)
-    for (int k = 0; k < 3; ++k) a[i][k] = pg.g[i][k];
-  // z = G⁻¹ b by Cramer's rule (3×3, positive definite when the support is not degenerate).
-  const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-                     a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-  if (!(det > 1e-12 * a[0][0] * a[1][1] * a[2][2])) return;
+// whose pattern-only fit gave gain = Σtf and level = Σf / n (f: the scorer's mean-free ROI):
+// f regressed on the copy and the centred x, y of the bank's plane Gram.
+void plane_fit(const ExactScorer& scorer, const PatternBank& bank, int j, const Measurement& m, double n, double& gain,
+               double& level, double& slope_x, double& slope_y) noexcept {
+  const PlaneParts q = scorer.plane_parts_given_sum(bank, j, m.ux, m.uy, level * n);
+  const PatternBank::PlaneGram& pg = bank.plane_gram(j);
+  const double b[3] = {gain, q.xf, q.yf};
   double z[3];
-  for (int col = 0; col < 3; ++col) {
-    double m3[3][3];
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k) m3[i][k] = k == col ? b[i] : a[i][k];
-    z[col] = (m3[0][0] * (m3[1][1] * m3[2][2] - m3[1][2] * m3[2][1]) - m3[0][1] * (m3[1][0] * m3[2][2] - m3[1][2] * m3[2][0]) +
-              m3[0][2] * (m3[1][0] * m3[2][1] - m3[1][1] * m3[2][0])) / det;
-  }
+  if (!q.inside || !pg.solve(b, z)) return;
+  const int P = bank.size_px();
   gain = z[0];
   level -= z[1] * pg.mean_x + z[2] * pg.mean_y;
   slope_x = z[1] / P;
@@ -255,7 +228,7 @@ PoseSigma PoseUncertainty::estimate(const PatternBank& bank, const Measurement& 
   // offset and the plane's slopes fitted together (the regressors of PatternBank::PlaneGram).
   // Without it the ramp stays in the residual, whose pull on x and y (δ below) is the very bias
   // the plane took off the pose: σ doubled and tripled on the charging gradient's frames.
-  if (m.background_plane && n > 0) plane_fit(bank.plane_gram(j), roi, w, m, P, bands, n_bands, gain, level, slope_x, slope_y);
+  if (m.background_plane && n > 0) plane_fit(scorer_, bank, j, m, n, gain, level, slope_x, slope_y);
   if (n < kParams * 4 || !(std::fabs(gain) > 1e-6)) return out;
   const float offset = static_cast<float>(level);
   const float g = static_cast<float>(gain);

@@ -107,30 +107,12 @@ bool SubpixelFit::joint_fit(const float* s, bool log_scores, double& dx, double&
 namespace {
 
 // Σ² the pattern and the background plane explain together: bᵀG⁻¹b, b = (Σtf, Σxf, Σyf), G their
-// Gram (Cholesky). At least the pattern's alone, (Σtf)²; that when G is not positive definite.
+// Gram. At least the pattern's alone, (Σtf)²; that when G is not positive definite.
 double explained_with_plane(const ScoreParts& p, const PlaneParts& q, const PatternBank::PlaneGram& pg) noexcept {
-  double l[3][3] = {};
-  for (int i = 0; i < 3; ++i)
-    for (int k = 0; k <= i; ++k) {
-      double v = pg.g[i][k];
-      for (int m = 0; m < k; ++m) v -= l[i][m] * l[k][m];
-      if (i != k) {
-        l[i][k] = v / l[k][k];
-      } else if (v > 1e-12 * pg.g[i][i]) {
-        l[i][i] = std::sqrt(v);
-      } else {
-        return p.tf * p.tf;
-      }
-    }
   const double b[3] = {p.tf, q.xf, q.yf};
-  double w[3], quad = 0;
-  for (int i = 0; i < 3; ++i) {
-    double v = b[i];
-    for (int m = 0; m < i; ++m) v -= l[i][m] * w[m];
-    w[i] = v / l[i][i];
-    quad += w[i] * w[i];
-  }
-  return std::max(p.tf * p.tf, quad);
+  double w[3];
+  if (!pg.whiten(b, w)) return p.tf * p.tf;
+  return std::max(p.tf * p.tf, w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
 }
 
 }  // namespace

@@ -54,6 +54,8 @@ class ExactScorer {
   static float zncc(const ScoreParts& p) noexcept;
   // RT: the plane's products for the window whose parts() are p (a pass over the support).
   PlaneParts plane_parts(const PatternBank& bank, int j, int ux, int uy, const ScoreParts& p) const noexcept;
+  // RT: the same for a window whose support sums to sum_f in roi() (the mean-free ROI).
+  PlaneParts plane_parts_given_sum(const PatternBank& bank, int j, int ux, int uy, double sum_f) const noexcept;
   // RT: the plane's products at the 3×3 places around (ux, uy) — out[(ox + 1) + 3·(oy + 1)] —
   // for angle j's support, three passes over it (one per row offset; the column offsets from
   // each row's sums and its two end pixels). All nine not inside when one place leaves the ROI.

@@ -121,6 +121,14 @@ class PatternBank {
   struct PlaneGram {
     double mean_x = 0, mean_y = 0;
     double g[3][3] = {};
+    // G's lower Cholesky factor, made at setup; not factored when G is not positive definite
+    // (a support without extent in x or y). The sub-pixel fit and the σ stage solve with it.
+    double chol[3][3] = {};
+    bool factored = false;
+    // RT: w = L⁻¹b, so |w|² = bᵀG⁻¹b (b: the window's products with t, x, y); false unfactored.
+    bool whiten(const double b[3], double w[3]) const noexcept;
+    // RT: z = G⁻¹b, the least-squares gain of t and slopes of x and y; false unfactored.
+    bool solve(const double b[3], double z[3]) const noexcept;
   };
   const PlaneGram& plane_gram(int j) const noexcept { return plane_gram_[static_cast<std::size_t>(j)]; }
 
