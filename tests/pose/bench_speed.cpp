@@ -148,36 +148,30 @@ int main(int argc, char** argv) {
       const Timing imm = time_it(4000, [&] { sink += window_noise_var(px.data(), roi, x0, x0, 128); });
       std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us |          attainable score alone (line-correlated noise; right: Immerkær's white-noise estimator alone)%s\n",
                   roi, att.p50_us, att.p99_us, imm.p50_us, sink > 0 ? "" : " ");
-      // The final Gauss–Newton fit (tracker.refine on, each source): the same frame replayed by a
-      // tracker set up alike; its ratio to the default tracker's p50 in this run is its cost.
+      // An option's cost: the same frames replayed by a tracker set up with it; its ratio to the
+      // default tracker's p50 in this run.
+      const auto time_option = [&](const config::TrackerConfig& with, const std::string& what) {
+        SimHarness ho(s, with);
+        ho.run();
+        Tracker& tko = *ho.tracker();
+        int tracked_o = 0;
+        const Timing opt =
+            time_it(400, [&] { tracked_o += tko.update(pipeline::to_pose_frame(meta, scan())).state == TrackState::kTracking; });
+        std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us | %6.1fx   %s: %.2fx the default's p50 (tracked %d/400)\n", roi,
+                    opt.p50_us, opt.p99_us, peer.p50_us, peer.p50_us / opt.p50_us, what.c_str(), opt.p50_us / ours.p50_us,
+                    tracked_o);
+      };
+      // The final Gauss–Newton fit (tracker.refine on), each source.
       for (const char* source : {"prefiltered", "raw"}) {
         config::TrackerConfig tr = tc;
         tr.refine.enabled = true;
         tr.refine.source = source;
-        SimHarness hr(s, tr);
-        hr.run();
-        Tracker& trk = *hr.tracker();
-        int tracked_r = 0;
-        const Timing refined =
-            time_it(400, [&] { tracked_r += trk.update(pipeline::to_pose_frame(meta, scan())).state == TrackState::kTracking; });
-        std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us | %6.1fx   tracker.refine on, source %s: %.2fx the default's p50 (tracked %d/400)\n",
-                    roi, refined.p50_us, refined.p99_us, peer.p50_us, peer.p50_us / refined.p50_us, source,
-                    refined.p50_us / ours.p50_us, tracked_r);
+        time_option(tr, std::string("tracker.refine on, source ") + source);
       }
-      // The background plane on (tracker.fit_background_plane, off by default): what it costs on
-      // these frames (the plane's share of the fits it is significant in).
-      {
-        config::TrackerConfig tp = tc;
-        tp.fit_background_plane = true;
-        SimHarness hp(s, tp);
-        hp.run();
-        Tracker& tkp = *hp.tracker();
-        int tracked_p = 0;
-        const Timing flat =
-            time_it(400, [&] { tracked_p += tkp.update(pipeline::to_pose_frame(meta, scan())).state == TrackState::kTracking; });
-        std::printf("%3d²   | %9.1f us %9.1f us | %11.1f us | %6.1fx   tracker.fit_background_plane on: %.2fx the default's p50 (tracked %d/400)\n",
-                    roi, flat.p50_us, flat.p99_us, peer.p50_us, peer.p50_us / flat.p50_us, flat.p50_us / ours.p50_us, tracked_p);
-      }
+      // The background plane (off by default): its share of the fits it is significant in.
+      config::TrackerConfig tp = tc;
+      tp.fit_background_plane = true;
+      time_option(tp, "tracker.fit_background_plane on");
       // Learned appearance: a tracker that learned its support over 120 moving frames, then the
       // same replay (each update also feeds the appearance observer: its RT cost is included).
       config::TrackerConfig ta = tc;

@@ -224,6 +224,17 @@ struct RawBank {
   }
 };
 
+// The exact scorer for such a bank with an image (w×h) loaded as the ROI; the ROI's buffer
+// lives as long as the scorer reads it.
+struct LoadedScorer {
+  std::vector<std::int32_t> roi;
+  ExactScorer scorer;
+  LoadedScorer(const RawBank& raw, const std::vector<std::uint16_t>& img, int w, int h)
+      : roi(img.begin(), img.end()), scorer(raw.fine, 64) {
+    scorer.load(roi.data(), w, h);
+  }
+};
+
 // The exact scorer the tracker runs (walk, fit, start search) against a brute-force ZNCC at
 // every displacement, circle and full square; a flat window scores 0, a window leaving the
 // ROI has no score.
@@ -247,9 +258,8 @@ TEST_P(ExactBrute, MatchesBruteForceEverywhere) {
   ASSERT_NE(raw_bank.bank, nullptr) << raw_bank.why;
   const auto& bank = raw_bank.bank;
   const PatternMask& fine = raw_bank.fine;
-  ExactScorer scorer(fine, 64);
-  std::vector<std::int32_t> roi(img.begin(), img.end());
-  scorer.load(roi.data(), w, h);
+  LoadedScorer loaded(raw_bank, img, w, h);
+  ExactScorer& scorer = loaded.scorer;
   double max_err = 0;
   for (int uy = 0; uy <= h - n; ++uy)
     for (int ux = 0; ux <= w - n; ++ux) {
@@ -263,7 +273,7 @@ TEST_P(ExactBrute, MatchesBruteForceEverywhere) {
   EXPECT_EQ(scorer.score(*bank, 0, w - n + 1, 0), -2.0f);
   EXPECT_EQ(scorer.score(*bank, 0, -1, 0), -2.0f);
   EXPECT_FALSE(scorer.parts(*bank, 0, 0, h - n + 1).inside);
-  std::vector<std::int32_t> flat(roi.size(), 77);
+  std::vector<std::int32_t> flat(loaded.roi.size(), 77);
   scorer.load(flat.data(), w, h);
   EXPECT_EQ(scorer.score(*bank, 0, 3, 3), 0.0f);
 }
@@ -283,9 +293,8 @@ TEST(ExactScorer, PlaneProductsMatchBruteForceAtNinePlaces) {
   ASSERT_NE(raw_bank.bank, nullptr) << raw_bank.why;
   const auto& bank = raw_bank.bank;
   const PatternMask& fine = raw_bank.fine;
-  ExactScorer scorer(fine, 64);
-  std::vector<std::int32_t> roi(img.begin(), img.end());
-  scorer.load(roi.data(), w, h);
+  const LoadedScorer loaded(raw_bank, img, w, h);
+  const ExactScorer& scorer = loaded.scorer;
   const double c = (n - 1) / 2.0;
   double mx = 0, my = 0;
   for (int y = 0; y < n; ++y)
