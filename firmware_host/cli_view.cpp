@@ -56,6 +56,19 @@ int usage(std::FILE* out) {
   sempose::cli::end_by_signal(sig);
 }
 
+// A file view could not write whole (a full disk, a file-size limit): every file it wrote is
+// removed, and the folder when view made it, so no folder that looks like a whole view is left.
+int abandon_view(const std::string& why, const std::string& out_dir, const std::vector<std::string>& written,
+                 bool made_out_dir) {
+  std::size_t removed = 0;
+  for (const auto& f : written) removed += std::remove(f.c_str()) == 0;
+  std::error_code ec;
+  if (made_out_dir) std::filesystem::remove(out_dir, ec);  // only when empty
+  std::fprintf(stderr, "sempose view: %s; removed the %zu file(s) it had written to %s%s\n", why.c_str(), removed,
+               out_dir.c_str(), made_out_dir && !std::filesystem::exists(out_dir, ec) ? " and the folder" : "");
+  return 1;
+}
+
 }  // namespace
 
 int sempose::cli::view(int argc, char** argv) {
@@ -182,6 +195,8 @@ int sempose::cli::view(int argc, char** argv) {
     }
 
     if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
+    std::error_code out_ec;
+    const bool made_out_dir = !std::filesystem::exists(out_dir, out_ec);
     {
       std::error_code ec;  // a folder that cannot be made: named by its option, not a bare filesystem error
       std::filesystem::create_directories(out_dir, ec);
@@ -193,15 +208,18 @@ int sempose::cli::view(int argc, char** argv) {
     std::size_t tracked = 0;
     for (const auto& r : rows) tracked += r.status == "TRACKING";
     const std::string title = std::filesystem::path(poses_path).filename().string();  // quoted by plot_track
-    const std::string plot_problem = operator_view::plot_track(rows, out_dir + "/track", title);
-    for (const char* ext : {".dat", ".gp", ".png"}) {
-      if (std::filesystem::exists(out_dir + "/track" + ext)) written.push_back(out_dir + "/track" + ext);
+    for (const char* ext : {".dat", ".gp", ".png"}) written.push_back(out_dir + "/track" + ext);
+    std::string plot_problem;
+    try {
+      plot_problem = operator_view::plot_track(rows, out_dir + "/track", title);
+    } catch (const std::exception& e) {
+      return abandon_view(e.what(), out_dir, written, made_out_dir);
     }
     if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
 
     int pictures = 0;
     std::string first, last;
-    if (!frame_files.empty()) {
+    if (!frame_files.empty()) try {
       std::size_t outside = 0;                   // drawn poses outside their frame
       std::vector<std::vector<std::pair<float, float>>> edges;
       for (const auto& img : pattern_images) edges.push_back(operator_view::pattern_edge_points(img));
@@ -241,6 +259,8 @@ int sempose::cli::view(int argc, char** argv) {
         last = name;
         ++pictures;
       }
+    } catch (const std::exception& e) {
+      return abandon_view(e.what(), out_dir, written, made_out_dir);
     }
     // ROI pictures an earlier view left in --out (a longer run, another --every): they stayed among
     // this view's, a picture of frame 15 that is not this run's frame 15 (found probing). View's

@@ -1592,6 +1592,48 @@ TEST(CliFaults, ViewStoppedByASignalLeavesNoPicturesThatLookWhole) {
   }
 }
 
+// `sempose view` on a full disk (here a file-size limit): gnuplot exits 0 when its picture
+// could not be written whole, and view said "track.png" and exit 0 over a cut PNG; a ROI picture
+// that failed ended with exit 2 (bad input's code) and the pictures before it left (found probing,
+// hostile round 8). Now a cut file is an error naming it, exit 1, and every file this call wrote
+// is removed, the folder too when view made it; a file that was in the folder before stays.
+TEST(CliFaults, ViewOnAFullDiskLeavesNoPicturesThatLookWhole) {
+  const std::string dir = work_dir() + "/view_full";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const Outcome made = run({"sim", "--out", dir + "/rec", "--frames", "20", "--config", small_config(dir, "")}, 300);
+  ASSERT_EQ(made.code, 0) << made.err;
+  {
+    std::ofstream csv(dir + "/poses.csv");
+    csv << "frame,t_ns,x_px,y_px,phi_deg,score,status\n";
+    for (int f = 0; f < 20; ++f) csv << f << "," << f * 1000000 << ",160,120,0,0.9,TRACKING\n";
+  }
+  const std::vector<std::string> view = {"view", "--poses", dir + "/poses.csv", "--frames", dir + "/rec", "--every", "1",
+                                         "--scale", "8", "--out"};
+  // The plot (~57 kB) cut by the limit; its data and script (~1 kB each) are written whole.
+  std::vector<std::string> args = view;
+  args.push_back(dir + "/new");
+  g_child_file_size_limit = 8192;
+  const Outcome plot = run(args, 120);
+  g_child_file_size_limit = -1;
+  EXPECT_EQ(plot.code, 1) << plot.out << plot.err;
+  EXPECT_NE(plot.err.find("track.png: gnuplot's picture is cut short"), std::string::npos) << plot.err;
+  EXPECT_FALSE(fs::exists(dir + "/new")) << "the folder view made is left";
+  // The plot whole, the first ROI picture (~170 kB at --scale 8) cut.
+  fs::create_directories(dir + "/v");
+  std::ofstream(dir + "/v/notes.txt") << "the operator's own file\n";
+  args = view;
+  args.push_back(dir + "/v");
+  g_child_file_size_limit = 120 * 1024;
+  const Outcome roi = run(args, 120);
+  g_child_file_size_limit = -1;
+  EXPECT_EQ(roi.code, 1) << roi.out << roi.err;
+  EXPECT_NE(roi.err.find("roi_000000.png: PNG write failed"), std::string::npos) << roi.err;
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir + "/v")) left.push_back(e.path().filename().string());
+  EXPECT_EQ(left, std::vector<std::string>{"notes.txt"}) << roi.err;
+}
+
 // Every frame view draws is read before anything is written (found probing: a truncated frame
 // 10 ended view with exit 2 after track.* and roi_000000..09.png were written; a frame of another
 // size was drawn without a word, where replay refuses such a recording).

@@ -95,6 +95,21 @@ double seconds_since(std::int64_t t0, std::int64_t t) noexcept {
 }
 }  // namespace
 
+namespace {
+
+// A PNG's last 12 bytes are its IEND chunk: length 0, "IEND", the CRC of "IEND".
+bool png_is_whole(const std::string& path) {
+  static constexpr unsigned char kIend[12] = {0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xAE, 0x42, 0x60, 0x82};
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in || in.tellg() < static_cast<std::streamoff>(8 + sizeof kIend)) return false;
+  in.seekg(-static_cast<std::streamoff>(sizeof kIend), std::ios::end);
+  unsigned char tail[sizeof kIend] = {};
+  in.read(reinterpret_cast<char*>(tail), sizeof tail);
+  return in && std::equal(tail, tail + sizeof tail, kIend);
+}
+
+}  // namespace
+
 std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem, const std::string& title) {
   const auto targets = targets_of(rows);
   const std::int64_t t0 = rows.front().t_ns;
@@ -177,6 +192,12 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
   if (WIFEXITED(status) && WEXITSTATUS(status) == 127) return "gnuplot not found (apt-get install gnuplot-nox); then run: " + cmd;
   if (WIFEXITED(status) && WEXITSTATUS(status) == 126) return "cannot enter " + dir + " to run gnuplot; run: " + cmd;
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return "gnuplot failed on " + stem + ".gp";
+  // gnuplot exits 0 when its picture could not be written whole (a full disk, a file-size limit):
+  // a PNG ends with its IEND chunk, or it was cut.
+  if (!png_is_whole(stem + ".png")) {
+    throw std::runtime_error(stem + ".png: gnuplot's picture is cut short (disk full or a file-size limit?); " +
+                             hal::cut_file_outcome(hal::remove_cut_file(stem + ".png")));
+  }
   return "";
 }
 
