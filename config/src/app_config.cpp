@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <initializer_list>
 #include <memory>
 #include <string>
 
@@ -20,6 +21,13 @@ constexpr int kMaxTrackedTargets = 4;  // hal::kMaxTargets (config does not depe
 
 // Checks that need more than one section (run after every section is read).
 void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetCheck target_check) {
+  // A check across keys judges what the file says: a refused value holds the default, and a
+  // second error about it would name a value the user never wrote.
+  const auto read_as_written = [&root](std::initializer_list<const char*> keys) {
+    for (const char* key : keys)
+      if (root.errors().refused(key)) return false;
+    return true;
+  };
   if (c.source == "replay" && c.replay.frames_dir.empty()) {
     root.error_at("replay.frames_dir", "required when source is replay");
   }
@@ -41,7 +49,8 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetC
   const int roi_w = std::min({c.tracker.roi_size_px, c.scan.field_w, c.scan.field_h});
   const int roi_h = roi_w;
   const bool whole_field = roi_w == c.scan.field_w && roi_h == c.scan.field_h;
-  if (c.source == "sim" && !whole_field && (roi_w > c.scan.max_roi_w || roi_h > c.scan.max_roi_h)) {
+  if (c.source == "sim" && !whole_field && (roi_w > c.scan.max_roi_w || roi_h > c.scan.max_roi_h) &&
+      read_as_written({"tracker.roi_size_px", "scan.field_w", "scan.field_h", "scan.max_roi_w", "scan.max_roi_h"})) {
     root.error_at("tracker.roi_size_px",
                   std::to_string(c.tracker.roi_size_px) + " gives a " + std::to_string(roi_w) +
                       "x" + std::to_string(roi_h) + " ROI, larger than scan.max_roi_w/h " +
@@ -53,7 +62,9 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetC
   // rate the user asked for is never kept (100000 Hz was accepted; found probing). The fastest
   // cycle is every target's ROI at the shortest dwell both the scan and the governor allow. Only a
   // rate the config gives: the default's cap is moot under a long governor.min_dwell_ns, not wrong.
-  if (c.governor.enabled && c.governor.min_pose_rate_given && c.source != "replay" && targets > 0) {
+  if (c.governor.enabled && c.governor.min_pose_rate_given && c.source != "replay" && targets > 0 &&
+      read_as_written({"tracker.roi_size_px", "scan.field_w", "scan.field_h", "scan.min_dwell_ns", "scan.dwell_step_ns",
+                       "scan.line_flyback_ns", "governor.min_dwell_ns", "governor.min_pose_rate_hz"})) {
     const std::uint64_t step = c.scan.dwell_step_ns == 0 ? 1 : c.scan.dwell_step_ns;
     const std::uint64_t shortest = (std::max<std::uint64_t>({c.scan.min_dwell_ns, c.governor.min_dwell_ns, 1}) + step - 1) / step * step;
     const double cycle_ns = static_cast<double>(targets) *
@@ -74,7 +85,8 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetC
   // A pattern larger than the field cannot be found in it (found probing: a 16x16 field failed
   // in setup with "render_sim_pattern: size 128 does not fit the field", no key named). A
   // replay's field is its frames' size, checked when they are read.
-  if (c.source != "replay" && c.tracker.pattern_size_px > std::min(c.scan.field_w, c.scan.field_h)) {
+  if (c.source != "replay" && c.tracker.pattern_size_px > std::min(c.scan.field_w, c.scan.field_h) &&
+      read_as_written({"tracker.pattern_size_px", "scan.field_w", "scan.field_h"})) {
     root.error_at("tracker.pattern_size_px",
                   std::to_string(c.tracker.pattern_size_px) + " px does not fit the " +
                       std::to_string(c.scan.field_w) + "x" + std::to_string(c.scan.field_h) +

@@ -45,6 +45,7 @@ void Errors::add(const YAML::Mark& mark, const std::string& key, const std::stri
   std::string where = file_;
   if (!mark.is_null()) where += ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
   messages_.push_back(bounded(printable(where + ": " + key + ": " + what)));
+  refused_.push_back(key);
 }
 
 void Errors::add(const std::string& what) { messages_.push_back(bounded(printable(file_ + ": " + what))); }

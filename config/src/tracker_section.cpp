@@ -86,7 +86,13 @@ void read_tracker(Section& s, TrackerConfig& c) {
   s.opt("sigma_floor_px", c.sigma_floor_px, 0.0, 10.0);
   s.opt("sigma_floor_deg", c.sigma_floor_deg, 0.0, 10.0);
   s.opt("sigma_pattern_noise", c.sigma_pattern_noise);
-  if (const SettingProblem problem = check_tracker_sizes(c, c.pattern_size_px)) s.error(problem.key.c_str(), problem.message);
+  // Not against a default that stands in for a refused value (`pattern_size_px: 7` was refused,
+  // then "the pattern (128 px) is larger than tracker.roi_size_px (96 px)": 128 never written).
+  bool sizes_read = true;
+  for (const char* key : {"pattern_size_px", "roi_size_px", "search_downsample", "angle_step_deg"})
+    sizes_read = sizes_read && !s.errors().refused(s.key_path(key));
+  if (const SettingProblem problem = check_tracker_sizes(c, c.pattern_size_px); problem && sizes_read)
+    s.error(problem.key.c_str(), problem.message);
 }
 
 constexpr std::size_t kMaxPatternSets = 16;  // ipc::kMaxPatternSets (config does not depend on ipc)

@@ -232,6 +232,32 @@ TEST(AppConfig, APatternSetGivenTwiceIsRefused) {
 
 // targets[i].start_area: [x_px, y_px, radius_px], where the target is at start (a twin elsewhere
 // in the field scores as well as the target). Read, and each malformed form named.
+// A value refused by its own range is not judged again against the other keys: it holds the
+// default then, and the second error named a value the user never wrote (`pattern_size_px: 7`
+// refused, then "the pattern (128 px) is larger than tracker.roi_size_px (96 px)"; found probing,
+// hostile round 8). A value the file gives is still judged against the others.
+TEST(AppConfig, ARefusedValueIsNotJudgedAgainstTheOthersOnItsDefault) {
+  const std::string scan = "scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}\n";
+  const std::pair<std::string, const char*> one_error[] = {
+      {scan + "tracker: {pattern_size_px: 7, roi_size_px: 96}", "tracker.pattern_size_px: 7 is outside the allowed range"},
+      {scan + "tracker: {pattern_size_px: 64, roi_size_px: 1e308}", "tracker.roi_size_px: 1e308 is outside the allowed range"},
+      {scan + "tracker: {pattern_size_px: 64, roi_size_px: 0b1100000}", "tracker.roi_size_px: '0b1100000' is not a number"},
+      {scan + "tracker: {pattern_size_px: 64, roi_size_px: 96, angle_step_deg: 0.1}",
+       "tracker.angle_step_deg: 0.1 is outside the allowed range"},
+      {"scan: {field_w: 20000, field_h: 240, max_roi_w: 128, max_roi_h: 128}\ntracker: {pattern_size_px: 64, roi_size_px: 96}",
+       "scan.field_w: 20000 is outside"},
+      {scan + "tracker: {pattern_size_px: 64, roi_size_px: 64}", "the pattern (64 px) is as large as tracker.roi_size_px (64 px)"},
+      {scan + "tracker: {pattern_size_px: 64, roi_size_px: 256}", "256 gives a 240x240 ROI, larger than scan.max_roi_w/h 128x128"},
+  };
+  for (const auto& [tracker, message] : one_error) {
+    AppConfig c;
+    std::string e;
+    EXPECT_FALSE(load_app_config(write_yaml("refused.yaml", tracker + "\n"), c, e)) << tracker;
+    EXPECT_NE(e.find(message), std::string::npos) << tracker << "\n" << e;
+    EXPECT_EQ(std::count(e.begin(), e.end(), '\n') + (e.empty() || e.back() == '\n' ? 0 : 1), 1) << tracker << "\n" << e;
+  }
+}
+
 TEST(AppConfig, AStartAreaIsReadAndItsMistakesNamed) {
   AppConfig c;
   std::string e;

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <limits>
 #include <set>
+#include <algorithm>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -37,10 +38,16 @@ class Errors {
   const std::string& file() const noexcept { return file_; }
   void note_key(std::string path, KeyKind kind) { keys_.push_back({std::move(path), kind}); }
   const std::vector<KeyInfo>& keys() const noexcept { return keys_; }
+  // Whether a message names this key (its dotted path): a check across keys skips a key whose
+  // value was refused, which holds the default, not what the file says.
+  bool refused(const std::string& path) const {
+    return std::find(refused_.begin(), refused_.end(), path) != refused_.end();
+  }
 
  private:
   std::string file_;
   std::vector<std::string> messages_;
+  std::vector<std::string> refused_;  // the keys messages_ name
   std::vector<KeyInfo> keys_;
 };
 
