@@ -31,6 +31,7 @@
 #include "sempose/hal/pgm.hpp"
 #include "sempose/hal/scan_request_check.hpp"
 #include "sempose/hal/sim_source.hpp"
+#include "sempose/session/made_folders.hpp"
 
 namespace {
 
@@ -98,8 +99,8 @@ bool load_sim_sections(const std::string& path, sempose::config::ScanLimits& sca
 }
 
 // Removes what an interrupted recording wrote: its first `frames` frames, the two CSV files
-// and the folder when this run made it (and nothing else is in it).
-void remove_recording(const std::string& dir, unsigned long long frames, bool made_dir) {
+// and the folders this run made (each when nothing else is in it).
+void remove_recording(const std::string& dir, unsigned long long frames, sempose::session::MadeFolders& made) {
   std::error_code ec;
   for (unsigned long long f = 0; f < frames; ++f) {
     char name[64];
@@ -108,7 +109,7 @@ void remove_recording(const std::string& dir, unsigned long long frames, bool ma
   }
   std::filesystem::remove(dir + "/frames.csv", ec);
   std::filesystem::remove(dir + "/ground_truth.csv", ec);
-  if (made_dir) std::filesystem::remove(dir, ec);  // only when empty
+  made.remove_empty();
 }
 
 }  // namespace
@@ -178,7 +179,7 @@ int sempose::cli::sim(int argc, char** argv) {
     }
   }
 
-  bool made_dir = false;  // --out did not exist: made here (and removed again on a signal)
+  session::MadeFolders made;  // --out and the folders above it that did not exist (removed again on a signal or failure)
   {
     // Frames of an earlier, longer recording would stay beside the new ones (the next replay
     // then fails on a frame without a time stamp, or a pattern averages both): an existing
@@ -199,11 +200,10 @@ int sempose::cli::sim(int argc, char** argv) {
       return true;
     };
     if (holds_a_recording()) return 2;
-    made_dir = !std::filesystem::exists(out_dir, ec);
-    std::filesystem::create_directories(out_dir, ec);
-    if (ec || !std::filesystem::is_directory(out_dir)) {
+    if (!made.make(out_dir, ec)) {
       std::fprintf(stderr, "sempose sim: --out '%s': cannot make it a folder of frames (%s)\n", out_dir.c_str(),
                    ec ? ec.message().c_str() : "it exists and is not a directory");
+      made.remove_empty();
       return 1;
     }
     // Two sims into one folder at once both passed the check above and mixed their frames under
@@ -227,11 +227,15 @@ int sempose::cli::sim(int argc, char** argv) {
     hal::FramePool pool(1, static_cast<std::size_t>(scan.field_w) * scan.field_h);
     hal::FrameSlot& slot = pool[0];
     std::FILE* frames_csv = std::fopen((out_dir + "/frames.csv").c_str(), "w");
+    const int frames_err = errno;
     std::FILE* truth_csv = std::fopen((out_dir + "/ground_truth.csv").c_str(), "w");
+    const int truth_err = errno;
     if (!frames_csv || !truth_csv) {
-      std::fprintf(stderr, "sempose sim: %s: cannot create frames.csv / ground_truth.csv\n", out_dir.c_str());
+      std::fprintf(stderr, "sempose sim: %s: cannot create %s (%s)\n", out_dir.c_str(),
+                   frames_csv ? "ground_truth.csv" : "frames.csv", std::strerror(frames_csv ? truth_err : frames_err));
       if (frames_csv) std::fclose(frames_csv);
       if (truth_csv) std::fclose(truth_csv);
+      remove_recording(out_dir, 0, made);
       return 1;
     }
     int enabled = 0;
@@ -251,7 +255,7 @@ int sempose::cli::sim(int argc, char** argv) {
       if (const int sig = cli::stop_requested()) {
         std::fclose(frames_csv);
         std::fclose(truth_csv);
-        remove_recording(out_dir, f, made_dir);
+        remove_recording(out_dir, f, made);
         char sname[24];
         std::fprintf(stderr, "sempose sim: stopped by %s after %llu of %llu frames: removed the incomplete recording "
                      "from %s\n", cli::signal_name(sig, sname), f, frames, out_dir.c_str());
@@ -264,6 +268,7 @@ int sempose::cli::sim(int argc, char** argv) {
                      scan.min_dwell_ns, scan.max_dwell_ns);
         std::fclose(frames_csv);
         std::fclose(truth_csv);
+        remove_recording(out_dir, f, made);
         return 2;
       }
       while (source.poll() != hal::PollResult::kDone) {
@@ -291,7 +296,7 @@ int sempose::cli::sim(int argc, char** argv) {
     if (!frames_ok || !truth_ok) {
       std::fprintf(stderr, "sempose sim: %s: writing the CSV files failed (disk full?); removed the incomplete "
                    "recording\n", out_dir.c_str());
-      remove_recording(out_dir, frames, made_dir);
+      remove_recording(out_dir, frames, made);
       return 1;
     }
     for (std::size_t t = 0; t < in_field.size(); ++t) {
@@ -306,7 +311,7 @@ int sempose::cli::sim(int argc, char** argv) {
     // A frame that could not be written (a full disk): the recording so far is removed, as on
     // a signal — it left a cut PGM, empty CSV files, and a folder the next sim refused.
     std::fprintf(stderr, "sempose sim: %s; removed the incomplete recording from %s\n", e.what(), out_dir.c_str());
-    remove_recording(out_dir, frames_started, made_dir);
+    remove_recording(out_dir, frames_started, made);
     return 1;
   }
   // The recording is whole; only the line saying so was lost (found probing: `> /dev/full`

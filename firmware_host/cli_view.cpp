@@ -24,6 +24,7 @@
 #include "sempose/operator_view/pose_csv.hpp"
 #include "sempose/operator_view/roi_overlay.hpp"
 #include "sempose/operator_view/track_plot.hpp"
+#include "sempose/session/made_folders.hpp"
 
 namespace {
 
@@ -47,9 +48,11 @@ int usage(std::FILE* out) {
 // run (a track plot and ROI pictures that end early), so the ones this call wrote are removed
 // and the process ends by the signal, as replay and sim do (cli_signals.hpp). Each picture is
 // written whole before the signal is looked at, so no cut PNG is left either way.
-[[noreturn]] void stop_view(int sig, const std::string& out_dir, const std::vector<std::string>& written) {
+[[noreturn]] void stop_view(int sig, const std::string& out_dir, const std::vector<std::string>& written,
+                            session::MadeFolders& made) {
   std::size_t removed = 0;
   for (const auto& f : written) removed += std::remove(f.c_str()) == 0;
+  made.remove_empty();
   char name[24];
   std::fprintf(stderr, "sempose view: stopped by %s; removed the %zu file(s) it had written to %s\n",
                sempose::cli::signal_name(sig, name), removed, out_dir.c_str());
@@ -59,11 +62,12 @@ int usage(std::FILE* out) {
 // A file view could not write whole (a full disk, a file-size limit): every file it wrote is
 // removed, and the folder when view made it, so no folder that looks like a whole view is left.
 int abandon_view(const std::string& why, const std::string& out_dir, const std::vector<std::string>& written,
-                 bool made_out_dir) {
+                 session::MadeFolders& made) {
   std::size_t removed = 0;
   for (const auto& f : written) removed += std::remove(f.c_str()) == 0;
+  const bool made_out_dir = made.made(out_dir);
+  made.remove_empty();
   std::error_code ec;
-  if (made_out_dir) std::filesystem::remove(out_dir, ec);  // only when empty
   std::fprintf(stderr, "sempose view: %s; removed the %zu file(s) it had written to %s%s\n", why.c_str(), removed,
                out_dir.c_str(), made_out_dir && !std::filesystem::exists(out_dir, ec) ? " and the folder" : "");
   return 1;
@@ -128,6 +132,7 @@ int sempose::cli::view(int argc, char** argv) {
 
   cli::catch_termination_signals();
   std::vector<std::string> written;  // what this call wrote, removed if a signal stops it
+  session::MadeFolders made;         // --out and the folders above it that did not exist
   try {
     const auto rows = operator_view::read_pose_csv(poses_path);
     const auto targets = operator_view::targets_of(rows);
@@ -190,17 +195,15 @@ int sempose::cli::view(int argc, char** argv) {
                                    " differs from " + first_file + "'s " + std::to_string(first_w) + "x" +
                                    std::to_string(first_h) + ": not one recording");
         }
-        if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
+        if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written, made);
       }
     }
 
-    if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
-    std::error_code out_ec;
-    const bool made_out_dir = !std::filesystem::exists(out_dir, out_ec);
+    if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written, made);
     {
       std::error_code ec;  // a folder that cannot be made: named by its option, not a bare filesystem error
-      std::filesystem::create_directories(out_dir, ec);
-      if (ec) {
+      if (!made.make(out_dir, ec)) {
+        made.remove_empty();
         std::fprintf(stderr, "sempose view: --out: cannot create the folder '%s' (%s)\n", out_dir.c_str(), ec.message().c_str());
         return 2;
       }
@@ -213,9 +216,9 @@ int sempose::cli::view(int argc, char** argv) {
     try {
       plot_problem = operator_view::plot_track(rows, out_dir + "/track", title);
     } catch (const std::exception& e) {
-      return abandon_view(e.what(), out_dir, written, made_out_dir);
+      return abandon_view(e.what(), out_dir, written, made);
     }
-    if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
+    if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written, made);
 
     int pictures = 0;
     std::string first, last;
@@ -254,13 +257,13 @@ int sempose::cli::view(int argc, char** argv) {
         name += ".png";
         operator_view::write_png(out_dir + "/" + name, img);
         written.push_back(out_dir + "/" + name);
-        if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written);
+        if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written, made);
         if (first.empty()) first = name;
         last = name;
         ++pictures;
       }
     } catch (const std::exception& e) {
-      return abandon_view(e.what(), out_dir, written, made_out_dir);
+      return abandon_view(e.what(), out_dir, written, made);
     }
     // ROI pictures an earlier view left in --out (a longer run, another --every): they stayed among
     // this view's, a picture of frame 15 that is not this run's frame 15 (found probing). View's

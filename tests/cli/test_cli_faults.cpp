@@ -1818,6 +1818,32 @@ TEST(CliFaults, SimOnAFullDiskLeavesNoHalfRecording) {
   EXPECT_FALSE(fs::exists(dir + "/rec")) << "a half recording is left";
   const Outcome again = run({"sim", "--out", dir + "/rec", "--frames", "2", "--config", cfg}, 120);
   EXPECT_EQ(again.code, 0) << again.err;
+  // The folders above --out that sim made go too (hostile round 8: `a/b` stayed).
+  g_child_file_size_limit = 50 * 1024;
+  const Outcome deep = run({"sim", "--out", dir + "/a/b/rec", "--frames", "5", "--config", cfg}, 120);
+  g_child_file_size_limit = -1;
+  EXPECT_EQ(deep.code, 1) << deep.err;
+  EXPECT_FALSE(fs::exists(dir + "/a")) << "the folders sim made above --out are left";
+}
+
+// A run refused after its outputs' folders were made (a GPIO chip that is not there; a CAN
+// interface, a lock, the pipeline's memory alike) left those folders behind (hostile round 8:
+// `new1/sub` and `newhist/deep`); a folder that held something before stays.
+TEST(CliFaults, ARefusedRunLeavesNoFoldersItMade) {
+  const std::string dir = work_dir() + "/run_refused_folders";
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/kept");
+  std::ofstream(dir + "/kept/notes.txt") << "the operator's own file\n";
+  const std::string cfg = small_config(dir, "output: {poses_csv: " + dir + "/new1/sub/poses.csv, hist_dir: " + dir +
+                                                "/newhist/deep}\ncan: {log_file: " + dir + "/kept/new/can.log}\n"
+                                                "gpio: {chip: " + dir + "/no_such_chip, pose_valid_line: 1}\n");
+  const Outcome r = run({"run", "--config", cfg, "--duration", "0.3"}, 60);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("no_such_chip"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/new1")) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/newhist")) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/kept/new")) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/kept/notes.txt"));
 }
 
 // `count` frames of w x h, every sample `value`, recorded into the folder `frames`.

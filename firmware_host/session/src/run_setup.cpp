@@ -157,11 +157,17 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
   ::signal(SIGPIPE, SIG_IGN);
   // Output files may name folders that do not exist yet (out/demo/...): made now, after every
   // check and the input setup, so a refused run leaves nothing behind.
+  // The folders made here are removed again when the run is refused (CAN, GPIO, a lock, the
+  // pipeline's memory): a refused run used to leave them (hostile round 8).
   const std::string can_log = can_log_override.empty() && cfg.can.interface.empty() ? cfg.can.log_file : can_log_override;
   for (const std::string& file : {cfg.output.poses_csv, can_log}) {
     const auto parent = std::filesystem::path(file).parent_path();
     std::error_code ec;
-    if (!file.empty() && !parent.empty()) std::filesystem::create_directories(parent, ec);
+    if (!file.empty() && file != "-" && !parent.empty()) out.made_folders.make(parent, ec);
+  }
+  if (!hist_dir.empty()) {
+    std::error_code ec;
+    out.made_folders.make(hist_dir, ec);  // acquire_folder below names a folder it cannot open
   }
   // Each output file is locked just before it is opened for writing (and truncated): a second
   // run on the same file stops here, naming it, and the first one's lines stay as they are.
@@ -187,6 +193,8 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     out.can.channel.reset();
     if (!log_existed && exists(can_log)) ::unlink(can_log.c_str());
     if (!csv_existed && exists(cfg.output.poses_csv)) ::unlink(cfg.output.poses_csv.c_str());
+    out.output_locks.clear();  // the histogram folder's lock holds it open
+    out.made_folders.remove_empty();
     return st;
   };
   const std::size_t log_lock = out.output_locks.size();

@@ -21,6 +21,7 @@
 #include "sempose/pipeline/stage_clock.hpp"
 #include "sempose/pipeline/tracker_setup.hpp"
 #include "sempose/rt/result.hpp"
+#include "sempose/session/made_folders.hpp"
 
 namespace sempose::session {
 
@@ -69,6 +70,7 @@ struct RunSetup {
   std::unique_ptr<pipeline::TeePoseSink> tee;
   std::unique_ptr<can_output::GpioPoseSink> gpio_sink;
   std::vector<OutputLock> output_locks;         // the CSV's, the candump log's and the histogram folder's, held to the end
+  MadeFolders made_folders;                     // the outputs' folders build_outputs made (removed when it refuses the run)
   pipeline::PoseSink* sink = nullptr;           // the head of the chain the pipeline publishes to
   std::vector<std::string> output_notes;        // what setup did to the outputs (output.keep_previous), for the log
   std::unique_ptr<pipeline::Pipeline> pipeline;
