@@ -299,7 +299,7 @@ int run_replay(int argc, char** argv) {
   const rt::Status made = session::build_inputs(session::replay_config(app, frames_dir), run);
   const pipeline::TrackerSetup& trackers = run.trackers;
   if (!made.ok) {
-    std::fprintf(stderr, "sempose replay: %s\n", made.message.c_str());
+    std::fprintf(stderr, "sempose replay: %s\n", config::terminal_text(made.message).c_str());
     return 2;
   }
   for (const auto& w : trackers.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
@@ -316,7 +316,7 @@ int run_replay(int argc, char** argv) {
     try {
       rows = hal::read_truth_csv(truth_path, hal::kMaxTargets, &non_finite, &widest);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sempose replay: --truth: %s\n", e.what());
+      std::fprintf(stderr, "sempose replay: --truth: %s\n", config::terminal_text(e.what()).c_str());
       return 2;
     }
     // Columns past the target (a hand-made truth with a scale, say) were read and dropped without
@@ -369,7 +369,7 @@ int run_replay(int argc, char** argv) {
   if (const int sig = cli::stop_requested()) stop_replay(sig);
   session::OutputLock out_lock;  // a run or another replay writing the same file: refused
   if (const rt::Status locked = out_lock.acquire("--out", out_path); !locked) {
-    std::fprintf(stderr, "sempose replay: %s\n", locked.message.c_str());
+    std::fprintf(stderr, "sempose replay: %s\n", config::terminal_text(locked.message).c_str());
     return 2;
   }
   pipeline::CsvPoseSink csv(out_path, 1024, trackers.trackers.size() > 1);
@@ -377,7 +377,7 @@ int run_replay(int argc, char** argv) {
     // The sink names the config key; here the file came from --out.
     std::string message = opened.message;
     if (message.rfind("output.poses_csv:", 0) == 0) message.replace(0, 17, "--out:");
-    std::fprintf(stderr, "sempose replay: %s\n", message.c_str());
+    std::fprintf(stderr, "sempose replay: %s\n", config::terminal_text(message).c_str());
     return 2;
   }
   g_csv = &csv;
@@ -392,7 +392,7 @@ int run_replay(int argc, char** argv) {
   pipeline::OfflineRunStats stats;
   const rt::Status ran = runner.run(0, stats);
   if (!ran.ok) {
-    std::fprintf(stderr, "sempose replay: %s%s\n", ran.message.c_str(),
+    std::fprintf(stderr, "sempose replay: %s%s\n", config::terminal_text(ran.message).c_str(),
                  remove_incomplete_csv() ? ("; removed the incomplete " + g_out_path).c_str() : "");
     return 2;
   }
@@ -442,7 +442,7 @@ int sempose::cli::replay(int argc, char** argv) {
   try {
     return run_replay(argc, argv);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sempose replay: %s\n", e.what());
+    std::fprintf(stderr, "sempose replay: %s\n", config::terminal_text(e.what()).c_str());
     return 2;
   }
 }

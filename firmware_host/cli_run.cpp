@@ -377,7 +377,7 @@ int sempose::cli::run(int argc, char** argv) {
   session::RunSetup run;
   rt::Status st = session::build_inputs(cfg, run);
   if (!st) {
-    std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+    std::fprintf(stderr, "sempose run: %s\n", config::terminal_text(st.message).c_str());
     return 2;
   }
   // A recording sets the field: the stall rule the config was checked against with
@@ -399,7 +399,7 @@ int sempose::cli::run(int argc, char** argv) {
   // creation failed only after the CSV and the candump log had been emptied (found probing).
   st = rt::try_thread_room(cfg.pipeline.output_on_correlation_thread ? 2 : 3, rt::RtThreadConfig{}.stack_bytes, "the pipeline");
   if (!st) {
-    std::fprintf(stderr, "sempose run: %s (no output touched)\n", st.message.c_str());
+    std::fprintf(stderr, "sempose run: %s (no output touched)\n", config::terminal_text(st.message).c_str());
     return 3;
   }
   // The histograms' snapshots for the status lines, SIGUSR1 dumps and the summary, made once here:
@@ -416,7 +416,7 @@ int sempose::cli::run(int argc, char** argv) {
   }
   st = session::build_outputs(cfg, opt.can_log, hist_dir, run);
   if (!st) {
-    std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+    std::fprintf(stderr, "sempose run: %s\n", config::terminal_text(st.message).c_str());
     return 2;
   }
   pipeline::Pipeline* pipe = run.pipeline.get();
@@ -461,19 +461,19 @@ int sempose::cli::run(int argc, char** argv) {
   if (cfg.pipeline.lock_memory) {
     st = rt::lock_process_memory(strict);
     if (!st) {
-      std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+      std::fprintf(stderr, "sempose run: %s\n", config::terminal_text(st.message).c_str());
       return 3;
     }
-    if (!st.message.empty()) std::printf("warning: %s\n", st.message.c_str());
+    if (!st.message.empty()) std::printf("warning: %s\n", config::terminal_text(st.message).c_str());
   }
   rt::CpuDmaLatencyHold dma;
   if (cfg.pipeline.hold_dma_latency) {
     st = dma.acquire(strict);
     if (!st) {
-      std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+      std::fprintf(stderr, "sempose run: %s\n", config::terminal_text(st.message).c_str());
       return 3;
     }
-    if (!st.message.empty()) std::printf("warning: %s\n", st.message.c_str());
+    if (!st.message.empty()) std::printf("warning: %s\n", config::terminal_text(st.message).c_str());
   }
   if (const int sig = pending_stop_signal(signals)) {
     std::printf("stopped by %s during setup\n", stop_signal_name(sig));
@@ -483,7 +483,7 @@ int sempose::cli::run(int argc, char** argv) {
   const std::uint64_t allocs_at_start = rt::alloc::allocations();
   st = pipe->start(strict);
   if (!st) {
-    std::fprintf(stderr, "sempose run: %s\n", st.message.c_str());
+    std::fprintf(stderr, "sempose run: %s\n", config::terminal_text(st.message).c_str());
     return 3;
   }
   for (const auto& p : pipe->placements()) std::printf("thread %s\n", p.c_str());

@@ -216,7 +216,7 @@ int sempose::cli::view(int argc, char** argv) {
     try {
       plot_problem = operator_view::plot_track(rows, out_dir + "/track", title);
     } catch (const std::exception& e) {
-      return abandon_view(e.what(), out_dir, written, made);
+      return abandon_view(config::terminal_text(e.what()), out_dir, written, made);
     }
     if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written, made);
 
@@ -263,7 +263,7 @@ int sempose::cli::view(int argc, char** argv) {
         ++pictures;
       }
     } catch (const std::exception& e) {
-      return abandon_view(e.what(), out_dir, written, made);
+      return abandon_view(config::terminal_text(e.what()), out_dir, written, made);
     }
     // ROI pictures an earlier view left in --out (a longer run, another --every): they stayed among
     // this view's, a picture of frame 15 that is not this run's frame 15 (found probing). View's
@@ -292,7 +292,7 @@ int sempose::cli::view(int argc, char** argv) {
     if (cli::report_lost("view")) return 4;
     return plot_problem.empty() ? 0 : 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sempose view: %s\n", e.what());
+    std::fprintf(stderr, "sempose view: %s\n", config::terminal_text(e.what()).c_str());
     return 2;
   }
 }

@@ -10,6 +10,7 @@
 #include <new>
 
 #include "cli.hpp"
+#include "sempose/config/reader.hpp"
 
 namespace {
 
@@ -81,7 +82,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "sempose %s: error: out of memory (the machine's, or an address-space limit: ulimit -v, "
                    "RLIMIT_AS)\n", c.name);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sempose %s: error: %s\n", c.name, e.what());
+      std::fprintf(stderr, "sempose %s: error: %s\n", c.name, sempose::config::terminal_text(e.what()).c_str());
     } catch (...) {
       std::fprintf(stderr, "sempose %s: error: unexpected failure (unknown exception)\n", c.name);
     }

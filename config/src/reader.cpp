@@ -199,7 +199,7 @@ void Section::finish() {
     const std::string k = kv.first.Scalar();
     const auto [it, fresh] = seen.emplace(k, kv.first.Mark());
     if (!fresh) {
-      errors_->add(kv.first.Mark(), key_path(k.c_str()),
+      errors_->add(kv.first.Mark(), key_path(k),
                    "duplicate key (first given on line " + std::to_string(it->second.line + 1) + ")");
       continue;
     }
@@ -207,7 +207,7 @@ void Section::finish() {
       // The keys known here listed once per section (with every unknown key it was 1 kB a line).
       std::string known;
       for (const auto& r : read_) known += (known.empty() ? "" : ", ") + r;
-      errors_->add(kv.first.Mark(), key_path(k.c_str()),
+      errors_->add(kv.first.Mark(), key_path(k),
                    unknown_seen ? std::string("unknown key (the known ones are listed above)")
                                 : "unknown key (known here: " + (known.empty() ? std::string("none") : known) + ")");
       unknown_seen = true;
@@ -312,6 +312,18 @@ std::string printable(const std::string& value) {
   }
   out.append(value, i, std::string::npos);
   return out;
+}
+
+std::string terminal_text(const std::string& message) {
+  std::string out;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t end = message.find('\n', start);
+    out += bounded(printable(message.substr(start, end == std::string::npos ? std::string::npos : end - start)));
+    if (end == std::string::npos) return out;
+    out += '\n';
+    start = end + 1;
+  }
 }
 
 std::string control_character_problem(const std::string& value) {

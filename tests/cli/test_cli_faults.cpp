@@ -1826,6 +1826,24 @@ TEST(CliFaults, SimOnAFullDiskLeavesNoHalfRecording) {
   EXPECT_FALSE(fs::exists(dir + "/a")) << "the folders sim made above --out are left";
 }
 
+// An input path or a file's cell quoted in an error reached stderr raw: a terminal escape in
+// `replay --frames` or in a poses CSV's cell could retitle or clear the operator's terminal
+// (hostile round 8). Every error line is written escaped.
+TEST(CliFaults, ErrorsQuoteInputPathsAndCellsEscaped) {
+  const std::string dir = work_dir() + "/escaped_errors";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const Outcome rp = run({"replay", "--frames", dir + "/zz\x1b]0;PWN\x07", "--pattern", dir + "/x.pgm", "--out", dir + "/r.csv"});
+  EXPECT_EQ(rp.code, 2) << rp.err;
+  EXPECT_EQ(rp.err.find('\x1b'), std::string::npos) << rp.err;
+  EXPECT_NE(rp.err.find("zz\\x1b]0;PWN\\x07"), std::string::npos) << rp.err;
+  std::ofstream(dir + "/esc.csv") << "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,1,1,1,1,1,TRACK\x1b]0;PWN\x07ING\n";
+  const Outcome vw = run({"view", "--poses", dir + "/esc.csv", "--out", dir + "/v"});
+  EXPECT_EQ(vw.code, 2) << vw.err;
+  EXPECT_EQ(vw.err.find('\x1b'), std::string::npos) << vw.err;
+  EXPECT_NE(vw.err.find("status 'TRACK\\x1b]0;PWN\\x07ING'"), std::string::npos) << vw.err;
+}
+
 // A run refused after its outputs' folders were made (a GPIO chip that is not there; a CAN
 // interface, a lock, the pipeline's memory alike) left those folders behind (hostile round 8:
 // `new1/sub` and `newhist/deep`); a folder that held something before stays.

@@ -443,7 +443,9 @@ TEST(ConfigFaults, ErrorLinesQuoteTheFilesTextEscaped) {
   for (const Case& c : {Case{with(base_yaml(dir), "sim.seed", "\"1\\e]0;pwned\\a\""), "sim.seed: '1\\x1b]0;pwned\\x07' is not"},
                         Case{base_yaml(dir) + "service: {\"\\e[2J\\u202eevil\": 1}\n", "service.\\x1b[2J\\u202eevil: unknown key"},
                         Case{base_yaml(dir) + "\"a\\nsummary: poses=999 ok\": 1\n", "a\\nsummary: poses=999 ok: unknown key"},
-                        Case{base_yaml(dir) + "x: \"\\\x1b\"\n", "(syntax): unknown escape character: \\x1b"}}) {
+                        Case{base_yaml(dir) + "x: \"\\\x1b\"\n", "(syntax): unknown escape character: \\x1b"},
+                        // A NUL in a key was cut there: "sim: unknown key (known here: ..., sim, ...)" (hostile round 8).
+                        Case{base_yaml(dir) + "\"sim\\0\": 1\n", "sim\\0: unknown key"}}) {
     AppConfig cfg;
     std::string e;
     EXPECT_FALSE(parse_app_config(c.yaml, dir + "/c.yaml", cfg, e)) << c.yaml;

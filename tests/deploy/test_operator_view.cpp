@@ -239,6 +239,14 @@ TEST(PoseCsv, ErrorsNameFileLineAndCell) {
                     p + ":2: target '" + long_name.substr(0, 80) + "...' is not a target name (1..64 bytes");
   expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status,target\n0,0,1,2,3,0.5,TRACKING,a b\n",
                     p + ":2: target 'a b' is not a target name");
+  // A cell is quoted escaped and cut (hostile round 8): a terminal escape reached stderr raw, a NUL
+  // ended the message mid-quote, a 2 MB cell was a 2 MB error line.
+  expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0,1,2,3,0.5,TRACK\x1b]0;X\x07ING\n",
+                    p + ":2: status 'TRACK\\x1b]0;X\\x07ING' is not TRACKING");
+  expect_read_error(p, std::string("frame,t_ns,x_px,y_px,phi_deg,score,status\n0,3\0" "7,1,2,3,0.5,TRACKING\n", 67),
+                    p + ":2: t_ns '3\\07' is not a whole number");
+  expect_read_error(p, "frame,t_ns,x_px,y_px,phi_deg,score,status\n0,0," + std::string(2'000'000, '1') + ",2,3,0.5,TRACKING\n",
+                    p + ":2: '" + std::string(80, '1') + "...' is not a finite number");
   std::ofstream(p) << "x,y\n1,2\n";
   EXPECT_THROW(read_pose_csv(p), std::runtime_error);
   fs::remove(p);

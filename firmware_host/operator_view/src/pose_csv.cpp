@@ -1,4 +1,5 @@
 #include "sempose/operator_view/pose_csv.hpp"
+#include "sempose/config/reader.hpp"
 #include "sempose/config/target_name.hpp"
 #include "sempose/hal/frame.hpp"
 
@@ -19,12 +20,22 @@ namespace {
 // Far beyond any scan field (a DAC of 16 bits addresses 65536 positions per axis).
 constexpr double kMaxPositionPx = 1e6;
 
+// A cell or line as an error quotes it: control characters escaped (a terminal escape in a cell
+// reached stderr raw, a NUL ended the message mid-quote) and at most 80 bytes of it (a 2 MB cell
+// was a 2 MB error line; hostile round 8).
+std::string cell_text(const std::string& cell) {
+  constexpr std::size_t kShown = 80;
+  std::size_t cut = std::min(cell.size(), kShown);
+  while (cut > 0 && cut < cell.size() && (static_cast<unsigned char>(cell[cut]) & 0xC0) == 0x80) --cut;
+  return config::printable(cell.substr(0, cut)) + (cut < cell.size() ? "..." : "");
+}
+
 double number(const std::string& cell, const std::string& where) {
   char* end = nullptr;
   const double v = std::strtod(cell.c_str(), &end);
-  if (cell.empty() || end != cell.c_str() + cell.size()) throw std::runtime_error(where + ": '" + cell + "' is not a number");
+  if (cell.empty() || end != cell.c_str() + cell.size()) throw std::runtime_error(where + ": '" + cell_text(cell) + "' is not a number");
   // A pose sempose writes is always finite; nan/inf would only reach the plot as a gap.
-  if (!std::isfinite(v)) throw std::runtime_error(where + ": '" + cell + "' is not a finite number");
+  if (!std::isfinite(v)) throw std::runtime_error(where + ": '" + cell_text(cell) + "' is not a finite number");
   return v;
 }
 
@@ -38,7 +49,7 @@ double number_in(const std::string& cell, const std::string& where, const char* 
   const bool digits = !unsigned_part.empty() && unsigned_part.find_first_not_of("0123456789") == std::string::npos;
   if (v < lo || v > hi || (whole && (v != std::floor(v) || !digits))) {
     std::ostringstream m;
-    m << where << ": " << what << " '" << cell << "' is not " << (whole ? "a whole number" : "a number") << " in [" << lo
+    m << where << ": " << what << " '" << cell_text(cell) << "' is not " << (whole ? "a whole number" : "a number") << " in [" << lo
       << ", " << hi << "]";
     throw std::runtime_error(m.str());
   }
@@ -55,7 +66,7 @@ Int whole_number(const std::string& cell, const std::string& where, const char* 
   const char* end = cell.data() + cell.size();
   const auto [ptr, ec] = std::from_chars(cell.data(), end, v);
   if (cell.empty() || ec != std::errc{} || ptr != end) {
-    throw std::runtime_error(where + ": " + what + " '" + cell + "' is not a whole number in [" +
+    throw std::runtime_error(where + ": " + what + " '" + cell_text(cell) + "' is not a whole number in [" +
                              std::to_string(std::numeric_limits<Int>::min()) + ", " +
                              std::to_string(std::numeric_limits<Int>::max()) + "]");
   }
@@ -66,7 +77,7 @@ std::string status(const std::string& cell, const std::string& where) {
   for (const char* s : {"TRACKING", "ACQUIRING", "LOST", "UNCERTAIN"}) {
     if (cell == s) return cell;
   }
-  throw std::runtime_error(where + ": status '" + cell + "' is not TRACKING, ACQUIRING, LOST or UNCERTAIN");
+  throw std::runtime_error(where + ": status '" + cell_text(cell) + "' is not TRACKING, ACQUIRING, LOST or UNCERTAIN");
 }
 
 }  // namespace
@@ -90,7 +101,7 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
       // truth reader does: shown in the error, it made the header look right (found probing).
       if (line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
       if (line.rfind("frame,t_ns,x_px,y_px,phi_deg,score,status", 0) != 0) {
-        throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale]");
+        throw std::runtime_error(path + ":1: header '" + cell_text(line) + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale]");
       }
       // Columns after status: target (several targets), scale, the four σ and the angle's order
       // (newer files), in that order; the view reads the order (the angle plot says what φ
@@ -104,7 +115,7 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
       if (with_sigma) rest.resize(rest.size() - sigmas.size());
       if ((rest != "" && rest != ",target" && rest != ",scale" && rest != ",target,scale") ||
           (with_sigma && rest.find(",scale") == std::string::npos) || (with_order && !with_sigma)) {
-        throw std::runtime_error(path + ":1: header '" + line + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale[" +
+        throw std::runtime_error(path + ":1: header '" + cell_text(line) + "' is not frame,t_ns,x_px,y_px,phi_deg,score,status[,target][,scale[" +
                                  sigmas + "[" + order + "]]]");
       }
       with_target = rest.rfind(",target", 0) == 0;
@@ -138,14 +149,13 @@ std::vector<PoseRow> read_pose_csv(const std::string& path) {
       // A name sempose writes keeps the config's rule; view makes file names of it (found probing:
       // two 100-byte names cut to one file name, "6 ROI pictures" and 3 files).
       if (!config::is_target_name(r.target)) {
-        const std::string shown = r.target.size() > 80 ? r.target.substr(0, 80) + "..." : r.target;
-        throw std::runtime_error(where + ": target '" + shown + "' is not a target name (1.." +
+        throw std::runtime_error(where + ": target '" + cell_text(r.target) + "' is not a target name (1.." +
                                  std::to_string(config::kMaxTargetNameLength) +
                                  " bytes of UTF-8, no spaces, control or invisible characters)");
       }
       if (std::find(names.begin(), names.end(), r.target) == names.end()) {
         if (names.size() == static_cast<std::size_t>(hal::kMaxTargets)) {
-          throw std::runtime_error(where + ": target '" + r.target + "' is a " + std::to_string(names.size() + 1) +
+          throw std::runtime_error(where + ": target '" + cell_text(r.target) + "' is a " + std::to_string(names.size() + 1) +
                                    "th target; sempose tracks at most " + std::to_string(hal::kMaxTargets));
         }
         names.push_back(r.target);

@@ -65,7 +65,9 @@ class Section {
   // Given as something other than a mapping (a scalar or a list: already reported when read).
   bool not_a_mapping() const noexcept { return not_a_mapping_; }
   bool has(const char* key) const { return present() && node_[key].IsDefined(); }
-  std::string key_path(const char* key) const { return path_.empty() ? key : path_ + "." + key; }
+  std::string key_path(const char* key) const { return key_path(std::string(key)); }
+  // The file's own key, whole: as a C string a key holding a NUL ("sim\0") was named "sim".
+  std::string key_path(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
 
   // Optional scalar: leaves `out` (the default) when absent. Numbers are range-checked.
   template <typename T>
@@ -152,6 +154,11 @@ std::string output_dir_problem(const std::string& path);
 std::string control_character_problem(const std::string& value);
 // The value with those characters written as escapes (\n, \t, \x01, \u2028): safe in a message.
 std::string printable(const std::string& value);
+// A message for the terminal or a log: each of its lines printable() and at most ~1 kB, its line
+// breaks kept. For text that quotes a file or a path (an exception's what() from a reader): a
+// cell holding a terminal escape reached stderr raw, a NUL ended the message mid-quote, and a
+// 2 MB cell was a 2 MB line (hostile round 8).
+std::string terminal_text(const std::string& message);
 
 // ---- template definitions ----
 
