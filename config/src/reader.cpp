@@ -84,6 +84,15 @@ bool tag_is_plain(const std::string& tag) {
          tag == "tag:yaml.org,2002:float" || tag == "tag:yaml.org,2002:bool";
 }
 
+std::string tag_kind_problem(const std::string& tag, KeyKind kind) {
+  const bool is_bool = tag == "tag:yaml.org,2002:bool", is_number = tag == "tag:yaml.org,2002:int" || tag == "tag:yaml.org,2002:float";
+  const bool is_text = tag == "tag:yaml.org,2002:str";
+  if (kind == KeyKind::kBool && (is_number || is_text)) return is_text ? "text (!!str)" : "a number (!!" + tag.substr(18) + ")";
+  if ((kind == KeyKind::kFloat || kind == KeyKind::kInteger) && (is_bool || is_text))
+    return is_text ? "text (!!str)" : "a boolean (!!bool)";
+  return "";
+}
+
 Section::Section(YAML::Node node, std::string path, Errors& errors)
     : node_(std::move(node)), path_(std::move(path)), errors_(&errors) {
   if (node_.IsDefined() && !node_.IsNull() && !node_.IsMap()) {

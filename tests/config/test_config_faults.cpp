@@ -351,6 +351,18 @@ TEST(ConfigFaults, TaggedValuesOtherThanPlainOnesAreRefused) {
                                "t.yaml", c, e))
       << e;
   EXPECT_EQ(c.tracker.roi_size_px, 160);
+  // A core tag of another kind than the key's was read as the text stands (hostile round 8:
+  // `!!bool 96` as the number 96).
+  const std::pair<const char*, const char*> mistagged[] = {
+      {"tracker: {roi_size_px: !!bool 96}\n", "tracker.roi_size_px: '96' is tagged as a boolean (!!bool), but the key takes a number"},
+      {"tracker: {score_threshold: !!str 0.3}\n", "tracker.score_threshold: '0.3' is tagged as text (!!str), but the key takes a number"},
+      {"tracker: {circular_mask: !!int 1}\n", "tracker.circular_mask: '1' is tagged as a number (!!int), but the key takes true or false"},
+  };
+  for (const auto& [yaml, says] : mistagged) {
+    e.clear();
+    EXPECT_FALSE(parse_app_config(yaml, "t.yaml", c, e)) << yaml;
+    EXPECT_NE(e.find(says), std::string::npos) << e;
+  }
 }
 
 TEST(ConfigFaults, TrackingRoiLargerThanTheScanLimitIsRefused) {

@@ -167,6 +167,9 @@ std::string describe_range(double lo, double hi);
 std::string number_text(double v);
 // "?" (plain), "!" (quoted) and the core schema's scalar tags: a value read as it is written.
 bool tag_is_plain(const std::string& tag);
+// "" when a plain tag fits the key's kind, else what the value is tagged as ("a boolean"): a
+// `!!bool 96` was read as the number 96, `!!int true` as true (hostile round 8).
+std::string tag_kind_problem(const std::string& tag, KeyKind kind);
 
 // Whether a number read as long double is in [lo, hi] once it is the key's type. A floating
 // key compares the value it will hold: "0.01" as a long double lies below the double 0.01 (and
@@ -211,6 +214,14 @@ void Section::read_scalar(const char* key, const YAML::Node& n, T& out, T lo, T 
     errors_->add(n.Mark(), key_path(key), "'" + shown + "' carries the tag '" + tag +
                                               "'; only plain values (or !!str, !!int, !!float, !!bool) are read");
     return;
+  }
+  if constexpr (std::is_arithmetic_v<T>) {
+    const KeyKind kind = std::is_same_v<T, bool> ? KeyKind::kBool : std::is_floating_point_v<T> ? KeyKind::kFloat : KeyKind::kInteger;
+    if (const std::string tagged = tag_kind_problem(n.Tag(), kind); !tagged.empty()) {
+      errors_->add(n.Mark(), key_path(key), "'" + shown + "' is tagged as " + tagged + ", but the key takes " +
+                                                (kind == KeyKind::kBool ? "true or false" : "a number"));
+      return;
+    }
   }
   if constexpr (std::is_same_v<T, bool>) {
     bool v = false;
