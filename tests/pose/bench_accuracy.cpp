@@ -433,6 +433,8 @@ int main(int argc, char** argv) {
     else if (a == "--refine-template-passes" && i + 1 < argc) tc.refine.template_passes = std::atoi(argv[++i]);
     else if (a == "--refine-weights" && i + 1 < argc) tc.refine.noise_weights = std::string(argv[++i]) == "on";
     else if (a == "--background-plane" && i + 1 < argc) tc.fit_background_plane = std::string(argv[++i]) == "on";
+    else if (a == "--angle-step" && i + 1 < argc) tc.angle_step_deg = std::atof(argv[++i]);
+    else if (a == "--prefilter-passes" && i + 1 < argc) tc.prefilter_passes = std::atoi(argv[++i]);
     else if (a == "--sigma-tile" && i + 1 < argc) sigma_tile = std::atoi(argv[++i]);
     else if (a == "--sigma-calibration" && i + 1 < argc) sigma_cal = std::atof(argv[++i]);
     else if (a == "--sigma-noise-factor" && i + 1 < argc) tc.sigma_noise_factor = std::atof(argv[++i]);
@@ -458,7 +460,7 @@ int main(int argc, char** argv) {
       only_target = argv[++i];
       if (i + 1 < argc && argv[i + 1][0] != '-') only_motion = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--background-plane on|off] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-scale-factor S] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off] [--measure-tau on|off] [--scan-motion on|off]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--quick|--full|--clutter] [--only TARGET[,TARGET...] [CASE]] [--bias] [--decompose] [--scale-bias] [--no-visp] [--visp-levels N] [--search-scale MIN MAX] [--require-no-false] [--mask outline|body] [--dose D] [--require-low-dose-false F] [--require-low-dose-tracked T] [--max-false-probability P] [--appearance on|off] [--refine-template on|off] [--refine on|off] [--refine-iterations N] [--refine-scale on|off] [--refine-source prefiltered|raw] [--refine-position on|off] [--refine-angle on|off] [--refine-template-passes N] [--refine-weights on|off] [--background-plane on|off] [--angle-step DEG] [--prefilter-passes N] [--sigma-tile N] [--sigma-calibration K] [--sigma-floor PX DEG] [--sigma-noise-factor F] [--sigma-angle-factor A] [--sigma-scale-factor S] [--sigma-pattern-noise on|off] [--rate-poses N] [--attainable-pattern-noise on|off] [--measure-tau on|off] [--scan-motion on|off]\n", argv[0]);
       return 2;
     }
   }
