@@ -36,7 +36,12 @@ rt::Status make_can_output(const config::CanConfig& cfg, const std::string& log_
     o.fd = cfg.fd == "on";  // a log has no MTU: FD frames only when asked for explicitly
     o.keep_existing = keep_existing_log;
     auto ch = hal::CandumpLogChannel::open(o, st);
-    if (!ch) return st;
+    if (!ch) {
+      // The log named by the option the user typed, not the key it stands in for.
+      const std::string key = "can.log_file";
+      if (!log_override.empty() && st.message.rfind(key, 0) == 0) st.message.replace(0, key.size(), "--can-log");
+      return st;
+    }
     out.description = "candump log " + o.path + " (" + (o.fd ? "CAN FD" : "classic CAN") + ", as " + o.channel_name + ")";
     out.channel = std::move(ch);
   }

@@ -259,7 +259,8 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
   // Every output open: now the candump log (a regular file; SocketCAN has none) and the CSV are
   // emptied, and the CSV's header written.
   if (!out.output_locks[log_lock].empty_file())
-    return rt::Status::failure("can.log_file '" + can_log + "': cannot empty it: " + std::strerror(errno));
+    return rt::Status::failure(std::string(can_log_override.empty() ? "can.log_file" : "--can-log") + " '" + can_log +
+                               "': cannot empty it: " + std::strerror(errno));
   if (out.csv) return out.csv->begin();
   return rt::Status::success();
 }
