@@ -127,6 +127,12 @@ int sempose::cli::sim(int argc, char** argv) {
   const bool seed_given = opt.has("--seed");
   if (cli::refuse_stdout_output("sim", out_dir, "the folder the recording is written to")) return 2;
   if (cli::refuse_control_characters("sim", "--out", out_dir)) return 2;
+  // A file, a device, a folder on a read-only file system: named by the option before the scene is
+  // built (it was exit 1 after it, "cannot create frames.csv"; view and pattern refuse it here).
+  if (const std::string why = config::output_dir_problem(out_dir); !why.empty()) {
+    std::fprintf(stderr, "sempose sim: --out: '%s' cannot hold the recording: it is %s\n", out_dir.c_str(), why.c_str());
+    return 2;
+  }
   config::ScanLimits scan;
   config::SimConfig sim_cfg;
   if (!config_path.empty()) {

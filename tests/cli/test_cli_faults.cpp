@@ -388,9 +388,13 @@ TEST(CliFaults, SimAndPatternNameBadInputBeforeMakingOutputs) {
   EXPECT_NE(r.err.find("is a directory, not a file"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/made")) << "the output folder was made before the input was checked";
   std::ofstream(dir + "/a_file") << "x";
+  // A file as --out is bad input, named by the option (it was exit 1 after the scene was built).
   r = run({"sim", "--out", dir + "/a_file", "--frames", "2"}, 60);
-  EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_NE(r.err.find("cannot make it a folder of frames"), std::string::npos) << r.err;
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("--out: '" + dir + "/a_file' cannot hold the recording: it is a regular file"), std::string::npos) << r.err;
+  r = run({"sim", "--out", dir + "/a_file/rec", "--frames", "2"}, 60);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(slurp(dir + "/a_file"), "x");
   r = run({"pattern", "--frames", dir + "/nowhere", "--center", "100,100", "--size", "32", "--out", dir + "/p.pgm"}, 60);
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/p.pgm"));
