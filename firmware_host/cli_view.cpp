@@ -222,45 +222,60 @@ int sempose::cli::view(int argc, char** argv) {
 
     int pictures = 0;
     std::string first, last;
-    if (!frame_files.empty()) try {
-      std::size_t outside = 0;                   // drawn poses outside their frame
-      std::vector<std::vector<std::pair<float, float>>> edges;
-      for (const auto& img : pattern_images) edges.push_back(operator_view::pattern_edge_points(img));
-      if (beyond_frame > 0) {
-        std::fprintf(stderr, "sempose view: pose of frame %llu but %s holds %zu frames; ROI pictures stop there\n",
-                     static_cast<unsigned long long>(beyond_frame), frames_dir.c_str(), frame_files.size());
-      }
-      for (const std::size_t i : drawn) {
-        const operator_view::PoseRow& r = rows[i];
-        const std::size_t t = static_cast<std::size_t>(std::find(targets.begin(), targets.end(), r.target) - targets.begin());
-        const hal::Image frame = hal::read_pgm(frame_files[r.frame]);
-        // sempose's poses lie in the field: one outside these frames is from another recording
-        // (its pictures used to be drawn of whatever lay there, or of nothing, without a word).
-        if (!(r.x_px >= -0.5 && r.x_px <= frame.width - 0.5 && r.y_px >= -0.5 && r.y_px <= frame.height - 0.5) &&
-            outside++ == 0) {
-          std::fprintf(stderr, "sempose view: warning: the pose of frame %llu at (%g, %g) lies outside the %dx%d frames of "
-                       "%s: are the poses from this recording?\n",
-                       static_cast<unsigned long long>(r.frame), r.x_px, r.y_px, frame.width, frame.height,
-                       frames_dir.c_str());
+    try {  // a picture not written whole (write_png removed its cut file) ends the view
+      if (!frame_files.empty()) {
+        std::size_t outside = 0;  // drawn poses outside their frame
+        std::vector<std::vector<std::pair<float, float>>> edges;
+        for (const auto& img : pattern_images)
+          edges.push_back(operator_view::pattern_edge_points(img));
+        if (beyond_frame > 0) {
+          std::fprintf(
+              stderr,
+              "sempose view: pose of frame %llu but %s holds %zu frames; ROI pictures stop there\n",
+              static_cast<unsigned long long>(beyond_frame), frames_dir.c_str(),
+              frame_files.size());
         }
-        const int side = pattern_images.empty() ? pattern_size : pattern_images[t].width;
-        static const std::vector<std::pair<float, float>> kNoEdges;
-        const auto img = operator_view::render_roi(frame, r, roi, side, edges.empty() ? kNoEdges : edges[t], scale);
-        // A target's name may hold '/' (the config's rule allows it): escaped, with '%' itself, so
-        // that every name gives a file of its own in --out (found probing: "a/b" failed after the
-        // plot was written).
-        char number[24];
-        std::snprintf(number, sizeof number, "roi_%06llu", static_cast<unsigned long long>(r.frame));
-        std::string name = number;
-        if (!r.target.empty()) name += "_";
-        for (const char ch : r.target) name += ch == '/' ? std::string("%2F") : ch == '%' ? std::string("%25") : std::string(1, ch);
-        name += ".png";
-        operator_view::write_png(out_dir + "/" + name, img);
-        written.push_back(out_dir + "/" + name);
-        if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written, made);
-        if (first.empty()) first = name;
-        last = name;
-        ++pictures;
+        for (const std::size_t i : drawn) {
+          const operator_view::PoseRow& r = rows[i];
+          const std::size_t t = static_cast<std::size_t>(
+              std::find(targets.begin(), targets.end(), r.target) - targets.begin());
+          const hal::Image frame = hal::read_pgm(frame_files[r.frame]);
+          // sempose's poses lie in the field: one outside these frames is from another recording
+          // (its pictures used to be drawn of whatever lay there, or of nothing, without a word).
+          if (!(r.x_px >= -0.5 && r.x_px <= frame.width - 0.5 && r.y_px >= -0.5 &&
+                r.y_px <= frame.height - 0.5) &&
+              outside++ == 0) {
+            std::fprintf(stderr,
+                         "sempose view: warning: the pose of frame %llu at (%g, %g) lies outside "
+                         "the %dx%d frames of "
+                         "%s: are the poses from this recording?\n",
+                         static_cast<unsigned long long>(r.frame), r.x_px, r.y_px, frame.width,
+                         frame.height, frames_dir.c_str());
+          }
+          const int side = pattern_images.empty() ? pattern_size : pattern_images[t].width;
+          static const std::vector<std::pair<float, float>> kNoEdges;
+          const auto img = operator_view::render_roi(frame, r, roi, side,
+                                                     edges.empty() ? kNoEdges : edges[t], scale);
+          // A target's name may hold '/' (the config's rule allows it): escaped, with '%' itself,
+          // so that every name gives a file of its own in --out (found probing: "a/b" failed after
+          // the plot was written).
+          char number[24];
+          std::snprintf(number, sizeof number, "roi_%06llu",
+                        static_cast<unsigned long long>(r.frame));
+          std::string name = number;
+          if (!r.target.empty()) name += "_";
+          for (const char ch : r.target)
+            name += ch == '/'   ? std::string("%2F")
+                    : ch == '%' ? std::string("%25")
+                                : std::string(1, ch);
+          name += ".png";
+          operator_view::write_png(out_dir + "/" + name, img);
+          written.push_back(out_dir + "/" + name);
+          if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written, made);
+          if (first.empty()) first = name;
+          last = name;
+          ++pictures;
+        }
       }
     } catch (const std::exception& e) {
       return abandon_view(config::terminal_text(e.what()), out_dir, written, made);
