@@ -11,6 +11,7 @@
 #include "cli_options.hpp"
 #include "sempose/check_rt/checks.hpp"
 #include "sempose/config/app_config.hpp"
+#include "sempose/config/reader.hpp"
 
 namespace {
 
@@ -33,7 +34,9 @@ int sempose::cli::print_rt_checks(const config::AppConfig& cfg, const std::strin
   const auto results = check_rt::run_checks(tree, cfg, probe);
   int counts[3] = {0, 0, 0};
   for (const auto& r : results) {
-    std::printf("%s\n", check_rt::format_result(r).c_str());
+    // The tree's own text (a kernel version, a governor) is quoted in the lines: escaped and
+    // bounded (a terminal escape in osrelease retitled the terminal; hostile round 9).
+    std::printf("%s\n", config::terminal_text(check_rt::format_result(r)).c_str());
     ++counts[static_cast<int>(r.level)];
   }
   std::printf("check-rt: %d pass, %d warn, %d fail\n", counts[0], counts[1], counts[2]);

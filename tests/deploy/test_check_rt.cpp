@@ -146,7 +146,8 @@ TEST_F(FakeTree, RcuNocbsIsReadAsTheKernelReadsIt) {
   put("sys/devices/system/cpu/nohz_full", "(null)\n");
   for (const char* line : {"root=/dev/sda1 rcu_nocbs=all\n", "root=/dev/sda1 \"rcu_nocbs=2-3\"\n",
                            "root=/dev/sda1 rcu_nocbs=\"2-3\"\n", "root=/dev/sda1 rcu_nocbs=0 rcu_nocbs=2-3\n",
-                           "root=/dev/sda1 rcu_nocbs=2-N\n", "root=/dev/sda1 rcu_nocbs=0-3:1/2\n"}) {
+                           "root=/dev/sda1 rcu_nocbs=2-N\n", "root=/dev/sda1 rcu_nocbs=0-3:2/2\n",
+                           "root=/dev/sda1 rcu_nocbs=2-7:2/4\n"}) {
     put("proc/cmdline", line);
     EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kPass) << line << find(run(), "rcu_nocbs").detail;
   }
@@ -154,6 +155,12 @@ TEST_F(FakeTree, RcuNocbsIsReadAsTheKernelReadsIt) {
   EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kWarn) << "the kernel keeps the last";
   put("proc/cmdline", "root=/dev/sda1 rcu_nocbs=0 -- rcu_nocbs=2-3\n");
   EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kWarn) << "after -- the words are init's";
+  // The group form "lo-hi:used/group" is the kernel's (bitmap_parselist): 0-3:1/2 is CPUs 0 and
+  // 2, 0-3:1/4 CPU 0 only. Read as every CPU it passed (hostile round 9).
+  for (const char* line : {"root=/dev/sda1 rcu_nocbs=0-3:1/2\n", "root=/dev/sda1 rcu_nocbs=0-3:1/4\n"}) {
+    put("proc/cmdline", line);
+    EXPECT_EQ(find(run(), "rcu_nocbs").level, Level::kWarn) << line << find(run(), "rcu_nocbs").detail;
+  }
 }
 
 TEST_F(FakeTree, RtThrottling) {
@@ -257,6 +264,46 @@ TEST_F(FakeTree, NoCapabilitiesAndLowLimitsFail) {
   EXPECT_EQ(find(r, "rtprio").level, Level::kPass);
   put("proc/self/limits", "Max realtime priority     59                   59\n");
   EXPECT_EQ(find(run(), "rtprio").level, Level::kFail);
+  // Numbers of any size (hostile round 9): a priority limit of 2^32 overflowed and read as 0,
+  // "below the configured 60"; a locked-memory limit of 1 TiB was a FAIL whatever its size. A
+  // large number may or may not hold the whole process: said, not passed.
+  put("proc/self/limits",
+      "Max locked memory         1099511627776        1099511627776        bytes\n"
+      "Max realtime priority     4294967296           4294967296\n");
+  r = run();
+  EXPECT_EQ(find(r, "memlock").level, Level::kWarn) << find(r, "memlock").detail;
+  EXPECT_EQ(find(r, "rtprio").level, Level::kPass) << find(r, "rtprio").detail;
+  // A CapEff that is not the kernel's 16 hex digits is not read as held ("-1" wrapped to every
+  // capability; "4000zz" was read as 4000, CAP_IPC_LOCK).
+  put("proc/self/limits", "Max locked memory         65536                65536                bytes\n");
+  for (const char* cap : {"-1", "4000zz"}) {
+    put("proc/self/status", std::string("Name:\tsempose\nCapEff:\t") + cap + "\n");
+    r = run();
+    EXPECT_EQ(find(r, "memlock").level, Level::kFail) << cap << ": " << find(r, "memlock").detail;
+  }
+}
+
+// Files that are there but hold what the kernel never writes are not passed (hostile round 9):
+// a governor that is a directory passed as "no frequency scaling", every IRQ list a directory
+// or empty as "none may run on RT cores", a throttling runtime of "abc" was quoted as RT time.
+TEST_F(FakeTree, UnreadOrMalformedFilesAreNotPassed) {
+  fs::remove(root / "sys/devices/system/cpu/cpu3/cpufreq/scaling_governor");
+  fs::create_directories(root / "sys/devices/system/cpu/cpu3/cpufreq/scaling_governor");
+  auto r = run();
+  EXPECT_EQ(find(r, "cpufreq").level, Level::kWarn) << find(r, "cpufreq").detail;
+  EXPECT_NE(find(r, "cpufreq").detail.find("cannot read the scaling governor of RT core(s) 3"), std::string::npos)
+      << find(r, "cpufreq").detail;
+  for (const std::string& irq : {std::string("1"), std::string("9")}) put("proc/irq/" + irq + "/smp_affinity_list", "\n");
+  r = run();
+  EXPECT_EQ(find(r, "irq-affinity").level, Level::kWarn) << find(r, "irq-affinity").detail;
+  for (const char* value : {"abc", "", "1e6"}) {
+    put("proc/sys/kernel/sched_rt_runtime_us", std::string(value) + "\n");
+    r = run();
+    EXPECT_EQ(find(r, "rt-throttling").level, Level::kWarn) << value;
+    EXPECT_NE(find(r, "rt-throttling").detail.find("not a number"), std::string::npos) << find(r, "rt-throttling").detail;
+  }
+  put("proc/sys/kernel/sched_rt_runtime_us", "00\n");
+  EXPECT_EQ(find(run(), "rt-throttling").level, Level::kFail) << "00 is no RT time, as 0 is";
 }
 
 TEST_F(FakeTree, OfflineOrEveryCoreAsRtCore) {

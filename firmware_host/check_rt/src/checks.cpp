@@ -75,7 +75,7 @@ std::vector<int> rcu_offloaded(const std::string& cmdline, const std::vector<int
   std::set<int> cores(nohz_full.begin(), nohz_full.end());
   if (const auto v = cmdline_value(cmdline, "rcu_nocbs")) {
     // "N" is the last CPU; a list the kernel cannot parse makes it offload every CPU ("bad CPU
-    // range, all CPUs set"), and so does one this parser cannot (the group form "0-7:1/2").
+    // range, all CPUs set"); the group form ("0-7:1/2") is read as the kernel reads it.
     std::string list = *v;
     const std::string last = online.empty() ? "0" : std::to_string(online.back());
     for (std::size_t at = list.find('N'); at != std::string::npos; at = list.find('N', at)) list.replace(at, 1, last);
@@ -103,13 +103,12 @@ std::string status_field(const SystemTree& tree, const std::string& field) {
 }
 
 bool has_capability(const SystemTree& tree, int cap) {
-  const std::string eff = status_field(tree, "CapEff");
-  if (eff.empty()) return false;
-  try {
-    return (std::stoull(eff, nullptr, 16) >> cap) & 1u;
-  } catch (const std::exception&) {
+  // 16 hex digits as the kernel writes them; anything else is not read as held ("-1" wrapped to
+  // every capability, "4000zz" was read as 4000; hostile round 9).
+  const std::string eff = trimmed(status_field(tree, "CapEff"));
+  if (eff.empty() || eff.size() > 16 || !std::all_of(eff.begin(), eff.end(), [](char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; }))
     return false;
-  }
+  return (std::stoull(eff, nullptr, 16) >> cap) & 1u;
 }
 
 // Soft limit of a /proc/self/limits row ("Max locked memory  8388608  8388608  bytes").
@@ -198,11 +197,19 @@ void check_throttling(const SystemTree& tree, bool spin, std::vector<CheckResult
   const std::string value = runtime ? trimmed(*runtime) : "";
   const std::string fix = "sysctl -w kernel.sched_rt_runtime_us=-1 and persist it: echo 'kernel.sched_rt_runtime_us = -1' > "
                           "/etc/sysctl.d/60-sempose.conf";
-  if (!runtime) {
-    out.push_back(warn("rt-throttling", "cannot read /proc/sys/kernel/sched_rt_runtime_us", "check that /proc is mounted"));
-  } else if (value == "-1") {
-    out.push_back(pass("rt-throttling", "off (sched_rt_runtime_us = -1)"));
-  } else if (value == "0") {
+  // A whole number as the kernel writes it ("abc" or "" was reported as "RT threads get abc of
+  // every … us", "00" as some RT time; hostile round 9).
+  const std::string digits = !value.empty() && value[0] == '-' ? value.substr(1) : value;
+  const bool number = !digits.empty() && digits.size() <= 18 && digits.find_first_not_of("0123456789") == std::string::npos;
+  const long long us = number ? std::stoll(value) : 0;
+  if (!runtime || !number) {
+    out.push_back(warn("rt-throttling",
+                       runtime ? "/proc/sys/kernel/sched_rt_runtime_us holds '" + value + "', not a number: RT throttling not checked"
+                               : "cannot read /proc/sys/kernel/sched_rt_runtime_us",
+                       "check that /proc is mounted (check-rt --root: that the tree's file holds a number such as -1)"));
+  } else if (us < 0) {
+    out.push_back(pass("rt-throttling", "off (sched_rt_runtime_us = " + value + ")"));
+  } else if (us == 0) {
     // No RT time at all: a SCHED_FIFO stage never runs (it was only a WARN).
     out.push_back(fail("rt-throttling", "RT threads get no time at all (sched_rt_runtime_us = 0): the FIFO stages cannot run", fix));
   } else {
@@ -214,12 +221,18 @@ void check_throttling(const SystemTree& tree, bool spin, std::vector<CheckResult
 }
 
 void check_governor(const SystemTree& tree, const std::vector<int>& rt, std::vector<CheckResult>& out) {
-  std::vector<int> slow;
+  std::vector<int> slow, unread;
   std::string seen;
   bool any_cpufreq = false;
   for (int c : rt) {
-    const auto g = tree.read("sys/devices/system/cpu/cpu" + std::to_string(c) + "/cpufreq/scaling_governor");
-    if (!g) continue;
+    const std::string dir = "sys/devices/system/cpu/cpu" + std::to_string(c) + "/cpufreq";
+    const auto g = tree.read(dir + "/scaling_governor");
+    if (!g) {
+      // A cpufreq folder whose governor cannot be read is not "no frequency scaling" (it passed
+      // as such; hostile round 9).
+      if (tree.exists(dir)) unread.push_back(c);
+      continue;
+    }
     any_cpufreq = true;
     if (*g != "performance") {
       slow.push_back(c);
@@ -230,6 +243,10 @@ void check_governor(const SystemTree& tree, const std::vector<int>& rt, std::vec
   if (!any_cpufreq && !rt.empty() && !tree.exists("sys/devices/system/cpu")) {
     out.push_back(warn("cpufreq", "cannot read /sys/devices/system/cpu: frequency scaling of the RT cores not checked",
                        "run on a Linux system with /sys mounted"));
+  } else if (!unread.empty() && slow.empty()) {
+    out.push_back(warn("cpufreq", "cannot read the scaling governor of RT core(s) " + format_cpu_list(unread) +
+                                      ": frequency scaling not checked there",
+                       "check that /sys is the kernel's own (check-rt --root: a file scaling_governor holding e.g. performance)"));
   } else if (!any_cpufreq) out.push_back(pass("cpufreq", "no frequency scaling on the RT cores (fixed clock or VM)"));
   else if (slow.empty()) out.push_back(pass("cpufreq", "performance on RT cores " + format_cpu_list(rt)));
   else
@@ -259,10 +276,11 @@ void check_irqs(const SystemTree& tree, const std::vector<int>& rt, const std::v
   for (const std::string& irq : tree.list("proc/irq")) {
     if (irq.empty() || !std::all_of(irq.begin(), irq.end(), ::isdigit)) continue;
     const auto list = tree.read("proc/irq/" + irq + "/smp_affinity_list");
-    if (!list) continue;
     ++movable;
-    const auto cpus = parse_cpu_list(*list);
-    if (!cpus) {
+    // Unread or empty (no CPU, which no IRQ has) is not checked, and said: every list a
+    // directory or empty passed as "none may run on RT cores" (hostile round 9).
+    const auto cpus = list ? parse_cpu_list(*list) : std::nullopt;
+    if (!cpus || cpus->empty()) {
       unparsed.push_back("/proc/irq/" + irq + "/smp_affinity_list");
       continue;
     }
@@ -304,6 +322,14 @@ void check_limits(const SystemTree& tree, const config::PipelineConfig& p, std::
     out.push_back(pass("memlock", "not used (pipeline.lock_memory: false)"));
   } else if (root_or_cap_lock || memlock == "unlimited") {
     out.push_back(pass("memlock", root_or_cap_lock ? "CAP_IPC_LOCK held" : "limit unlimited"));
+  } else if (!memlock.empty() && memlock.find_first_not_of("0123456789") == std::string::npos && memlock.size() <= 19 &&
+             std::stoull(memlock) >= (std::uint64_t{1} << 30)) {
+    // A large number (LimitMEMLOCK=4G) may hold the whole process, or may not: mlockall locks all
+    // of it (banks, FFT plans, the frame pool, every stack), which this check does not measure.
+    // It used to FAIL whatever the size (hostile round 9); `sempose run` says whether it locked.
+    out.push_back(warn("memlock", "locked-memory limit " + memlock + " bytes and no CAP_IPC_LOCK: mlockall succeeds only "
+                                      "if the whole process fits (sempose run says at start whether it locked)",
+                       "LimitMEMLOCK=infinity in the unit (the package's sempose.service has it), or AmbientCapabilities=CAP_IPC_LOCK"));
   } else {
     out.push_back(fail("memlock", "locked-memory limit " + (memlock.empty() ? std::string("?") : memlock + " bytes") +
                                       " and no CAP_IPC_LOCK: mlockall fails, pages can be swapped out",
@@ -312,10 +338,12 @@ void check_limits(const SystemTree& tree, const config::PipelineConfig& p, std::
   const int want = max_priority(p);
   const bool cap_nice = has_capability(tree, kCapSysNice);
   const std::string rtprio = soft_limit(tree, "Max realtime priority");
-  int limit = 0;
-  try {
-    limit = rtprio == "unlimited" ? 99 : std::stoi(rtprio);
-  } catch (const std::exception&) {
+  // Any number of digits (a limit above 99 allows 99: 4294967296 used to overflow stoi and read
+  // as 0, "below the configured 60"; hostile round 9); anything else is no limit read.
+  int limit = rtprio == "unlimited" ? 99 : 0;
+  if (!rtprio.empty() && rtprio.find_first_not_of("0123456789") == std::string::npos) {
+    const std::string digits = rtprio.substr(std::min(rtprio.find_first_not_of('0'), rtprio.size()));
+    limit = digits.size() > 2 ? 99 : digits.empty() ? 0 : std::stoi(digits);
   }
   if (want == 0) {
     out.push_back(pass("rtprio", "no SCHED_FIFO stage configured (priorities 0)"));

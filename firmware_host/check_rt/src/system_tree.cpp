@@ -78,11 +78,35 @@ std::optional<std::vector<int>> parse_cpu_list(const std::string& text) {
         if (used != part.size() || v < 0 || v > kMaxCpu) return std::nullopt;
         ranges.emplace_back(v, v);
       } else {
+        // The kernel's group form "lo-hi:used/group" (bitmap_parselist): of every `group` CPUs
+        // from lo, the first `used` ("0-7:2/4" is 0, 1, 4, 5). Read as all CPUs it gave a false
+        // PASS for rcu_nocbs=0-3:1/4, which offloads CPU 0 only (hostile round 9).
+        std::string b = part.substr(dash + 1);
+        int used_per = 1, group = 1;
+        bool grouped = false;
+        if (const auto colon = b.find(':'); colon != std::string::npos) {
+          const std::string g = b.substr(colon + 1);
+          const auto slash = g.find('/');
+          if (slash == std::string::npos) return std::nullopt;
+          std::size_t u1 = 0, u2 = 0;
+          const std::string us = g.substr(0, slash), gs = g.substr(slash + 1);
+          used_per = std::stoi(us, &u1);
+          group = std::stoi(gs, &u2);
+          if (u1 != us.size() || u2 != gs.size() || used_per < 1 || group < 1 || used_per > group) return std::nullopt;
+          b = b.substr(0, colon);
+          grouped = true;
+        }
         std::size_t used2 = 0;
-        const std::string a = part.substr(0, dash), b = part.substr(dash + 1);
+        const std::string a = part.substr(0, dash);
         const int lo = std::stoi(a, &used), hi = std::stoi(b, &used2);
         if (used != a.size() || used2 != b.size() || lo < 0 || hi < lo || hi > kMaxCpu) return std::nullopt;
-        ranges.emplace_back(lo, hi);
+        if (!grouped || used_per == group) {
+          ranges.emplace_back(lo, hi);
+        } else {
+          // Bounded: a 1 MiB list of such parts would otherwise be billions of ranges.
+          if (ranges.size() + static_cast<std::size_t>((hi - lo) / group + 1) > (std::size_t{1} << 20)) return std::nullopt;
+          for (int g0 = lo; g0 <= hi; g0 += group) ranges.emplace_back(g0, std::min(hi, g0 + used_per - 1));
+        }
       }
     } catch (const std::exception&) {
       return std::nullopt;

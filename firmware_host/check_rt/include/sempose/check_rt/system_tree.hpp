@@ -24,7 +24,8 @@ class SystemTree {
   std::string root_;
 };
 
-// CPU lists as the kernel writes them ("0-3,8,10-11"); nullopt on syntax errors.
+// CPU lists as the kernel writes and reads them ("0-3,8,10-11", the group form "0-7:2/4");
+// nullopt on syntax errors.
 std::optional<std::vector<int>> parse_cpu_list(const std::string& text);
 // Hex CPU masks ("ff" or "00000000,00000003" as in /proc/irq/*/smp_affinity).
 std::optional<std::vector<int>> parse_cpu_mask(const std::string& text);
