@@ -493,14 +493,16 @@ int sempose::cli::run(int argc, char** argv) {
   // systemd (Type=notify): READY once setup is done; the watchdog is fed from this loop only
   // while every stage makes progress. Without NOTIFY_SOCKET these are no-ops.
   service::SystemdNotifier notifier = service::SystemdNotifier::from_environment();
-  if (!notifier.problem().empty()) std::printf("warning: %s\n", notifier.problem().c_str());
+  if (!notifier.problem().empty()) std::printf("warning: %s\n", config::terminal_text(notifier.problem()).c_str());
   service::PipelineWatchdog watchdog(*pipe, notifier, static_cast<std::int64_t>(cfg.service.stall_timeout_ms) * rt::kNsPerMs,
                                      rt::now_ns());
   if (notifier.enabled() && !notifier.ready("running")) {
     // A NOTIFY_SOCKET nobody listens on (a missing path, a regular file): "READY sent" was
     // printed regardless (found probing), while systemd would time the start out.
+    const int err = errno;
+    const char* socket = std::getenv("NOTIFY_SOCKET");
     std::printf("warning: systemd: READY could not be sent to NOTIFY_SOCKET '%s' (%s): a Type=notify unit will time "
-                "this start out\n", std::getenv("NOTIFY_SOCKET"), std::strerror(errno));
+                "this start out\n", config::terminal_text(socket ? socket : "").c_str(), std::strerror(err));
   } else if (notifier.enabled()) {
     std::printf("systemd: READY sent%s\n", notifier.watchdog_interval_ns() > 0
                                               ? (", watchdog every " + std::to_string(notifier.watchdog_interval_ns() / 2'000'000) +
@@ -680,6 +682,11 @@ int sempose::cli::run(int argc, char** argv) {
                 static_cast<unsigned long long>(k.scans), static_cast<unsigned long long>(k.stopped),
                 static_cast<unsigned long long>(k.timeouts),
                 static_cast<unsigned long long>(k.arm_errors), static_cast<unsigned long long>(k.cancelled));
+  }
+  if (watchdog.ping_failures() > 0) {
+    std::printf("warning: systemd: %llu of %llu watchdog pings could not be sent to NOTIFY_SOCKET\n",
+                static_cast<unsigned long long>(watchdog.ping_failures()),
+                static_cast<unsigned long long>(watchdog.ping_failures() + watchdog.pings()));
   }
   session::RunSummary summary = session::collect_summary(
       run, e2e_now, run_s, rt::alloc::allocations() - allocs_at_start, source_watchdog.stalls());

@@ -1848,6 +1848,44 @@ TEST(CliFaults, ErrorsQuoteInputPathsAndCellsEscaped) {
   EXPECT_NE(vw.err.find("status 'TRACK\\x1b]0;PWN\\x07ING'"), std::string::npos) << vw.err;
 }
 
+// systemd's notify socket gone: every WATCHDOG=1 failed unsaid and the run ended with a clean
+// summary, while systemd would stop it after WatchdogSec (hostile round 9). Now the first failure
+// is said, and the count at the end.
+TEST(CliFaults, WatchdogPingsThatCannotBeSentAreSaid) {
+  const std::string dir = work_dir() + "/watchdog_gone";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ::setenv("NOTIFY_SOCKET", (dir + "/no_listener").c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "100000", 1);
+  const Outcome r = run({"run", "--config", small_config(dir, ""), "--duration", "1"}, 60);
+  ::unsetenv("NOTIFY_SOCKET");
+  ::unsetenv("WATCHDOG_USEC");
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("READY could not be sent"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("watchdog: WATCHDOG=1 could not be sent to NOTIFY_SOCKET"), std::string::npos) << r.out;
+  EXPECT_TRUE(std::regex_search(r.out, std::regex(R"(warning: systemd: (\d+) of \1 watchdog pings could not be sent)"))) << r.out;
+}
+
+// check-rt quotes the tree's own text (a kernel release, a governor): a terminal escape there
+// reached stdout raw, and a 1 MB version file was one 1 MB line (hostile round 9).
+TEST(CliFaults, CheckRtQuotesTheTreesTextEscaped) {
+  const std::string dir = work_dir() + "/check_rt_escape";
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/proc/sys/kernel");
+  std::ofstream(dir + "/proc/sys/kernel/osrelease") << "6.1\x1b]0;PWNED\x07\x1b[2J\n";
+  std::ofstream(dir + "/proc/sys/kernel/version") << std::string(1 << 20, 'v') << "\n";
+  const Outcome r = run({"check-rt", "--root", dir});
+  EXPECT_EQ(r.out.find('\x1b'), std::string::npos) << r.out.substr(0, 2000);
+  EXPECT_NE(r.out.find("6.1\\x1b]0;PWNED\\x07"), std::string::npos) << r.out.substr(0, 2000);
+  std::size_t longest = 0;
+  for (std::size_t a = 0, b; a < r.out.size(); a = b + 1) {
+    b = r.out.find('\n', a);
+    if (b == std::string::npos) b = r.out.size();
+    longest = std::max(longest, b - a);
+  }
+  EXPECT_LE(longest, 1100u);
+}
+
 // A run refused after its outputs' folders were made (a GPIO chip that is not there; a CAN
 // interface, a lock, the pipeline's memory alike) left those folders behind (hostile round 8:
 // `new1/sub` and `newhist/deep`); a folder that held something before stays.

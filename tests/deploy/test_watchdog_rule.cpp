@@ -106,6 +106,19 @@ TEST_F(NotifySocket, WatchdogOfAnotherProcessIsNotOurs) {
   EXPECT_EQ(SystemdNotifier::from_environment().watchdog_interval_ns(), 0);
 }
 
+// A WATCHDOG_PID that is not a process id leaves the watchdog unfed (as sd_watchdog_enabled()
+// does) and says so: "abc" read as pid 0 was silently "not ours" (hostile round 9).
+TEST_F(NotifySocket, AWatchdogPidThatIsNotAProcessIdIsSaid) {
+  ::setenv("NOTIFY_SOCKET", path.c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "3000000", 1);
+  for (const char* pid : {"abc", "", "12x", "-5"}) {
+    ::setenv("WATCHDOG_PID", pid, 1);
+    SystemdNotifier n = SystemdNotifier::from_environment();
+    EXPECT_EQ(n.watchdog_interval_ns(), 0) << pid;
+    EXPECT_NE(n.problem().find(std::string("WATCHDOG_PID '") + pid + "' is not a process id"), std::string::npos) << n.problem();
+  }
+}
+
 TEST_F(NotifySocket, WithoutNotifySocketEverythingIsANoOp) {
   SystemdNotifier n = SystemdNotifier::from_environment();
   EXPECT_FALSE(n.enabled());

@@ -31,7 +31,18 @@ SystemdNotifier SystemdNotifier::from_environment() {
   }
   const char* usec = std::getenv("WATCHDOG_USEC");
   const char* pid = std::getenv("WATCHDOG_PID");
-  const bool ours = pid == nullptr || std::strtol(pid, nullptr, 10) == static_cast<long>(::getpid());
+  // WATCHDOG_PID: the process the watchdog is meant for (absent: this one). One that is not a
+  // process id leaves the watchdog unfed, as libsystemd's sd_watchdog_enabled() does, and is said:
+  // "abc" was read as pid 0, silently not ours, and a WatchdogSec= unit killed the run without a
+  // hint (hostile round 9).
+  char* pid_end = nullptr;
+  const long pid_value = pid == nullptr ? 0 : std::strtol(pid, &pid_end, 10);
+  const bool pid_read = pid == nullptr || (pid_end != pid && *pid_end == '\0' && pid_value > 0);
+  const bool ours = pid == nullptr || (pid_read && pid_value == static_cast<long>(::getpid()));
+  if (usec != nullptr && !pid_read) {
+    n.problem_ = std::string("WATCHDOG_PID '") + pid + "' is not a process id: the watchdog (WATCHDOG_USEC " + usec +
+                 ") is not fed, and a unit with WatchdogSec= will stop this run";
+  }
   if (usec != nullptr && ours) {
     char* end = nullptr;
     const long long us = std::strtoll(usec, &end, 10);

@@ -28,6 +28,7 @@ class PipelineWatchdog {
   std::int64_t next_due_ns() const noexcept { return next_due_ns_; }
   std::uint8_t stalled() const noexcept { return monitor_.stalled(); }
   std::uint64_t pings() const noexcept { return pings_; }
+  std::uint64_t ping_failures() const noexcept { return ping_failures_; }  // WATCHDOG=1 not sent
 
  private:
   pipeline::Pipeline& pipe_;
@@ -40,6 +41,8 @@ class PipelineWatchdog {
   std::FILE* log_;
   std::uint8_t reported_ = 0;
   std::uint64_t pings_ = 0;
+  std::uint64_t ping_failures_ = 0;
+  bool ping_failing_ = false;  // the last ping failed (said once per change)
 };
 
 }  // namespace sempose::service
