@@ -3,7 +3,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
+#include <string>
 
 #ifndef SEMPOSE_INSTALL_DATA_DIR
 #define SEMPOSE_INSTALL_DATA_DIR "/usr/share/sempose"
@@ -21,7 +24,12 @@ namespace {
 // What is wrong with `path` as a data file to read, or "" if nothing.
 std::string file_problem(const std::string& path) {
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return "not found";
+  if (::stat(path.c_str(), &st) != 0) {
+    // Absent is "not found"; a link loop or a name too long is said as what it is (a loop was
+    // reported as not found; hostile round 8).
+    if (errno == ENOENT || errno == ENOTDIR) return "not found";
+    return std::string("is not accessible (") + std::strerror(errno) + ")";
+  }
   if (S_ISDIR(st.st_mode)) return "is a directory, not a file";
   if (!S_ISREG(st.st_mode)) return "is not a regular file (a FIFO, socket or device would block or never end)";
   if (::access(path.c_str(), R_OK) != 0) return "is not readable";

@@ -526,6 +526,20 @@ TEST(AppConfigData, MissingTextureNamesKeyPathAndPlacesTried) {
   EXPECT_NE(e.find(::testing::TempDir() + "nowhere/x.pgm"), std::string::npos) << e;
 }
 
+// A symbolic link loop is said as one, not as "not found" (hostile round 8).
+TEST(AppConfigData, TextureThatIsALinkLoopIsNamed) {
+  const std::string loop = ::testing::TempDir() + "loop_tex.pgm";
+  std::filesystem::remove(loop);
+  std::filesystem::create_symlink(loop, loop);
+  const auto path = write_yaml("looptex.yaml", "sim:\n  targets:\n    - texture: {path: " + loop + "}\n");
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(load_app_config(path, c, e));
+  EXPECT_NE(e.find("sim.targets[0].texture.path: " + loop + ": is not accessible (Too many levels of symbolic links)"),
+            std::string::npos) << e;
+  std::filesystem::remove(loop);
+}
+
 TEST(AppConfigData, TextureThatIsADirectoryIsNamed) {
   const auto path = write_yaml("dirtex.yaml", "sim:\n  targets:\n    - texture: {path: " + ::testing::TempDir() + "}\n");
   AppConfig c;
