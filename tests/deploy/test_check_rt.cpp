@@ -276,7 +276,7 @@ TEST_F(FakeTree, NoCapabilitiesAndLowLimitsFail) {
   // A CapEff that is not the kernel's 16 hex digits is not read as held ("-1" wrapped to every
   // capability; "4000zz" was read as 4000, CAP_IPC_LOCK).
   put("proc/self/limits", "Max locked memory         65536                65536                bytes\n");
-  for (const char* cap : {"-1", "4000zz"}) {
+  for (const char* cap : {"-1", "4000zz", "0x4000", "", "10000000000004000"}) {
     put("proc/self/status", std::string("Name:\tsempose\nCapEff:\t") + cap + "\n");
     r = run();
     EXPECT_EQ(find(r, "memlock").level, Level::kFail) << cap << ": " << find(r, "memlock").detail;
@@ -293,10 +293,17 @@ TEST_F(FakeTree, UnreadOrMalformedFilesAreNotPassed) {
   EXPECT_EQ(find(r, "cpufreq").level, Level::kWarn) << find(r, "cpufreq").detail;
   EXPECT_NE(find(r, "cpufreq").detail.find("cannot read the scaling governor of RT core(s) 3"), std::string::npos)
       << find(r, "cpufreq").detail;
+  // An unread core is named beside a slow one too (only the slow one was).
+  put("sys/devices/system/cpu/cpu2/cpufreq/scaling_governor", "powersave\n");
+  r = run();
+  EXPECT_EQ(find(r, "cpufreq").level, Level::kWarn) << find(r, "cpufreq").detail;
+  EXPECT_NE(find(r, "cpufreq").detail.find("governor 'powersave' on RT core(s) 2"), std::string::npos) << find(r, "cpufreq").detail;
+  EXPECT_NE(find(r, "cpufreq").detail.find("cannot read the scaling governor of RT core(s) 3"), std::string::npos)
+      << find(r, "cpufreq").detail;
   for (const std::string& irq : {std::string("1"), std::string("9")}) put("proc/irq/" + irq + "/smp_affinity_list", "\n");
   r = run();
   EXPECT_EQ(find(r, "irq-affinity").level, Level::kWarn) << find(r, "irq-affinity").detail;
-  for (const char* value : {"abc", "", "1e6"}) {
+  for (const char* value : {"abc", "", "1e6", "+5", "-", "--1", "0x10", "99999999999999999999999"}) {
     put("proc/sys/kernel/sched_rt_runtime_us", std::string(value) + "\n");
     r = run();
     EXPECT_EQ(find(r, "rt-throttling").level, Level::kWarn) << value;
@@ -331,6 +338,8 @@ TEST_F(FakeTree, CanLink) {
   r = run();
   EXPECT_EQ(find(r, "can").level, Level::kFail);
   EXPECT_NE(find(r, "can").fix.find("ip link set can0 type can bitrate 1000000"), std::string::npos);
+  put("sys/class/net/can0/flags", "zz\n");  // not the kernel's: not taken as up
+  EXPECT_EQ(find(run(), "can").level, Level::kFail);
   put("sys/class/net/can0/flags", "0xc1\n");  // up
   probe.can = check_rt::CanLinkDetails{"can", 1000000, "error-active"};
   r = run();

@@ -4,7 +4,9 @@
 #include <cctype>
 #include <cstdio>
 #include <cstdint>
+#include <charconv>
 #include <filesystem>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -33,6 +35,17 @@ std::vector<int> rt_cpus(const config::PipelineConfig& p) {
   }
   if (!p.output_on_correlation_thread && p.output.cpu >= 0) s.insert(p.output.cpu);
   return {s.begin(), s.end()};
+}
+
+// A whole number in digits only, as the kernel writes its files (base 16 for capability masks):
+// "", "-1", " 12", "4000zz", "1e6" and anything past 64 bits are none (hostile round 9 found each
+// of these read as some number by hand-made parsers).
+std::optional<std::uint64_t> whole_number(const std::string& text, int base = 10) {
+  std::uint64_t n = 0;
+  const char* end = text.data() + text.size();
+  const auto [at, error] = std::from_chars(text.data(), end, n, base);
+  if (text.empty() || error != std::errc{} || at != end) return std::nullopt;
+  return n;
 }
 
 int max_priority(const config::PipelineConfig& p) {
@@ -105,10 +118,8 @@ std::string status_field(const SystemTree& tree, const std::string& field) {
 bool has_capability(const SystemTree& tree, int cap) {
   // 16 hex digits as the kernel writes them; anything else is not read as held ("-1" wrapped to
   // every capability, "4000zz" was read as 4000; hostile round 9).
-  const std::string eff = trimmed(status_field(tree, "CapEff"));
-  if (eff.empty() || eff.size() > 16 || !std::all_of(eff.begin(), eff.end(), [](char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; }))
-    return false;
-  return (std::stoull(eff, nullptr, 16) >> cap) & 1u;
+  const auto eff = whole_number(trimmed(status_field(tree, "CapEff")), 16);
+  return eff && ((*eff >> cap) & 1u);
 }
 
 // Soft limit of a /proc/self/limits row ("Max locked memory  8388608  8388608  bytes").
@@ -199,9 +210,10 @@ void check_throttling(const SystemTree& tree, bool spin, std::vector<CheckResult
                           "/etc/sysctl.d/60-sempose.conf";
   // A whole number as the kernel writes it ("abc" or "" was reported as "RT threads get abc of
   // every … us", "00" as some RT time; hostile round 9).
-  const std::string digits = !value.empty() && value[0] == '-' ? value.substr(1) : value;
-  const bool number = !digits.empty() && digits.size() <= 18 && digits.find_first_not_of("0123456789") == std::string::npos;
-  const long long us = number ? std::stoll(value) : 0;
+  const bool negative = !value.empty() && value[0] == '-';
+  const auto magnitude = whole_number(negative ? value.substr(1) : value);
+  const bool number = magnitude && *magnitude <= std::uint64_t{1} << 62;
+  const long long us = number ? (negative ? -1 : 1) * static_cast<long long>(*magnitude) : 0;
   if (!runtime || !number) {
     out.push_back(warn("rt-throttling",
                        runtime ? "/proc/sys/kernel/sched_rt_runtime_us holds '" + value + "', not a number: RT throttling not checked"
@@ -243,15 +255,25 @@ void check_governor(const SystemTree& tree, const std::vector<int>& rt, std::vec
   if (!any_cpufreq && !rt.empty() && !tree.exists("sys/devices/system/cpu")) {
     out.push_back(warn("cpufreq", "cannot read /sys/devices/system/cpu: frequency scaling of the RT cores not checked",
                        "run on a Linux system with /sys mounted"));
-  } else if (!unread.empty() && slow.empty()) {
-    out.push_back(warn("cpufreq", "cannot read the scaling governor of RT core(s) " + format_cpu_list(unread) +
-                                      ": frequency scaling not checked there",
-                       "check that /sys is the kernel's own (check-rt --root: a file scaling_governor holding e.g. performance)"));
-  } else if (!any_cpufreq) out.push_back(pass("cpufreq", "no frequency scaling on the RT cores (fixed clock or VM)"));
-  else if (slow.empty()) out.push_back(pass("cpufreq", "performance on RT cores " + format_cpu_list(rt)));
-  else
-    out.push_back(warn("cpufreq", "governor '" + seen + "' on RT core(s) " + format_cpu_list(slow) + ": clock ramps add latency",
-                       "cpupower frequency-set -c " + format_cpu_list(slow) + " -g performance (package linux-cpupower)"));
+  } else if (!slow.empty() || !unread.empty()) {
+    // Both are said when both are there (an unread core was not named beside a slow one).
+    const std::string unread_text = unread.empty() ? "" : "cannot read the scaling governor of RT core(s) " + format_cpu_list(unread) +
+                                                              ": frequency scaling not checked there";
+    const std::string unread_fix = "check that /sys is the kernel's own (check-rt --root: a file scaling_governor holding e.g. performance)";
+    if (slow.empty()) {
+      out.push_back(warn("cpufreq", unread_text, unread_fix));
+    } else {
+      out.push_back(warn("cpufreq",
+                         "governor '" + seen + "' on RT core(s) " + format_cpu_list(slow) + ": clock ramps add latency" +
+                             (unread.empty() ? "" : "; " + unread_text),
+                         "cpupower frequency-set -c " + format_cpu_list(slow) + " -g performance (package linux-cpupower)" +
+                             (unread.empty() ? "" : "; " + unread_fix)));
+    }
+  } else if (!any_cpufreq) {
+    out.push_back(pass("cpufreq", "no frequency scaling on the RT cores (fixed clock or VM)"));
+  } else {
+    out.push_back(pass("cpufreq", "performance on RT cores " + format_cpu_list(rt)));
+  }
 }
 
 void check_dma_latency(const SystemTree& tree, const config::PipelineConfig& p, std::vector<CheckResult>& out) {
@@ -322,8 +344,7 @@ void check_limits(const SystemTree& tree, const config::PipelineConfig& p, std::
     out.push_back(pass("memlock", "not used (pipeline.lock_memory: false)"));
   } else if (root_or_cap_lock || memlock == "unlimited") {
     out.push_back(pass("memlock", root_or_cap_lock ? "CAP_IPC_LOCK held" : "limit unlimited"));
-  } else if (!memlock.empty() && memlock.find_first_not_of("0123456789") == std::string::npos && memlock.size() <= 19 &&
-             std::stoull(memlock) >= (std::uint64_t{1} << 30)) {
+  } else if (whole_number(memlock).value_or(0) >= (std::uint64_t{1} << 30)) {
     // A large number (LimitMEMLOCK=4G) may hold the whole process, or may not: mlockall locks all
     // of it (banks, FFT plans, the frame pool, every stack), which this check does not measure.
     // It used to FAIL whatever the size (hostile round 9); `sempose run` says whether it locked.
@@ -338,13 +359,9 @@ void check_limits(const SystemTree& tree, const config::PipelineConfig& p, std::
   const int want = max_priority(p);
   const bool cap_nice = has_capability(tree, kCapSysNice);
   const std::string rtprio = soft_limit(tree, "Max realtime priority");
-  // Any number of digits (a limit above 99 allows 99: 4294967296 used to overflow stoi and read
-  // as 0, "below the configured 60"; hostile round 9); anything else is no limit read.
-  int limit = rtprio == "unlimited" ? 99 : 0;
-  if (!rtprio.empty() && rtprio.find_first_not_of("0123456789") == std::string::npos) {
-    const std::string digits = rtprio.substr(std::min(rtprio.find_first_not_of('0'), rtprio.size()));
-    limit = digits.size() > 2 ? 99 : digits.empty() ? 0 : std::stoi(digits);
-  }
+  // A limit above 99 allows 99 (4294967296 used to overflow stoi and read as 0, "below the
+  // configured 60"; hostile round 9); anything but a number is no limit read.
+  const int limit = rtprio == "unlimited" ? 99 : static_cast<int>(std::min<std::uint64_t>(whole_number(rtprio).value_or(0), 99));
   if (want == 0) {
     out.push_back(pass("rtprio", "no SCHED_FIFO stage configured (priorities 0)"));
   } else if (cap_nice || limit >= want) {
@@ -374,12 +391,10 @@ void check_can(const SystemTree& tree, const config::CanConfig& c, LiveProbe& pr
     return;
   }
   const std::string bitrate_arg = c.bitrate ? std::to_string(c.bitrate) : std::string("1000000");
-  unsigned long flags = 0;
-  try {
-    flags = std::stoul(tree.read(dir + "/flags").value_or("0"), nullptr, 16);
-  } catch (const std::exception&) {
-  }
-  if ((flags & 0x1u) == 0) {
+  // The kernel writes the flags as "0x40c1"; anything else reads as down.
+  const std::string flags_text = trimmed(tree.read(dir + "/flags").value_or(""));
+  const auto flags = whole_number(flags_text.rfind("0x", 0) == 0 ? flags_text.substr(2) : flags_text, 16);
+  if ((flags.value_or(0) & 0x1u) == 0) {
     out.push_back(fail("can", "'" + c.interface + "' is down",
                        "ip link set " + c.interface + " type can bitrate " + bitrate_arg + " && ip link set " + c.interface + " up"));
     return;
