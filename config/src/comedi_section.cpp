@@ -25,7 +25,13 @@ bool volts_pair(Section& s, const char* key, std::vector<double>& v, bool may_be
 
 void read_comedi(Section& s, ComediConfig& out) {
   s.opt("device", out.device);
-  if (out.device.empty()) s.error("device", "is empty (a Comedi device node, e.g. /dev/comedi0)");
+  if (out.device.empty()) {
+    s.error("device", "is empty (a Comedi device node, e.g. /dev/comedi0)");
+  } else if (out.device[0] != '/') {
+    // check-rt reads the node from its root (/), run from its working folder: a relative path
+    // was "missing" to one and opened by the other (hostile round 10).
+    s.error("device", "'" + out.device + "' is a relative path: give the device node's absolute path (e.g. /dev/comedi0)");
+  }
   s.opt("ai_subdevice", out.ai_subdevice, -1, 255);
   s.opt("ao_subdevice", out.ao_subdevice, -1, 255);
   s.opt_list("detector_channels", out.detector_channels, 0, 255);

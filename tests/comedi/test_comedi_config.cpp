@@ -64,6 +64,7 @@ TEST(ComediSection, RefusalsNameKeyValueAndRange) {
       {"{oversample: 0}", "comedi.oversample: 0 is outside the allowed range"},
       {"{trigger: external}", "comedi.trigger"},
       {"{device: ''}", "comedi.device: is empty"},
+      {"{device: dev/comedi0}", "comedi.device: 'dev/comedi0' is a relative path: give the device node's absolute path"},
       {"{settle: 3}", "comedi.settle"},  // unknown key (a typo)
   };
   for (const Case& k : cases) {
