@@ -7,12 +7,16 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
+#include <new>
 #include <string>
 #include <system_error>
 #include <utility>
 #include <vector>
 
+#include "cli_stdout.hpp"
+#include "sempose/config/reader.hpp"
 #include "sempose/hal/replay_source.hpp"
 
 namespace sempose::config {
@@ -33,6 +37,15 @@ int view(int argc, char** argv);     // operator's pictures of a run or recordin
 // (`sempose run --strict-rt` refuses to start on 3).
 int print_rt_checks(const config::AppConfig& cfg, const std::string& root);
 
+// What an exception says, for an error line: its text escaped (config::terminal_text), and
+// memory running out named as such (sim, pattern and view printed a bare "std::bad_alloc"
+// under `ulimit -v`; hostile round 10).
+inline std::string error_text(const std::exception& e) {
+  if (dynamic_cast<const std::bad_alloc*>(&e) != nullptr)
+    return "out of memory (the machine's, or an address-space limit: ulimit -v, RLIMIT_AS)";
+  return config::terminal_text(e.what());
+}
+
 // Whether an output path is this process's standard output or error itself (/dev/stdout,
 // /proc/self/fd/2, the terminal or file they are open on): "standard output" / "standard error",
 // else nullptr. Found probing: `output.poses_csv: /dev/stdout` opened the file stdout was
@@ -51,15 +64,6 @@ inline const char* standard_stream_named(const std::string& path) {
     if (::fstat(fd, &s) == 0 && s.st_dev == out.st_dev && s.st_ino == out.st_ino) return name;
   }
   return nullptr;
-}
-
-// At a command's end: whether its report on standard output was lost (stdout on a full disk,
-// /dev/full, a closed pipe), said on stderr. Found probing: replay's truth and summary lines,
-// pattern's and view's lines were lost with nothing on stderr and exit 0.
-inline bool report_lost(const char* command) {
-  if (std::fflush(stdout) == 0 && !std::ferror(stdout)) return false;
-  std::fprintf(stderr, "sempose %s: standard output: the report could not be written (%s)\n", command, std::strerror(errno));
-  return true;
 }
 
 // "-" names standard output to most tools; where an output is a folder or a binary file whose
@@ -170,15 +174,6 @@ inline std::string stream_overwrites_input(const std::vector<NamedPath>& inputs)
     }
   }
   return "";
-}
-
-// Whether standard output was closed when the process started (a wrapper's `>&-`): main() puts
-// a closed stream on /dev/null so that no file takes its number, and a command whose product is
-// standard output itself (`replay --out -`) refuses rather than lose every line (found probing:
-// exit 0, the poses gone). Set once by main() before any command runs.
-inline bool& stdout_started_closed() {
-  static bool closed = false;
-  return closed;
 }
 
 }  // namespace sempose::cli

@@ -1,6 +1,8 @@
 // The commands' option parser (cli_options.hpp).
 #include "cli_options.hpp"
 
+#include "cli_stdout.hpp"
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -216,7 +218,10 @@ int finish_parse(const char* command, const ParsedOptions& p, int (*usage)(std::
     case ParsedOptions::Outcome::kOk:
       return -1;
     case ParsedOptions::Outcome::kHelp:
-      return usage(stdout);
+      // The help asked for and lost (stdout full or closed) is no success: exit 4, as the
+      // top-level --help (each command's --help said exit 0; hostile round 10).
+      usage(stdout);
+      return report_lost(command) ? 4 : 0;
     case ParsedOptions::Outcome::kError:
       break;
   }

@@ -194,7 +194,7 @@ int sempose::cli::pattern(int argc, char** argv) {
     try {
       hal::write_pgm(out, pat);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sempose pattern: %s\n", config::terminal_text(e.what()).c_str());
+      std::fprintf(stderr, "sempose pattern: %s\n", cli::error_text(e).c_str());
       return 1;  // the output, not the input
     }
     // The pattern's own noise stays in every pose of a run (a fixed error no frame shows; README:
@@ -217,7 +217,7 @@ int sempose::cli::pattern(int argc, char** argv) {
         pose::rim_information_share(pat.pixels.data(), pat.width, config::TrackerConfig{}.prefilter_passes));
     if (!rim.empty()) std::fprintf(stderr, "sempose pattern: warning: %s: %s\n", out.c_str(), rim.c_str());
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sempose pattern: %s\n", config::terminal_text(e.what()).c_str());
+    std::fprintf(stderr, "sempose pattern: %s\n", cli::error_text(e).c_str());
     return 2;  // the frames: missing, unreadable, not PGM
   }
   return cli::report_lost("pattern") ? 4 : 0;

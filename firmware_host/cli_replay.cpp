@@ -316,7 +316,7 @@ int run_replay(int argc, char** argv) {
     try {
       rows = hal::read_truth_csv(truth_path, hal::kMaxTargets, &non_finite, &widest);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sempose replay: --truth: %s\n", config::terminal_text(e.what()).c_str());
+      std::fprintf(stderr, "sempose replay: --truth: %s\n", cli::error_text(e).c_str());
       return 2;
     }
     // Columns past the target (a hand-made truth with a scale, say) were read and dropped without
@@ -442,7 +442,7 @@ int sempose::cli::replay(int argc, char** argv) {
   try {
     return run_replay(argc, argv);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sempose replay: %s\n", config::terminal_text(e.what()).c_str());
+    std::fprintf(stderr, "sempose replay: %s\n", cli::error_text(e).c_str());
     return 2;
   }
 }

@@ -692,7 +692,7 @@ int sempose::cli::run(int argc, char** argv) {
       run, e2e_now, run_s, rt::alloc::allocations() - allocs_at_start, source_watchdog.stalls());
   summary.stdout_lines_lost = session::stdout_lines_lost();
   session::print_summary(stdout, summary);
-  if (session::stdout_lines_lost() > summary.stdout_lines_lost) {
+  if (session::stdout_lines_lost() > summary.stdout_lines_lost || cli::stdout_started_closed()) {
     // The summary itself did not get through: stderr has it (a different reader, often a log).
     std::fprintf(stderr, "sempose run: standard output is blocked or closed; the summary:\n");
     session::print_summary(stderr, summary);

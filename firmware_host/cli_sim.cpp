@@ -170,7 +170,7 @@ int sempose::cli::sim(int argc, char** argv) {
   try {
     scene = std::make_unique<hal::SimSource>(scan, sim_cfg);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sempose sim: %s\n", config::terminal_text(e.what()).c_str());
+    std::fprintf(stderr, "sempose sim: %s\n", cli::error_text(e).c_str());
     return 2;
   }
   {
@@ -316,7 +316,7 @@ int sempose::cli::sim(int argc, char** argv) {
   } catch (const std::exception& e) {
     // A frame that could not be written (a full disk): the recording so far is removed, as on
     // a signal — it left a cut PGM, empty CSV files, and a folder the next sim refused.
-    std::fprintf(stderr, "sempose sim: %s; removed the incomplete recording from %s\n", config::terminal_text(e.what()).c_str(), out_dir.c_str());
+    std::fprintf(stderr, "sempose sim: %s; removed the incomplete recording from %s\n", cli::error_text(e).c_str(), out_dir.c_str());
     remove_recording(out_dir, frames_started, made);
     return 1;
   }

@@ -73,6 +73,25 @@ int abandon_view(const std::string& why, const std::string& out_dir, const std::
   return 1;
 }
 
+// The names view writes into --out (and removes there when an earlier view left them).
+bool view_writes(const std::filesystem::path& file) {
+  const std::string name = file.filename().string();
+  return name == "track.dat" || name == "track.gp" || name == "track.png" ||
+         (name.rfind("roi_", 0) == 0 && file.extension() == ".png");
+}
+
+// A standard stream redirected onto a file view writes (`view --out vv > vv/track.png`): the
+// report went into the picture and view said exit 0 (hostile round 10). "" when none is.
+std::string stream_onto_output(const std::string& out_dir) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
+    if (!view_writes(e.path())) continue;
+    if (const char* stream = sempose::cli::standard_stream_named(e.path().string()))
+      return "this process's " + std::string(stream) + " is " + e.path().string() + ", a file view writes";
+  }
+  return "";
+}
+
 }  // namespace
 
 int sempose::cli::view(int argc, char** argv) {
@@ -120,14 +139,18 @@ int sempose::cli::view(int argc, char** argv) {
   for (const auto& [option, path] : inputs) {
     const std::filesystem::path input(path);
     const std::string name = input.filename().string();
-    const bool view_writes = name == "track.dat" || name == "track.gp" || name == "track.png" ||
-                             (name.rfind("roi_", 0) == 0 && input.extension() == ".png");
     std::error_code ec;
-    if (view_writes && std::filesystem::equivalent(std::filesystem::absolute(input, ec).parent_path(), out_dir, ec) && !ec) {
+    if (view_writes(input) && std::filesystem::equivalent(std::filesystem::absolute(input, ec).parent_path(), out_dir, ec) && !ec) {
       std::fprintf(stderr, "sempose view: %s '%s' is in --out '%s' under a name view writes (%s): it would be written "
                    "over; choose another --out\n", option.c_str(), path.c_str(), out_dir.c_str(), name.c_str());
       return 2;
     }
+  }
+
+  if (const std::string why = stream_onto_output(out_dir); !why.empty()) {
+    std::fprintf(stderr, "sempose view: --out '%s': %s; send the report elsewhere\n", out_dir.c_str(),
+                 config::terminal_text(why).c_str());
+    return 2;
   }
 
   cli::catch_termination_signals();
@@ -216,7 +239,7 @@ int sempose::cli::view(int argc, char** argv) {
     try {
       plot_problem = operator_view::plot_track(rows, out_dir + "/track", title);
     } catch (const std::exception& e) {
-      return abandon_view(config::terminal_text(e.what()), out_dir, written, made);
+      return abandon_view(cli::error_text(e), out_dir, written, made);
     }
     if (const int sig = cli::stop_requested()) stop_view(sig, out_dir, written, made);
 
@@ -278,7 +301,7 @@ int sempose::cli::view(int argc, char** argv) {
         }
       }
     } catch (const std::exception& e) {
-      return abandon_view(config::terminal_text(e.what()), out_dir, written, made);
+      return abandon_view(cli::error_text(e), out_dir, written, made);
     }
     // ROI pictures an earlier view left in --out (a longer run, another --every): they stayed among
     // this view's, a picture of frame 15 that is not this run's frame 15 (found probing). View's
@@ -288,7 +311,7 @@ int sempose::cli::view(int argc, char** argv) {
       std::error_code ec;
       for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
         const std::string name = e.path().filename().string();
-        if (name.rfind("roi_", 0) != 0 || e.path().extension() != ".png" || !e.is_regular_file(ec)) continue;
+        if (name.rfind("roi_", 0) != 0 || !view_writes(e.path()) || !e.is_regular_file(ec)) continue;
         if (std::find(written.begin(), written.end(), out_dir + "/" + name) == written.end()) earlier.push_back(e.path());
       }
       std::sort(earlier.begin(), earlier.end());
@@ -307,7 +330,7 @@ int sempose::cli::view(int argc, char** argv) {
     if (cli::report_lost("view")) return 4;
     return plot_problem.empty() ? 0 : 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sempose view: %s\n", config::terminal_text(e.what()).c_str());
+    std::fprintf(stderr, "sempose view: %s\n", cli::error_text(e).c_str());
     return 2;
   }
 }

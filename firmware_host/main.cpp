@@ -32,8 +32,8 @@ constexpr Command kCommands[] = {
 int usage(std::FILE* out) {
   std::fprintf(out, "usage: sempose <command> [options]   (sempose <command> --help; sempose --version)\n\ncommands:\n");
   for (const auto& c : kCommands) std::fprintf(out, "  %-9s %s\n", c.name, c.help);
-  // The help asked for and lost (stdout on a full disk) is no success (found probing: exit 0).
-  if (out == stdout) return std::fflush(stdout) == 0 && !std::ferror(stdout) ? 0 : 4;
+  // The help asked for and lost (stdout on a full disk, or closed) is no success (found probing: exit 0).
+  if (out == stdout) return sempose::cli::report_lost("--help") ? 4 : 0;
   return 2;
 }
 
@@ -68,7 +68,7 @@ int main(int argc, char** argv) {
       return 2;
     }
     std::printf("sempose %s\n", SEMPOSE_VERSION);
-    return std::fflush(stdout) == 0 && !std::ferror(stdout) ? 0 : 4;
+    return sempose::cli::report_lost("--version") ? 4 : 0;
   }
   for (const auto& c : kCommands) {
     if (std::strcmp(argv[1], c.name) != 0) continue;

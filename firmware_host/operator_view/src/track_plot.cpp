@@ -1,10 +1,14 @@
 #include "sempose/operator_view/track_plot.hpp"
 
+#include <fcntl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
@@ -108,6 +112,61 @@ bool png_is_whole(const std::string& path) {
   return in && std::equal(tail, tail + sizeof tail, kIend);
 }
 
+// gnuplot draws a few thousand points in well under a second; a run longer than this is stuck (a font configuration that never loads: FONTCONFIG_FILE=/dev/zero hung it).
+constexpr int kGnuplotSeconds = 20;
+
+struct RunResult {
+  int exec_errno = 0;      // why gnuplot could not be started (-1: its folder could not be entered)
+  int status = 0;          // waitpid's status once it ran
+  bool timed_out = false;  // stopped (SIGKILL) after the time limit
+};
+
+// gnuplot -d SCRIPT in `dir`, waited for at most `seconds`. The exec's own failure comes back
+// through a close-on-exec pipe, so "not found" is told from a gnuplot that started and then
+// failed (under `ulimit -v` its libraries did not load, exit 127, and view said "gnuplot not
+// found" although it was installed; hostile round 10).
+RunResult run_gnuplot(const std::string& dir, const std::string& script, int seconds) {
+  RunResult r;
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) {
+    r.exec_errno = errno;
+    return r;
+  }
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    r.exec_errno = errno;
+    ::close(fds[0]);
+    ::close(fds[1]);
+    return r;
+  }
+  if (pid == 0) {
+    int err = -1;
+    if (::chdir(dir.c_str()) == 0) {
+      ::execlp("gnuplot", "gnuplot", "-d", script.c_str(), static_cast<char*>(nullptr));
+      err = errno;
+    }
+    [[maybe_unused]] const ssize_t n = ::write(fds[1], &err, sizeof err);
+    ::_exit(127);
+  }
+  ::close(fds[1]);
+  int err = 0;
+  const ssize_t got = ::read(fds[0], &err, sizeof err);  // 0 bytes: the exec succeeded
+  ::close(fds[0]);
+  if (got == static_cast<ssize_t>(sizeof err)) r.exec_errno = err;
+  for (int waited_ms = 0;; waited_ms += 20) {
+    const pid_t done = ::waitpid(pid, &r.status, WNOHANG);
+    if (done == pid || (done < 0 && errno != EINTR)) break;
+    if (waited_ms >= seconds * 1000) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &r.status, 0);
+      r.timed_out = r.exec_errno == 0;
+      break;
+    }
+    ::usleep(20'000);
+  }
+  return r;
+}
+
 }  // namespace
 
 std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem, const std::string& title) {
@@ -180,18 +239,28 @@ std::string plot_track(const std::vector<PoseRow>& rows, const std::string& stem
                                hal::cut_file_outcome(hal::remove_cut_file(stem + ".gp")));
     }
   }
-  const std::string cmd = "cd " + shell_quoted(dir) + " && gnuplot " + shell_quoted(leaf + ".gp");
-  const pid_t pid = fork();
-  if (pid == 0) {
-    if (chdir(dir.c_str()) != 0) _exit(126);
-    execlp("gnuplot", "gnuplot", (leaf + ".gp").c_str(), static_cast<char*>(nullptr));
-    _exit(127);
+  // -d: the user's ~/.gnuplot is not read. It changed the picture view vouched for (`set datafile
+  // missing "0"` dropped every not-TRACKING mark, exit 0), failed it unexplained (`set datafile
+  // separator ","`) or hung it (`pause 3600`; hostile round 10).
+  const std::string cmd = "cd " + shell_quoted(dir) + " && gnuplot -d " + shell_quoted(leaf + ".gp");
+  // A picture gnuplot did not finish is no plot of this run (a blank panel, 0 bytes, or an
+  // earlier view's): removed, said.
+  const auto failed = [&](const std::string& why) {
+    std::error_code ec;
+    const bool removed = std::filesystem::remove(stem + ".png", ec);
+    return why + (removed ? " (its unfinished " + leaf + ".png removed)" : "") + "; run: " + cmd;
+  };
+  const RunResult run = run_gnuplot(dir, leaf + ".gp", kGnuplotSeconds);
+  if (run.exec_errno == ENOENT) return "gnuplot not found (apt-get install gnuplot-nox); then run: " + cmd;
+  if (run.exec_errno == -1) return failed("cannot enter " + dir + " to run gnuplot");
+  if (run.exec_errno != 0) return failed("cannot start gnuplot (" + std::string(std::strerror(run.exec_errno)) + ")");
+  if (run.timed_out) return failed("gnuplot did not finish within " + std::to_string(kGnuplotSeconds) + " s and was stopped");
+  if (!WIFEXITED(run.status) || WEXITSTATUS(run.status) != 0) {
+    return failed("gnuplot failed on " + stem + ".gp (" +
+                  (WIFEXITED(run.status) ? "exit status " + std::to_string(WEXITSTATUS(run.status))
+                                         : "signal " + std::to_string(WTERMSIG(run.status))) +
+                  ")");
   }
-  int status = 0;
-  if (pid < 0 || waitpid(pid, &status, 0) < 0) return "cannot start gnuplot; run: " + cmd;
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 127) return "gnuplot not found (apt-get install gnuplot-nox); then run: " + cmd;
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 126) return "cannot enter " + dir + " to run gnuplot; run: " + cmd;
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return "gnuplot failed on " + stem + ".gp";
   // gnuplot exits 0 when its picture could not be written whole (a full disk, a file-size limit):
   // a PNG ends with its IEND chunk, or it was cut.
   if (!png_is_whole(stem + ".png")) {

@@ -197,72 +197,86 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     out.made_folders.remove_empty();
     return st;
   };
-  const std::size_t log_lock = out.output_locks.size();
-  if (rt::Status locked = lock(can_log_override.empty() ? "can.log_file" : "--can-log", can_log); !locked) return refuse(locked);
-  if (rt::Status locked = lock("output.poses_csv", cfg.output.poses_csv); !locked) return refuse(locked);
-  if (!hist_dir.empty()) {
-    OutputLock folder;
-    if (rt::Status locked = folder.acquire_folder("histograms", hist_dir); !locked) return refuse(locked);
-    out.output_locks.push_back(std::move(folder));
-  }
-  rt::Status st = can_output::make_can_output(cfg.can, can_log_override, out.can, true);
-  if (!st) return refuse(rt::Status::failure("can: " + st.message));
-  st = can_output::make_gpio_outputs(cfg.gpio, out.gpio_out);
-  if (!st) return refuse(rt::Status::failure("gpio: " + st.message));
-  if (!cfg.output.poses_csv.empty()) {
-    out.csv = std::make_unique<pipeline::CsvPoseSink>(cfg.output.poses_csv, cfg.output.csv_buffer_poses,
-                                                      out.trackers.trackers.size() > 1);
-    st = out.csv->open_keeping();
-    if (!st) return refuse(st);
-  }
-  out.sink = out.can.sink.get();
-  if (out.csv) {
-    out.tee = std::make_unique<pipeline::TeePoseSink>(out.can.sink.get(), out.csv.get());
-    out.sink = out.tee.get();
-  }
-  if (out.gpio_out) {
-    out.gpio_sink = std::make_unique<can_output::GpioPoseSink>(*out.sink, *out.gpio_out);
-    out.sink = out.gpio_sink.get();
-  }
-  std::vector<pose::Tracker*> raw;
-  for (auto& t : out.trackers.trackers) raw.push_back(t.get());
+  // Memory that runs out anywhere below (the CAN and CSV writers' buffers, under `ulimit -v`)
+  // refuses the run as any other failure here: it escaped to main as a bare "out of memory" and
+  // left the 0-byte CSV and candump log it had created, and their folder (hostile round 10).
   try {
-    out.pipeline = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *out.scan, raw, *out.sink, *out.clock);
+    const std::size_t log_lock = out.output_locks.size();
+    if (rt::Status locked = lock(can_log_override.empty() ? "can.log_file" : "--can-log", can_log); !locked) return refuse(locked);
+    if (rt::Status locked = lock("output.poses_csv", cfg.output.poses_csv); !locked) return refuse(locked);
+    if (!hist_dir.empty()) {
+      OutputLock folder;
+      if (rt::Status locked = folder.acquire_folder("histograms", hist_dir); !locked) return refuse(locked);
+      out.output_locks.push_back(std::move(folder));
+    }
+    rt::Status st = can_output::make_can_output(cfg.can, can_log_override, out.can, true);
+    if (!st) return refuse(rt::Status::failure("can: " + st.message));
+    st = can_output::make_gpio_outputs(cfg.gpio, out.gpio_out);
+    if (!st) return refuse(rt::Status::failure("gpio: " + st.message));
+    if (!cfg.output.poses_csv.empty()) {
+      out.csv = std::make_unique<pipeline::CsvPoseSink>(cfg.output.poses_csv, cfg.output.csv_buffer_poses,
+                                                        out.trackers.trackers.size() > 1);
+      st = out.csv->open_keeping();
+      if (!st) return refuse(st);
+    }
+    out.sink = out.can.sink.get();
+    if (out.csv) {
+      out.tee = std::make_unique<pipeline::TeePoseSink>(out.can.sink.get(), out.csv.get());
+      out.sink = out.tee.get();
+    }
+    if (out.gpio_out) {
+      out.gpio_sink = std::make_unique<can_output::GpioPoseSink>(*out.sink, *out.gpio_out);
+      out.sink = out.gpio_sink.get();
+    }
+    std::vector<pose::Tracker*> raw;
+    for (auto& t : out.trackers.trackers) raw.push_back(t.get());
+    try {
+      out.pipeline = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *out.scan, raw, *out.sink, *out.clock);
+    } catch (const std::exception& e) {
+      out.pipeline.reset();
+      out.sink = nullptr;
+      out.tee.reset();
+      out.gpio_sink.reset();
+      // A bare "std::bad_alloc" named nothing (found probing under `ulimit -v`).
+      const bool oom = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
+      return refuse(rt::Status::failure(
+          oom ? "out of memory allocating the pipeline (its frame pool: pipeline.frame_pool_slots "
+                "full-field frames; the "
+                "machine's memory, or an address-space limit: ulimit -v, RLIMIT_AS)"
+              : e.what()));
+    }
+    // output.keep_previous: the last run's files kept as NAME.1 before they are emptied (a unit
+    // restarted after a watchdog kill or a crash erased the record of the run that failed, 2 s
+    // later; found probing). A copy, so the locks and open files stay on the outputs themselves. A
+    // copy that fails is said and the run goes on: the new run's poses matter more than the old.
+    if (cfg.output.keep_previous) {
+      for (const std::string& file : {can_log, cfg.output.poses_csv}) {
+        struct stat last {};
+        if (file.empty() || file == "-" || ::stat(file.c_str(), &last) != 0 || !S_ISREG(last.st_mode) || last.st_size == 0) continue;
+        std::error_code ec;
+        std::filesystem::copy_file(file, file + ".1", std::filesystem::copy_options::overwrite_existing, ec);
+        out.output_notes.push_back(ec ? "warning: output.keep_previous: the last run's " + file + " could not be kept as " + file +
+                                            ".1 (" + ec.message() + "): it is emptied now"
+                                      : "output.keep_previous: the last run's " + file + " kept as " + file + ".1");
+      }
+    }
+    // Every output open: now the candump log (a regular file; SocketCAN has none) and the CSV are
+    // emptied, and the CSV's header written.
+    if (!out.output_locks[log_lock].empty_file())
+      return rt::Status::failure(std::string(can_log_override.empty() ? "can.log_file" : "--can-log") + " '" + can_log +
+                                 "': cannot empty it: " + std::strerror(errno));
+    if (out.csv) return out.csv->begin();
+    return rt::Status::success();
   } catch (const std::exception& e) {
     out.pipeline.reset();
     out.sink = nullptr;
     out.tee.reset();
     out.gpio_sink.reset();
-    // A bare "std::bad_alloc" named nothing (found probing under `ulimit -v`).
     const bool oom = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
-    return refuse(rt::Status::failure(
-        oom ? "out of memory allocating the pipeline (its frame pool: pipeline.frame_pool_slots "
-              "full-field frames; the "
-              "machine's memory, or an address-space limit: ulimit -v, RLIMIT_AS)"
-            : e.what()));
+    return refuse(rt::Status::failure(oom ? "out of memory opening the outputs (the machine's memory, or an "
+                                            "address-space limit: ulimit -v, RLIMIT_AS)"
+                                          : e.what()));
   }
-  // output.keep_previous: the last run's files kept as NAME.1 before they are emptied (a unit
-  // restarted after a watchdog kill or a crash erased the record of the run that failed, 2 s
-  // later; found probing). A copy, so the locks and open files stay on the outputs themselves. A
-  // copy that fails is said and the run goes on: the new run's poses matter more than the old.
-  if (cfg.output.keep_previous) {
-    for (const std::string& file : {can_log, cfg.output.poses_csv}) {
-      struct stat last {};
-      if (file.empty() || file == "-" || ::stat(file.c_str(), &last) != 0 || !S_ISREG(last.st_mode) || last.st_size == 0) continue;
-      std::error_code ec;
-      std::filesystem::copy_file(file, file + ".1", std::filesystem::copy_options::overwrite_existing, ec);
-      out.output_notes.push_back(ec ? "warning: output.keep_previous: the last run's " + file + " could not be kept as " + file +
-                                          ".1 (" + ec.message() + "): it is emptied now"
-                                    : "output.keep_previous: the last run's " + file + " kept as " + file + ".1");
-    }
-  }
-  // Every output open: now the candump log (a regular file; SocketCAN has none) and the CSV are
-  // emptied, and the CSV's header written.
-  if (!out.output_locks[log_lock].empty_file())
-    return rt::Status::failure(std::string(can_log_override.empty() ? "can.log_file" : "--can-log") + " '" + can_log +
-                               "': cannot empty it: " + std::strerror(errno));
-  if (out.csv) return out.csv->begin();
-  return rt::Status::success();
 }
 
 namespace {
