@@ -200,6 +200,8 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
   // Memory that runs out anywhere below (the CAN and CSV writers' buffers, under `ulimit -v`)
   // refuses the run as any other failure here: it escaped to main as a bare "out of memory" and
   // left the 0-byte CSV and candump log it had created, and their folder (hostile round 10).
+  // A bare "std::bad_alloc" named nothing either (found probing the pipeline's allocation).
+  const char* allocating = "opening the outputs";
   try {
     const std::size_t log_lock = out.output_locks.size();
     if (rt::Status locked = lock(can_log_override.empty() ? "can.log_file" : "--can-log", can_log); !locked) return refuse(locked);
@@ -230,21 +232,10 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     }
     std::vector<pose::Tracker*> raw;
     for (auto& t : out.trackers.trackers) raw.push_back(t.get());
-    try {
-      out.pipeline = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *out.scan, raw, *out.sink, *out.clock);
-    } catch (const std::exception& e) {
-      out.pipeline.reset();
-      out.sink = nullptr;
-      out.tee.reset();
-      out.gpio_sink.reset();
-      // A bare "std::bad_alloc" named nothing (found probing under `ulimit -v`).
-      const bool oom = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
-      return refuse(rt::Status::failure(
-          oom ? "out of memory allocating the pipeline (its frame pool: pipeline.frame_pool_slots "
-                "full-field frames; the "
-                "machine's memory, or an address-space limit: ulimit -v, RLIMIT_AS)"
-              : e.what()));
-    }
+    // Its frame pool is what most often does not fit (said so when memory runs out there).
+    allocating = "allocating the pipeline (its frame pool: pipeline.frame_pool_slots full-field frames)";
+    out.pipeline = std::make_unique<pipeline::Pipeline>(cfg.pipeline, cfg.governor, *out.scan, raw, *out.sink, *out.clock);
+    allocating = "opening the outputs";
     // output.keep_previous: the last run's files kept as NAME.1 before they are emptied (a unit
     // restarted after a watchdog kill or a crash erased the record of the run that failed, 2 s
     // later; found probing). A copy, so the locks and open files stay on the outputs themselves. A
@@ -273,8 +264,8 @@ rt::Status build_outputs(const config::AppConfig& cfg, const std::string& can_lo
     out.tee.reset();
     out.gpio_sink.reset();
     const bool oom = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
-    return refuse(rt::Status::failure(oom ? "out of memory opening the outputs (the machine's memory, or an "
-                                            "address-space limit: ulimit -v, RLIMIT_AS)"
+    return refuse(rt::Status::failure(oom ? std::string("out of memory ") + allocating +
+                                                " (the machine's memory, or an address-space limit: ulimit -v, RLIMIT_AS)"
                                           : e.what()));
   }
 }
