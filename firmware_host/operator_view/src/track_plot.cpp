@@ -112,7 +112,8 @@ bool png_is_whole(const std::string& path) {
   return in && std::equal(tail, tail + sizeof tail, kIend);
 }
 
-// gnuplot draws a few thousand points in well under a second; a run longer than this is stuck (a font configuration that never loads: FONTCONFIG_FILE=/dev/zero hung it).
+// gnuplot draws a view's few thousand points a line in 1-3 s (300,000 poses: 2.6 s); longer than
+// this it is stuck (a font configuration that never loads: FONTCONFIG_FILE=/dev/zero hung it).
 constexpr int kGnuplotSeconds = 20;
 
 struct RunResult {
@@ -154,6 +155,8 @@ RunResult run_gnuplot(const std::string& dir, const std::string& script, int sec
   ::close(fds[0]);
   if (got == static_cast<ssize_t>(sizeof err)) r.exec_errno = err;
   for (int waited_ms = 0;; waited_ms += 20) {
+    // (ECHILD: SIGCHLD ignored by whoever started sempose reaps the child itself; the picture's
+    // own check after this tells whether it was drawn.)
     const pid_t done = ::waitpid(pid, &r.status, WNOHANG);
     if (done == pid || (done < 0 && errno != EINTR)) break;
     if (waited_ms >= seconds * 1000) {
