@@ -293,6 +293,15 @@ TEST_F(FakeTree, UnreadOrMalformedFilesAreNotPassed) {
   EXPECT_EQ(find(r, "cpufreq").level, Level::kWarn) << find(r, "cpufreq").detail;
   EXPECT_NE(find(r, "cpufreq").detail.find("cannot read the scaling governor of RT core(s) 3"), std::string::npos)
       << find(r, "cpufreq").detail;
+  // Each slow governor with its own cores (the last one read was named for all of them).
+  put("sys/devices/system/cpu/cpu2/cpufreq/scaling_governor", "powersave\n");
+  fs::remove_all(root / "sys/devices/system/cpu/cpu3/cpufreq/scaling_governor");
+  put("sys/devices/system/cpu/cpu3/cpufreq/scaling_governor", "ondemand\n");
+  r = run();
+  EXPECT_NE(find(r, "cpufreq").detail.find("governor 'powersave' on RT core(s) 2, 'ondemand' on RT core(s) 3"), std::string::npos)
+      << find(r, "cpufreq").detail;
+  fs::remove(root / "sys/devices/system/cpu/cpu3/cpufreq/scaling_governor");
+  fs::create_directories(root / "sys/devices/system/cpu/cpu3/cpufreq/scaling_governor");
   // An unread core is named beside a slow one too (only the slow one was).
   put("sys/devices/system/cpu/cpu2/cpufreq/scaling_governor", "powersave\n");
   r = run();

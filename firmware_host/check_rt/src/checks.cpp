@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <optional>
 #include <set>
+#include <utility>
 #include <sstream>
 
 namespace sempose::check_rt {
@@ -234,7 +235,7 @@ void check_throttling(const SystemTree& tree, bool spin, std::vector<CheckResult
 
 void check_governor(const SystemTree& tree, const std::vector<int>& rt, std::vector<CheckResult>& out) {
   std::vector<int> slow, unread;
-  std::string seen;
+  std::vector<std::pair<std::string, std::vector<int>>> seen;  // each slow governor and its cores
   bool any_cpufreq = false;
   for (int c : rt) {
     const std::string dir = "sys/devices/system/cpu/cpu" + std::to_string(c) + "/cpufreq";
@@ -248,7 +249,9 @@ void check_governor(const SystemTree& tree, const std::vector<int>& rt, std::vec
     any_cpufreq = true;
     if (*g != "performance") {
       slow.push_back(c);
-      seen = *g;
+      auto it = std::find_if(seen.begin(), seen.end(), [&](const auto& e) { return e.first == *g; });
+      if (it == seen.end()) it = seen.insert(seen.end(), {*g, {}});
+      it->second.push_back(c);
     }
   }
   // No cpufreq folder is a fixed clock (or a VM) only where the cores' folder is there at all.
@@ -263,9 +266,12 @@ void check_governor(const SystemTree& tree, const std::vector<int>& rt, std::vec
     if (slow.empty()) {
       out.push_back(warn("cpufreq", unread_text, unread_fix));
     } else {
+      // Each governor with its own cores (only the last one read was named, for every slow core).
+      std::string governors;
+      for (const auto& [name, cores] : seen)
+        governors += (governors.empty() ? "'" : ", '") + name + "' on RT core(s) " + format_cpu_list(cores);
       out.push_back(warn("cpufreq",
-                         "governor '" + seen + "' on RT core(s) " + format_cpu_list(slow) + ": clock ramps add latency" +
-                             (unread.empty() ? "" : "; " + unread_text),
+                         "governor " + governors + ": clock ramps add latency" + (unread.empty() ? "" : "; " + unread_text),
                          "cpupower frequency-set -c " + format_cpu_list(slow) + " -g performance (package linux-cpupower)" +
                              (unread.empty() ? "" : "; " + unread_fix)));
     }
