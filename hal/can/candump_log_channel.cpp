@@ -1,6 +1,8 @@
 // candump -l log channel. See can_candump_log.hpp.
 #include "sempose/hal/can_candump_log.hpp"
 
+#include "sempose/rt/single_writer_counter.hpp"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -112,6 +114,7 @@ CanSendResult CandumpLogChannel::send(const CanFrame& f, std::int64_t t_ns) noex
   const std::size_t n = format_line(f, t_ns, channel_.c_str(), line);
   if (!ring_.try_push(line, n)) {
     CanChannelCounters::bump(counters_.tx_dropped);
+    rt::add_single_writer(ring_full_, n);
     return CanSendResult::kDropped;
   }
   CanChannelCounters::bump(counters_.tx_frames);

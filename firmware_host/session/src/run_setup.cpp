@@ -281,6 +281,11 @@ std::uint64_t RunSetup::output_write_errors() const {
   return (csv ? csv->write_errors() : 0) + (candump ? candump->write_errors() : 0);
 }
 
+bool RunSetup::output_ring_overflowed() const {
+  const auto* candump = candump_of(*this);
+  return (csv && csv->dropped() > 0) || (candump && candump->bytes_dropped_ring_full() > 0);
+}
+
 int RunSetup::last_output_errno() const {
   const auto* candump = candump_of(*this);
   return csv && csv->last_errno() ? csv->last_errno() : candump ? candump->last_errno() : 0;

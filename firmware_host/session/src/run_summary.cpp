@@ -47,7 +47,8 @@ RunSummary collect_summary(const RunSetup& run, rt::HistogramSnapshot& e2e, doub
   // Lines lost in writing and poses the writer fell too far behind to keep (its ring full).
   s.csv_lines_lost = run.csv ? run.csv->lost_lines() + run.csv->dropped() : 0;
   const auto* candump = dynamic_cast<const hal::CandumpLogChannel*>(run.can.channel.get());
-  s.can_log_bytes_lost = candump ? candump->bytes_pending() + candump->bytes_lost_to_deleted_file() : 0;
+  s.can_log_bytes_lost =
+      candump ? candump->bytes_pending() + candump->bytes_lost_to_deleted_file() + candump->bytes_dropped_ring_full() : 0;
   s.commands_rejected = c.commands_rejected.get();
   s.command_overflows = cc.commands_overflowed.load();
   s.source_stalls = source_stalls;

@@ -57,6 +57,11 @@ class CandumpLogChannel final : public CanChannel {
   // Bytes written into the file after it was deleted (ENOENT in last_errno()), and the bytes of
   // a line a failed write tore (cut from the file, the rest dropped from the ring): lost too.
   std::uint64_t bytes_lost_to_deleted_file() const noexcept { return lost_.load(std::memory_order_relaxed); }
+  // Bytes of lines send() dropped because the ring was full (can.log_buffer_bytes too small for
+  // what comes between two flushes): lines the log lacks, as the CSV's ring-full poses are. They
+  // were counted only as tx_dropped, a busy bus's counter, and the run ended exit 0 (hostile
+  // round 11).
+  std::uint64_t bytes_dropped_ring_full() const noexcept { return ring_full_.load(std::memory_order_relaxed); }
 
  private:
   CandumpLogChannel() = default;
@@ -77,6 +82,7 @@ class CandumpLogChannel final : public CanChannel {
   std::atomic<std::uint64_t> write_errors_{0};
   std::atomic<int> last_errno_{0};
   std::atomic<std::uint64_t> lost_{0};
+  std::atomic<std::uint64_t> ring_full_{0};  // written by send() only
   std::mutex flush_mutex_;  // non-RT side only: two non-RT callers of flush() never interleave
 };
 

@@ -78,7 +78,11 @@ struct RunSetup {
   // Failed writes of the file outputs so far (CSV, candump log).
   std::uint64_t output_write_errors() const;
   int last_output_errno() const;
-  // Writes what the file sinks hold (non-RT; the status period and shutdown).
+  // Whether the CSV's or the candump log's ring overflowed between two flushes (poses or lines
+  // dropped, counted in csv_lines_lost / can_log_bytes_lost): output.csv_buffer_poses or
+  // can.log_buffer_bytes too small for what comes in 50 ms.
+  bool output_ring_overflowed() const;
+  // Writes what the file sinks hold (non-RT; every wake of the main loop and shutdown).
   void flush_outputs();
 };
 
