@@ -23,6 +23,7 @@ void read_governor(Section& s, GovernorConfig& c) {
   s.opt("max_quality_factor", c.max_quality_factor, 1.0, 100.0);
   s.opt("min_pose_rate_hz", c.min_pose_rate_hz, 0.01, 100'000.0);
   c.min_pose_rate_given = s.has("min_pose_rate_hz");
+  c.initial_dwell_given = s.has("initial_dwell_ns");
   if (c.min_dwell_ns != 0 && c.max_dwell_ns != 0 && c.min_dwell_ns > c.max_dwell_ns) {
     s.error("max_dwell_ns", std::to_string(c.max_dwell_ns) + " is below min_dwell_ns " +
                                 std::to_string(c.min_dwell_ns));
@@ -50,19 +51,36 @@ void check_governor_against_scan(Section& root, const GovernorConfig& c, const S
   // scan's limits or its step without a word: 50 ran at 100, 10001 at 10000, 125 at 150 (found
   // probing). The scan generator cannot run it as given: named, as `sim --dwell` names it.
   const std::uint64_t step = scan.dwell_step_ns == 0 ? 1 : scan.dwell_step_ns;
-  if (c.initial_dwell_ns < scan.min_dwell_ns || c.initial_dwell_ns > scan.max_dwell_ns) {
+  // A refused initial_dwell_ns holds the default, which the file never said (a second error
+  // about 250 followed the range error for 0; hostile round 11).
+  if (root.errors().refused("governor.initial_dwell_ns")) {
+  } else if (c.initial_dwell_ns < scan.min_dwell_ns || c.initial_dwell_ns > scan.max_dwell_ns) {
     root.error_at("governor.initial_dwell_ns",
                   std::to_string(c.initial_dwell_ns) +
                       " is outside scan.min_dwell_ns..scan.max_dwell_ns [" +
                       std::to_string(scan.min_dwell_ns) + ", " + std::to_string(scan.max_dwell_ns) +
                       "]: the scan generator cannot run it");
   } else if (c.initial_dwell_ns % step != 0) {
+    // Only multiples the scan can run are offered ("give 0 or 300" named a dwell below its range).
     const std::uint64_t below = c.initial_dwell_ns / step * step, above = below + step;
+    const bool below_ok = below >= std::max<std::uint64_t>(scan.min_dwell_ns, 1), above_ok = above <= scan.max_dwell_ns;
+    const std::string give = below_ok && above_ok ? std::to_string(below) + " or " + std::to_string(above)
+                             : below_ok           ? std::to_string(below)
+                                                  : std::to_string(above);
     root.error_at("governor.initial_dwell_ns",
                   std::to_string(c.initial_dwell_ns) + " is not a multiple of scan.dwell_step_ns " +
                       std::to_string(step) + ": the scan generator would run " +
-                      std::to_string(scan.round_dwell_ns(c.initial_dwell_ns)) + "; give " +
-                      std::to_string(below) + " or " + std::to_string(above));
+                      std::to_string(scan.round_dwell_ns(c.initial_dwell_ns)) + "; give " + give);
+  } else if (c.initial_dwell_given && ((c.min_dwell_ns != 0 && c.initial_dwell_ns < c.min_dwell_ns) ||
+                                        (c.max_dwell_ns != 0 && c.initial_dwell_ns > c.max_dwell_ns))) {
+    // A first dwell the file gives outside the governor's own range was moved to its nearer limit
+    // without a word: initial 1000 with max 500 ran every scan at 500, the governor off too
+    // (hostile round 11). The default (not written) starts at the nearer limit, as before.
+    root.error_at("governor.initial_dwell_ns",
+                  std::to_string(c.initial_dwell_ns) + " is outside governor.min_dwell_ns..max_dwell_ns [" +
+                      std::to_string(c.min_dwell_ns) + ", " +
+                      (c.max_dwell_ns == 0 ? std::string("scan's max") : std::to_string(c.max_dwell_ns)) +
+                      "]: the governor would start at the nearer limit instead; give a dwell inside them");
   }
   // Both ranges overlap; the governor's dwells are multiples of the scan's step inside both.
   const std::uint64_t lo = std::max(scan.min_dwell_ns, c.min_dwell_ns);

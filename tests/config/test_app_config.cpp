@@ -441,6 +441,25 @@ TEST(AppConfig, GovernorDwellLimitsMustOverlapTheScans) {
             std::string::npos) << e;
   e.clear();
   EXPECT_TRUE(parse_app_config(scan + "governor: {enabled: false, initial_dwell_ns: 150}\n", "g.yaml", c, e)) << e;
+  // Hostile round 11: outside the governor's own range it was moved to the nearer limit without a
+  // word (1000 with max 500 ran every scan at 500); a hint offered a dwell below the scan's range
+  // ("give 0 or 300"), and a refused value's default was judged too.
+  e.clear();
+  EXPECT_FALSE(parse_app_config(scan + "governor: {enabled: false, initial_dwell_ns: 1000, max_dwell_ns: 500}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("governor.initial_dwell_ns: 1000 is outside governor.min_dwell_ns..max_dwell_ns [0, 500]"), std::string::npos)
+      << e;
+  e.clear();
+  EXPECT_FALSE(parse_app_config(scan + "governor: {initial_dwell_ns: 250, min_dwell_ns: 1000}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("governor.initial_dwell_ns: 250 is outside governor.min_dwell_ns..max_dwell_ns [1000, scan's max]"),
+            std::string::npos) << e;
+  const std::string step300 = "scan: {min_dwell_ns: 100, max_dwell_ns: 10000, dwell_step_ns: 300}\n";
+  e.clear();
+  EXPECT_FALSE(parse_app_config(step300 + "governor: {initial_dwell_ns: 250}\n", "g.yaml", c, e));
+  EXPECT_NE(e.find("would run 300; give 300"), std::string::npos) << e;
+  EXPECT_EQ(e.find("give 0"), std::string::npos) << e;
+  e.clear();
+  EXPECT_FALSE(parse_app_config(step300 + "governor: {initial_dwell_ns: 0}\n", "g.yaml", c, e));
+  EXPECT_EQ(e.find("250"), std::string::npos) << "the refused value's default judged: " << e;
 }
 
 // A per-target pose rate no ROI scan can give: 100000 Hz was accepted, and the governor's cap

@@ -29,6 +29,7 @@ struct GovernorConfig {
   double max_quality_factor = 4.0;     // cap of the accumulated quality factor
   double min_pose_rate_hz = 10.0;      // per target: the dwell never drops the pose rate below this
   bool min_pose_rate_given = false;    // min_pose_rate_hz came from the config (checked against the scan)
+  bool initial_dwell_given = false;    // initial_dwell_ns came from the config (checked against min/max)
 };
 
 // Reads the `governor:` section (config/src/governor_section.cpp).
