@@ -451,6 +451,16 @@ int sempose::cli::run(int argc, char** argv) {
     std::printf("  target %zu %s: pattern %s\n", i, run.trackers.names[i].c_str(), run.trackers.pattern_origins[i].c_str());
   }
   for (const std::string& note : run.trackers.symmetry_notes) std::printf("note: %s\n", note.c_str());
+  // A pattern set without nm_per_px is 1 nm per pixel: CAN then carries pixels labelled nm, in
+  // whole pixels (POSE_XY's 1 nm step), and nothing said so (hostile round 11).
+  for (std::size_t i = 0; i < cfg.targets.size(); ++i) {
+    for (std::size_t j = 0; j < cfg.targets[i].pattern_sets.size(); ++j) {
+      if (cfg.targets[i].pattern_sets[j].nm_per_px_given) continue;
+      std::printf("note: targets[%zu].pattern_sets[%zu].nm_per_px not given: 1 nm per pixel, so CAN carries this target's "
+                  "positions in pixels, rounded to whole pixels in POSE_XY (give the magnification step's nm/px)\n",
+                  i, j);
+    }
+  }
   std::printf("memory: pattern banks + spectra %.1f MiB, frame pool %.1f MiB\n", run.trackers.memory_bytes / 1048576.0,
               pipe->frame_pool_bytes() / 1048576.0);
   std::printf("output: %s%s%s\n", run.can.description.c_str(), run.csv ? ", CSV " : "",

@@ -133,6 +133,7 @@ void read_targets(Section& root, std::vector<TargetConfig>& out) {
       PatternSetConfig p;
       ps.req("file", p.file);
       ps.opt("nm_per_px", p.nm_per_px, 1e-6, 1e9);
+      p.nm_per_px_given = ps.has("nm_per_px");
       ps.opt("mask", p.mask);
       ps.opt("dwell_ns", p.dwell_ns, 0u, 100'000'000u);
       tc.pattern_sets.push_back(p);

@@ -156,6 +156,24 @@ TEST(CanPoseSink, NonFinitePoseIsSentAsLostBadFrame) {
   EXPECT_TRUE(da.reason_bits & sempose::pose::kReasonBadFrame);
 }
 
+// A position POSE_XY cannot carry (±134 mm) saturates: never TRACKING (hostile round 11: with
+// nm_per_px 1e6 every pose went out pinned at 134217727 nm, TRACKING).
+TEST(CanPoseSink, APositionBeyondTheWiresRangeIsNotTracking) {
+  hal::MemoryCanChannel ch;
+  co::CanPoseSink sink(ch, {});
+  auto p = pose(0, 1);
+  p.nm_per_px = 1e6;  // 101 px -> 101 mm: fits
+  sink.publish(p, 2'000'000);
+  ipc::PoseAttr da;
+  ipc::decode_pose_attr(ch.sent(1).data, 8, da);
+  EXPECT_EQ(da.state, ipc::WireState::kTracking);
+  p.x_px = 200.0;  // 200 mm: beyond
+  sink.publish(p, 3'000'000);
+  ipc::decode_pose_attr(ch.sent(4).data, 8, da);
+  EXPECT_EQ(da.state, ipc::WireState::kUncertain);
+  EXPECT_TRUE(da.reason_bits & sempose::pose::kReasonOutOfField);
+}
+
 TEST(CanPoseSink, DroppedFramesAreCountedAndNeverBlock) {
   hal::MemoryCanChannel ch;
   co::CanPoseSink sink(ch, {});

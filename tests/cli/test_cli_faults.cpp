@@ -2755,3 +2755,36 @@ TEST(CliFaults, CandumpLogLinesThatDoNotFitItsRingAreLostOutput) {
     std::printf("note: the 4 KiB candump ring did not overflow on this machine (%zu poses)\n", tight_poses);
   }
 }
+
+// Hostile round 11: nm_per_px 1e6 put every pose at 134217727 nm on the wire (POSE_XY's
+// saturated ±134 mm), TRACKING; a pattern set without nm_per_px sent pixels labelled nm, in
+// whole pixels, without a word. The first is refused at setup with the largest nm/px the field
+// allows; the second is said.
+TEST(CliFaults, RunRefusesAScaleCanCannotCarryAndSaysAPixelScale) {
+  const std::string dir = work_dir() + "/nm_per_px";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_TRUE(record_with_pattern(dir, small_config(dir, ""), 3));
+  const auto config = [&](const std::string& set) {
+    const std::string path = dir + "/run" + std::to_string(set.size()) + ".yaml";
+    std::ofstream(path) << "source: replay\nreplay: {frames_dir: " << dir << "/rec}\ntargets: [{name: a, pattern_sets: [{file: "
+                        << dir << "/p.pgm" << set << "}]}]\noutput: {poses_csv: " << dir << "/poses.csv}\ncan: {log_file: "
+                        << dir << "/can.log}\npipeline: {lock_memory: false, hold_dma_latency: false, acquisition: "
+                           "{cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0}, output: {cpu: -1, "
+                           "priority: 0}, non_rt_cpu: -1}\n";
+    return path;
+  };
+  const Outcome far = run({"run", "--config", config(", nm_per_px: 1000000"), "--duration", "1"}, 60);
+  EXPECT_EQ(far.code, 2) << far.out << far.err;
+  EXPECT_NE(far.err.find("pattern_sets[0].nm_per_px: 1e+06 nm/px puts the 320x240 field's far edge at 320000000 nm, beyond "
+                         "the 134217727 nm POSE_XY carries (28 bits of 1 nm): at most 419430 nm/px for this field"),
+            std::string::npos) << far.err;
+  EXPECT_FALSE(fs::exists(dir + "/poses.csv"));
+  const Outcome pixels = run({"run", "--config", config(""), "--duration", "1"}, 60);
+  EXPECT_EQ(pixels.code, 0) << pixels.err;
+  EXPECT_NE(pixels.out.find("note: targets[0].pattern_sets[0].nm_per_px not given: 1 nm per pixel"), std::string::npos)
+      << pixels.out;
+  const Outcome told = run({"run", "--config", config(", nm_per_px: 40"), "--duration", "1"}, 60);
+  EXPECT_EQ(told.code, 0) << told.err;
+  EXPECT_EQ(told.out.find("nm_per_px not given"), std::string::npos) << told.out;
+}

@@ -42,6 +42,13 @@ ipc::PoseValues CanPoseSink::to_values(const pipeline::PoseRecord& p, std::int64
     v.reason_bits = static_cast<std::uint8_t>(v.reason_bits | pose::kReasonBadFrame);
   }
   if (!std::isfinite(v.psr)) v.psr = 0;
+  // A position POSE_XY cannot carry saturates at ±134 mm: never a TRACKING pose (with nm_per_px
+  // 1e6 every pose went out pinned there, TRACKING; hostile round 11). Setup refuses a field
+  // that does not fit (make_trackers); a SELECT's nm/px can still exceed it.
+  if ((std::fabs(v.x_nm) > ipc::kXyMaxNm || std::fabs(v.y_nm) > ipc::kXyMaxNm) && v.state == ipc::WireState::kTracking) {
+    v.state = ipc::WireState::kUncertain;
+    v.reason_bits = static_cast<std::uint8_t>(v.reason_bits | pose::kReasonOutOfField);
+  }
   v.seq = p.pose_seq;
   // Age from when the beam passed the target, the time the pose is valid for (a full-field
   // search frame's pose can be tens of ms older than its scan's end).

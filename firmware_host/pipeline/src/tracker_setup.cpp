@@ -1,10 +1,12 @@
 #include "sempose/pipeline/tracker_setup.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 
 #include "sempose/hal/pgm.hpp"
+#include "sempose/ipc/protocol.hpp"
 #include "sempose/hal/sim_source.hpp"
 #include "sempose/pipeline/pose_input.hpp"
 #include "sempose/pose/tracker.hpp"
@@ -76,6 +78,18 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
         pose::PatternSet set;
         const rt::Status loaded = load_pattern_set(ps, set);
         if (!loaded.ok) return rt::Status::failure(cfg.path + ": targets: " + t.name + ": " + loaded.message);
+        // Every place in the field must be a position CAN can carry: with nm_per_px 1e6 every
+        // pose went out pinned at 134 mm, TRACKING (hostile round 11).
+        const int side = std::max(limits.field_w, limits.field_h);
+        if (side * ps.nm_per_px > ipc::kXyMaxNm) {
+          char text[320];
+          std::snprintf(text, sizeof text,
+                        "%s: targets: %s: pattern_sets[%zu].nm_per_px: %g nm/px puts the %dx%d field's far edge at %.0f nm, "
+                        "beyond the %.0f nm POSE_XY carries (28 bits of 1 nm): at most %.0f nm/px for this field",
+                        cfg.path.c_str(), t.name.c_str(), k, ps.nm_per_px, limits.field_w, limits.field_h,
+                        side * ps.nm_per_px, ipc::kXyMaxNm, std::floor(ipc::kXyMaxNm / side));
+          return rt::Status::failure(text);
+        }
         sets.push_back(std::move(set));
         origins += (origins.empty() ? "" : ", ") + ps.file;
         files += (files.empty() ? "" : "; ") + ("set " + std::to_string(k) + " " + ps.file) +

@@ -142,6 +142,7 @@ struct PatternSetConfig {
   double nm_per_px = 1.0;      // scale of this magnification step
   std::string mask;            // optional PGM, pattern-sized: non-zero = the target's own pixels
   std::uint32_t dwell_ns = 0;  // pixel dwell the pattern was recorded at (0: lag-free, e.g. a long dwell)
+  bool nm_per_px_given = false;  // from the config (else 1: CAN carries pixels; run says so)
 };
 
 struct TargetConfig {

@@ -47,6 +47,8 @@ inline constexpr int kMaxPatternSets = 16;  // 4-bit field in the heartbeat
 
 // ---- field widths (must match ipc/sempose.dbc; tests/ipc checks them against it) ----
 inline constexpr unsigned kXyBits = 28;        // ±134 217 727 nm = ±134 mm
+// The largest |x|, |y| POSE_XY carries (1 nm steps); a position beyond it saturates.
+inline constexpr double kXyMaxNm = static_cast<double>((std::int64_t{1} << (kXyBits - 1)) - 1);
 inline constexpr unsigned kPhiBits = 19;       // ±262 143 mdeg holds ±180 000
 inline constexpr unsigned kScoreBits = 11;     // ±1023 holds ±1000 (score × 1000)
 inline constexpr unsigned kAgeBits = 12;       // × 8 µs: 0..32 760 µs (bits 60-62 angle order, 63 look_alike)
