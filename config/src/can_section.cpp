@@ -30,6 +30,13 @@ bool read_id(Section& s, const char* key, std::int64_t& out, std::int64_t lo, st
 
 void read_can(Section& s, CanConfig& out) {
   s.opt("interface", out.interface);
+  // The kernel's rule for a network interface name (dev_valid_name: at most IFNAMSIZ - 1 = 15
+  // bytes, not "." or "..", no '/', ':' or white space): a 16-character name passed here, run
+  // refused it unlocated and check-rt offered an `ip link add` that fails (hostile round 11).
+  if (!out.interface.empty() &&
+      (out.interface.size() > 15 || out.interface == "." || out.interface == ".." ||
+       out.interface.find_first_of("/: \t\n\r\v\f") != std::string::npos))
+    s.error("interface", "'" + out.interface + "' is not a network interface name (1..15 characters, not '.' or '..', no '/', ':' or spaces)");
   s.opt("log_file", out.log_file);
   s.opt("log_channel", out.log_channel);
   s.opt_choice("log_timestamps", out.log_timestamps, {"source", "wall"});
@@ -52,8 +59,13 @@ void read_can(Section& s, CanConfig& out) {
   if (cmd_id > 0x7FF) {
     s.error(out.command_id >= 0 ? "command_id" : "base_id",
             "command id " + std::to_string(cmd_id) + " (base_id + 0x50) is above 0x7FF; set can.command_id");
-  } else if (cmd_id >= out.base_id && cmd_id < out.base_id + 0x40 && (cmd_id - out.base_id) % 0x10 <= 2) {
-    s.error("command_id", std::to_string(cmd_id) + " collides with a pose frame id (base_id + 0x10*target + 0..2)");
+  } else if (cmd_id >= out.base_id && cmd_id < out.base_id + 0x40 && (cmd_id - out.base_id) % 0x10 <= 3) {
+    // +3 is POSE_UNC (it passed here and was refused later by the CAN setup, without file:line
+    // or what it collides with; hostile round 11).
+    static const char* const kFrames[] = {"POSE_XY", "POSE_ATTR", "POSE_FD", "POSE_UNC"};
+    s.error("command_id", std::to_string(cmd_id) + " collides with target " + std::to_string((cmd_id - out.base_id) / 0x10) +
+                              "'s " + kFrames[(cmd_id - out.base_id) % 0x10] +
+                              " id (pose frames: base_id + 0x10*target + 0..3)");
   } else if (cmd_id == out.base_id + 0x40) {
     s.error("command_id", std::to_string(cmd_id) + " collides with the heartbeat id (base_id + 0x40)");
   }

@@ -48,7 +48,15 @@ TEST(CanSection, ErrorsNameKeyValueAndRange) {
   EXPECT_NE(err.find("maybe"), std::string::npos) << err;
   EXPECT_NE(err.find("bogus"), std::string::npos) << err;
   cfg::CanConfig d;
-  EXPECT_NE(read("{command_id: 0x111}", d, cfg::read_can).find("collides with a pose frame"), std::string::npos);
+  EXPECT_NE(read("{command_id: 0x111}", d, cfg::read_can).find("collides with target 1's POSE_ATTR id"), std::string::npos);
+  // A name the kernel cannot give an interface (hostile round 11: 16 characters passed).
+  for (const char* name : {"abcdefghijklmnop", "can/0", "can:0", "..", "'can 0'"})
+    EXPECT_NE(read((std::string("{interface: ") + name + "}").c_str(), d, cfg::read_can).find("is not a network interface name"),
+              std::string::npos) << name;
+  cfg::CanConfig fifteen;
+  EXPECT_EQ(read("{interface: abcdefghijklmno}", fifteen, cfg::read_can), "") << "15 characters fit";
+  // POSE_UNC (+3) passed here and was refused late, unlocated (hostile round 11).
+  EXPECT_NE(read("{command_id: 0x133}", d, cfg::read_can).find("collides with target 3's POSE_UNC id"), std::string::npos);
   cfg::CanConfig e;
   EXPECT_NE(read("{command_id: 0x140}", e, cfg::read_can).find("heartbeat"), std::string::npos);
   cfg::CanConfig f;
