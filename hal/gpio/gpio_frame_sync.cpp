@@ -9,7 +9,7 @@
 #include <cstring>
 
 #include "sempose/rt/clock.hpp"
-#include "gpio_chip_open.hpp"
+#include "sempose/hal/gpio_chip_open.hpp"
 
 namespace sempose::hal {
 

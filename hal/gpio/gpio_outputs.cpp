@@ -6,7 +6,7 @@
 #include <cerrno>
 #include <cstring>
 
-#include "gpio_chip_open.hpp"
+#include "sempose/hal/gpio_chip_open.hpp"
 
 namespace sempose::hal {
 namespace {

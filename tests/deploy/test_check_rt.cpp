@@ -458,6 +458,18 @@ TEST(LinuxProbe, NodesThatAreNoComediDeviceAreNamed) {
   std::remove(file.c_str());
 }
 
+// A GPIO chip path that is a file or a folder is named as what it is, as `run` names it (it was
+// "cannot be opened (No such file or directory)"; hostile round 11).
+TEST(LinuxProbe, GpioChipPathsThatAreNoChipAreNamed) {
+  check_rt::LinuxProbe probe;
+  const std::string file = ::testing::TempDir() + "not_gpio_" + std::to_string(::getpid());
+  std::ofstream(file) << "x";
+  EXPECT_EQ(probe.gpio_line(file, 3).chip_problem, "it is not a character device, not a GPIO chip");
+  EXPECT_EQ(probe.gpio_line(::testing::TempDir(), 3).chip_problem, "it is a folder, not a GPIO chip");
+  EXPECT_FALSE(probe.gpio_line(file, 3).chip_found);
+  std::remove(file.c_str());
+}
+
 TEST(CpuLists, ParseKernelFormats) {
   EXPECT_EQ(check_rt::parse_cpu_list("0-3,8,10-11\n"), (std::vector<int>{0, 1, 2, 3, 8, 10, 11}));
   EXPECT_EQ(check_rt::parse_cpu_list("(null)"), std::vector<int>{});

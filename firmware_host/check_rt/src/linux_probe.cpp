@@ -16,6 +16,7 @@
 #include <cerrno>
 #include <cstring>
 
+#include "sempose/hal/gpio_chip_open.hpp"
 #include "sempose/check_rt/live_probe.hpp"
 
 namespace sempose::check_rt {
@@ -95,11 +96,10 @@ std::optional<CanLinkDetails> LinuxProbe::can_link(const std::string& interface)
 
 GpioLineUse LinuxProbe::gpio_line(const std::string& chip_name, int offset) {
   GpioLineUse u;
-  gpiod_chip* chip = gpiod_chip_open_lookup(chip_name.c_str());
-  if (chip == nullptr) {
-    u.chip_problem = std::strerror(errno);
-    return u;
-  }
+  // The cause run names too (a file, FIFO or folder as the chip was "No such file or directory"
+  // here while run said what it is; hostile round 11).
+  gpiod_chip* chip = hal::open_gpio_chip(chip_name, u.chip_problem);
+  if (chip == nullptr) return u;
   u.chip_found = true;
   if (offset >= 0 && static_cast<unsigned>(offset) < gpiod_chip_num_lines(chip)) {
     gpiod_line* line = gpiod_chip_get_line(chip, static_cast<unsigned>(offset));
