@@ -165,17 +165,22 @@ void expect_refused(const Refusal& c, double timeout_s) {
   EXPECT_NE(r.err.find(c.expect), std::string::npos) << joined << "\n" << r.err;
 }
 
-// A small, fast configuration: the simulator on its virtual clock (no real-time pacing).
+// A small, fast scene: the simulator on its virtual clock (no real-time pacing); `pipeline`:
+// more keys of the pipeline section ("stats_period_ms: 100, ").
+std::string small_scene(const std::string& pipeline) {
+  return "scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}\n"
+         "sim:\n  clock: virtual\n  targets:\n    - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}\n"
+         "tracker: {pattern_size_px: 64, roi_size_px: 96}\n"
+         "pipeline: {lock_memory: false, hold_dma_latency: false, " + pipeline + "\n"
+         "           acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0},\n"
+         "           output: {cpu: -1, priority: 0}, non_rt_cpu: -1}\n";
+}
+
+// That scene as a config file, with `extra` sections.
 std::string small_config(const std::string& dir, const std::string& extra) {
   static int n = 0;
   const std::string path = dir + "/small" + std::to_string(++n) + ".yaml";
-  std::ofstream(path) << "scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}\n"
-                         "sim:\n  clock: virtual\n  targets:\n    - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}\n"
-                         "tracker: {pattern_size_px: 64, roi_size_px: 96}\n"
-                         "pipeline: {lock_memory: false, hold_dma_latency: false, stats_period_ms: 100,\n"
-                         "           acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0},\n"
-                         "           output: {cpu: -1, priority: 0}, non_rt_cpu: -1}\n"
-                      << extra;
+  std::ofstream(path) << small_scene("stats_period_ms: 100,") << extra;
   return path;
 }
 
@@ -2310,13 +2315,8 @@ TEST(CliFaults, AVirtualComputeLongerThanAnyScanIsSaid) {
   fs::create_directories(dir);
   for (const char* compute : {"200000000", "100000"}) {
     const std::string cfg = dir + "/v" + compute + ".yaml";
-    std::ofstream(cfg) << "scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}\n"
-                          "sim:\n  clock: virtual\n  targets:\n    - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}\n"
-                          "tracker: {pattern_size_px: 64, roi_size_px: 96}\n"
-                          "pipeline: {lock_memory: false, hold_dma_latency: false, virtual_compute_ns: " << compute << ",\n"
-                          "           acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0},\n"
-                          "           output: {cpu: -1, priority: 0}, non_rt_cpu: -1}\n"
-                          "can: {log_file: " << dir << "/can.log}\n";
+    std::ofstream(cfg) << small_scene("virtual_compute_ns: " + std::string(compute) + ",") << "can: {log_file: " << dir
+                       << "/can.log}\n";
     const Outcome r = run({"run", "--config", cfg, "--duration", "0.3"});
     EXPECT_EQ(r.code, 0) << r.err;
     const bool warned = r.out.find("warning: pipeline.virtual_compute_ns " + std::string(compute) +
@@ -2718,13 +2718,8 @@ TEST(CliFaults, CandumpLogLinesThatDoNotFitItsRingAreLostOutput) {
   fs::create_directories(dir);
   const auto config = [&](const std::string& name, const std::string& stats_ms, const std::string& can_extra) {
     const std::string path = dir + "/" + name + ".yaml";
-    std::ofstream(path) << "scan: {field_w: 320, field_h: 240, max_roi_w: 128, max_roi_h: 128}\n"
-                           "sim:\n  clock: virtual\n  targets:\n    - {texture: {source: lamella}, size: [60, 40], start: [160, 120, 0]}\n"
-                           "tracker: {pattern_size_px: 64, roi_size_px: 96}\n"
-                           "pipeline: {lock_memory: false, hold_dma_latency: false, stats_period_ms: " << stats_ms << ",\n"
-                           "           acquisition: {cpu: -1, priority: 0}, correlation: {cpu: -1, priority: 0},\n"
-                           "           output: {cpu: -1, priority: 0}, non_rt_cpu: -1}\n"
-                           "output: {poses_csv: " << dir << "/" << name << ".csv, print_status: false}\n"
+    std::ofstream(path) << small_scene("stats_period_ms: " + stats_ms + ",")
+                        << "output: {poses_csv: " << dir << "/" << name << ".csv, print_status: false}\n"
                            "can: {log_file: " << dir << "/" << name << ".log, fd: \"on\"" << can_extra << "}\n";
     return path;
   };
