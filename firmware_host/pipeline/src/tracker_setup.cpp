@@ -82,13 +82,14 @@ rt::Status make_trackers(const config::AppConfig& cfg, const hal::ScanLimits& li
         // pose went out pinned at 134 mm, TRACKING (hostile round 11).
         const int side = std::max(limits.field_w, limits.field_h);
         if (side * ps.nm_per_px > ipc::kXyMaxNm) {
-          char text[320];
-          std::snprintf(text, sizeof text,
-                        "%s: targets: %s: pattern_sets[%zu].nm_per_px: %g nm/px puts the %dx%d field's far edge at %.0f nm, "
-                        "beyond the %.0f nm POSE_XY carries (28 bits of 1 nm): at most %.0f nm/px for this field",
-                        cfg.path.c_str(), t.name.c_str(), k, ps.nm_per_px, limits.field_w, limits.field_h,
-                        side * ps.nm_per_px, ipc::kXyMaxNm, std::floor(ipc::kXyMaxNm / side));
-          return rt::Status::failure(text);
+          char numbers[256];  // the figures only: the path and the name can be of any length
+          std::snprintf(numbers, sizeof numbers,
+                        "%g nm/px puts the %dx%d field's far edge at %.0f nm, beyond the %.0f nm POSE_XY carries (28 bits "
+                        "of 1 nm): at most %.0f nm/px for this field",
+                        ps.nm_per_px, limits.field_w, limits.field_h, side * ps.nm_per_px, ipc::kXyMaxNm,
+                        std::floor(ipc::kXyMaxNm / side));
+          return rt::Status::failure(cfg.path + ": targets: " + t.name + ": pattern_sets[" + std::to_string(k) +
+                                     "].nm_per_px: " + numbers);
         }
         sets.push_back(std::move(set));
         origins += (origins.empty() ? "" : ", ") + ps.file;
