@@ -30,31 +30,18 @@ void read_governor(Section& s, GovernorConfig& c) {
   }
 }
 
-void check_governor_against_scan(Section& root, const GovernorConfig& c, const ScanLimits& scan) {
-  const std::string scan_range =
-      " (allowed: 0, or within scan.min_dwell_ns..scan.max_dwell_ns [" + std::to_string(scan.min_dwell_ns) + ", " +
-      std::to_string(scan.max_dwell_ns) + "])";
-  if (c.min_dwell_ns > scan.max_dwell_ns) {
-    root.error_at("governor.min_dwell_ns",
-                  std::to_string(c.min_dwell_ns) + " is above scan.max_dwell_ns " +
-                      std::to_string(scan.max_dwell_ns) +
-                      ": the scan generator would refuse every scan" + scan_range);
-  }
-  if (c.max_dwell_ns != 0 && c.max_dwell_ns < scan.min_dwell_ns) {
-    root.error_at("governor.max_dwell_ns", std::to_string(c.max_dwell_ns) +
-                                               " is below scan.min_dwell_ns " +
-                                               std::to_string(scan.min_dwell_ns) +
-                                               ": no dwell could keep to it" + scan_range);
-    return;
-  }
+namespace {
+
+// governor.initial_dwell_ns against the scan's limits and step and the governor's own range.
+void check_initial_dwell(Section& root, const GovernorConfig& c, const ScanLimits& scan) {
   // The first dwell (the start search's, and with the governor off every ROI's) was moved to the
   // scan's limits or its step without a word: 50 ran at 100, 10001 at 10000, 125 at 150 (found
   // probing). The scan generator cannot run it as given: named, as `sim --dwell` names it.
   const std::uint64_t step = scan.dwell_step_ns == 0 ? 1 : scan.dwell_step_ns;
   // A refused initial_dwell_ns holds the default, which the file never said (a second error
   // about 250 followed the range error for 0; hostile round 11).
-  if (root.errors().refused("governor.initial_dwell_ns")) {
-  } else if (c.initial_dwell_ns < scan.min_dwell_ns || c.initial_dwell_ns > scan.max_dwell_ns) {
+  if (root.errors().refused("governor.initial_dwell_ns")) return;
+  if (c.initial_dwell_ns < scan.min_dwell_ns || c.initial_dwell_ns > scan.max_dwell_ns) {
     root.error_at("governor.initial_dwell_ns",
                   std::to_string(c.initial_dwell_ns) +
                       " is outside scan.min_dwell_ns..scan.max_dwell_ns [" +
@@ -82,6 +69,29 @@ void check_governor_against_scan(Section& root, const GovernorConfig& c, const S
                       (c.max_dwell_ns == 0 ? std::string("scan's max") : std::to_string(c.max_dwell_ns)) +
                       "]: the governor would start at the nearer limit instead; give a dwell inside them");
   }
+}
+
+}  // namespace
+
+void check_governor_against_scan(Section& root, const GovernorConfig& c, const ScanLimits& scan) {
+  const std::string scan_range =
+      " (allowed: 0, or within scan.min_dwell_ns..scan.max_dwell_ns [" + std::to_string(scan.min_dwell_ns) + ", " +
+      std::to_string(scan.max_dwell_ns) + "])";
+  if (c.min_dwell_ns > scan.max_dwell_ns) {
+    root.error_at("governor.min_dwell_ns",
+                  std::to_string(c.min_dwell_ns) + " is above scan.max_dwell_ns " +
+                      std::to_string(scan.max_dwell_ns) +
+                      ": the scan generator would refuse every scan" + scan_range);
+  }
+  if (c.max_dwell_ns != 0 && c.max_dwell_ns < scan.min_dwell_ns) {
+    root.error_at("governor.max_dwell_ns", std::to_string(c.max_dwell_ns) +
+                                               " is below scan.min_dwell_ns " +
+                                               std::to_string(scan.min_dwell_ns) +
+                                               ": no dwell could keep to it" + scan_range);
+    return;
+  }
+  check_initial_dwell(root, c, scan);
+  const std::uint64_t step = scan.dwell_step_ns == 0 ? 1 : scan.dwell_step_ns;
   // Both ranges overlap; the governor's dwells are multiples of the scan's step inside both.
   const std::uint64_t lo = std::max(scan.min_dwell_ns, c.min_dwell_ns);
   const std::uint64_t hi = c.max_dwell_ns == 0 ? scan.max_dwell_ns : std::min(scan.max_dwell_ns, c.max_dwell_ns);
