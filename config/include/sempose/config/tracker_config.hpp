@@ -16,7 +16,7 @@ class Section;
 
 struct TrackerConfig {
   // Correlation geometry.
-  std::int32_t pattern_size_px = 128;  // square pattern side (patterns are resampled/cropped to it)
+  std::int32_t pattern_size_px = 128;  // square pattern side of simulated patterns (a pattern file is used at its own size)
   std::int32_t roi_size_px = 192;      // square tracking ROI side (>= pattern_size_px)
   double angle_step_deg = 1.0;         // pattern bank step: 360/step rotated copies
   bool circular_mask = true;           // mask the pattern to its inscribed circle (corners don't bias)
