@@ -65,7 +65,7 @@ void cross_check(Section& root, const AppConfig& c, OutputCheck outputs, TargetC
   if (c.governor.enabled && c.governor.min_pose_rate_given && c.source != "replay" && targets > 0 &&
       read_as_written({"tracker.roi_size_px", "scan.field_w", "scan.field_h", "scan.min_dwell_ns", "scan.dwell_step_ns",
                        "scan.line_flyback_ns", "governor.min_dwell_ns", "governor.min_pose_rate_hz"})) {
-    const std::uint64_t step = c.scan.dwell_step_ns == 0 ? 1 : c.scan.dwell_step_ns;
+    const std::uint64_t step = c.scan.step_ns();
     const std::uint64_t shortest = (std::max<std::uint64_t>({c.scan.min_dwell_ns, c.governor.min_dwell_ns, 1}) + step - 1) / step * step;
     const double cycle_ns = static_cast<double>(targets) *
                             static_cast<double>(c.scan.scan_time_ns(roi_w, roi_h, static_cast<std::uint32_t>(shortest)));

@@ -37,7 +37,7 @@ void check_initial_dwell(Section& root, const GovernorConfig& c, const ScanLimit
   // The first dwell (the start search's, and with the governor off every ROI's) was moved to the
   // scan's limits or its step without a word: 50 ran at 100, 10001 at 10000, 125 at 150 (found
   // probing). The scan generator cannot run it as given: named, as `sim --dwell` names it.
-  const std::uint64_t step = scan.dwell_step_ns == 0 ? 1 : scan.dwell_step_ns;
+  const std::uint64_t step = scan.step_ns();
   // A refused initial_dwell_ns holds the default, which the file never said (a second error
   // about 250 followed the range error for 0; hostile round 11).
   if (root.errors().refused("governor.initial_dwell_ns")) return;
@@ -91,7 +91,7 @@ void check_governor_against_scan(Section& root, const GovernorConfig& c, const S
     return;
   }
   check_initial_dwell(root, c, scan);
-  const std::uint64_t step = scan.dwell_step_ns == 0 ? 1 : scan.dwell_step_ns;
+  const std::uint64_t step = scan.step_ns();
   // Both ranges overlap; the governor's dwells are multiples of the scan's step inside both.
   const std::uint64_t lo = std::max(scan.min_dwell_ns, c.min_dwell_ns);
   const std::uint64_t hi = c.max_dwell_ns == 0 ? scan.max_dwell_ns : std::min(scan.max_dwell_ns, c.max_dwell_ns);

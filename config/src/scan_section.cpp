@@ -22,7 +22,7 @@ void read_scan(Section& s, ScanLimits& out) {
   if (out.min_dwell_ns > out.max_dwell_ns) {
     s.error("min_dwell_ns", std::to_string(out.min_dwell_ns) + " is above max_dwell_ns (" +
                                 std::to_string(out.max_dwell_ns) + ")");
-  } else if (const std::uint64_t step = out.dwell_step_ns == 0 ? 1 : out.dwell_step_ns;
+  } else if (const std::uint64_t step = out.step_ns();
              (out.min_dwell_ns + step - 1) / step * step > out.max_dwell_ns) {
     // Dwells are multiples of the step: with none in the limits every scan request was refused
     // (`sempose run` exit 0 with frames=0, scan_errors=1).

@@ -34,10 +34,12 @@ struct ScanLimits {
     return static_cast<std::int64_t>(w) * h * dwell_ns + static_cast<std::int64_t>(h) * line_flyback_ns;
   }
   std::uint16_t max_value() const noexcept { return bits == 16 ? 65535 : 255; }
+  // The step dwells are multiples of: dwell_step_ns, where 0 (any dwell) means 1 ns.
+  std::uint64_t step_ns() const noexcept { return dwell_step_ns == 0 ? 1 : dwell_step_ns; }
   // The dwell the generator runs for a requested one: the nearest multiple of dwell_step_ns
-  // (halves round up; a step of 0 means any dwell). Range checks are the caller's.
+  // (halves round up). Range checks are the caller's.
   std::uint64_t round_dwell_ns(std::uint64_t dwell_ns) const noexcept {
-    const std::uint64_t step = dwell_step_ns == 0 ? 1 : dwell_step_ns;
+    const std::uint64_t step = step_ns();
     return (dwell_ns + step / 2) / step * step;
   }
   // A scan of the whole field (the start search), which is allowed above max_roi_w/h.
