@@ -23,17 +23,20 @@
 namespace sempose::config {
 
 namespace {
-// One message line at most kMaxMessage bytes (cut at a UTF-8 character's start): a 10 MB value
-// came back as a 10 MB error line (found probing). Its start names file, line, key and the
-// problem; the cut says how much was left out.
-std::string bounded(std::string m) {
-  constexpr std::size_t kMaxMessage = 1024, kKept = 900;
+// One message line at most ~kMaxMessage bytes: a 10 MB value came back as a 10 MB error line
+// (found probing). The cut is in the middle, at UTF-8 characters' starts: the start names file,
+// line and key, the end says what is wrong (a 1.4 kB path, legal, lost its "missing?" when the
+// end was cut; hostile round 12), and the cut says how much was left out.
+std::size_t char_start(const std::string& m, std::size_t i) {
+  while (i > 0 && (static_cast<unsigned char>(m[i]) & 0xC0) == 0x80) --i;
+  return i;
+}
+
+std::string bounded(const std::string& m) {
+  constexpr std::size_t kMaxMessage = 1024, kHead = 600, kTail = 300;
   if (m.size() <= kMaxMessage) return m;
-  std::size_t cut = kKept;
-  while (cut > 0 && (static_cast<unsigned char>(m[cut]) & 0xC0) == 0x80) --cut;
-  const std::size_t left = m.size() - cut;
-  m.resize(cut);
-  return m + "... (" + std::to_string(left) + " more bytes)";
+  const std::size_t head = char_start(m, kHead), tail = char_start(m, m.size() - kTail);
+  return m.substr(0, head) + " ... (" + std::to_string(tail - head) + " bytes left out) ... " + m.substr(tail);
 }
 }  // namespace
 

@@ -255,8 +255,27 @@ TEST(ConfigFaults, AnErrorAboutAHugeValueIsCut) {
   std::string e;
   EXPECT_FALSE(parse_app_config("sim:\n  clock: " + std::string(100000, 'x') + "\n", "h.yaml", c, e));
   EXPECT_NE(e.find("h.yaml:2:10: sim.clock: 'xxx"), std::string::npos) << e.substr(0, 200);
-  EXPECT_NE(e.find(" more bytes)"), std::string::npos) << e.substr(0, 200);
+  EXPECT_NE(e.find(" bytes left out) ... "), std::string::npos) << e.substr(0, 200);
   EXPECT_LT(e.size(), 1200u);
+}
+
+// A long, legal path (1.4 kB) lost the reason at the end of its error when the end was cut:
+// "(596 more bytes)" instead of what is wrong with it (hostile round 12). The middle is cut.
+TEST(ConfigFaults, AnErrorAboutALongPathKeepsItsReason) {
+  std::string path = "/nonexistent";
+  for (int i = 0; i < 7; ++i) path += "/" + std::string(200, 'd');
+  AppConfig c;
+  std::string e;
+  EXPECT_FALSE(parse_app_config("sim:\n  background: {source: image, path: \"" + path + ".pgm\"}\n", "p.yaml", c, e));
+  EXPECT_NE(e.find("p.yaml:2:"), std::string::npos) << e.substr(0, 200);
+  EXPECT_NE(e.find(" bytes left out) ... "), std::string::npos) << e.substr(0, 200);
+  EXPECT_LT(e.size(), 1200u);
+  // The full message's end survives (the reason after the path), whatever its wording.
+  std::string full;
+  ASSERT_FALSE(parse_app_config("sim:\n  background: {source: image, path: \"/nonexistent/x.pgm\"}\n", "p.yaml", c, full));
+  const std::string reason = full.substr(full.find("x.pgm") + 5);
+  ASSERT_FALSE(reason.empty()) << full;
+  EXPECT_NE(e.find(reason.substr(0, reason.find('\n'))), std::string::npos) << e << "\n--- short: " << full;
 }
 
 // Values read and then not used, each accepted without a word (found probing): an empty start,
