@@ -244,6 +244,8 @@ TEST(AppConfig, ARefusedValueIsNotJudgedAgainstTheOthersOnItsDefault) {
       {scan + "tracker: {pattern_size_px: 64, roi_size_px: 0b1100000}", "tracker.roi_size_px: '0b1100000' is not a number"},
       {scan + "tracker: {pattern_size_px: 64, roi_size_px: 96, angle_step_deg: 0.1}",
        "tracker.angle_step_deg: 0.1 is outside the allowed range"},
+      {scan + "tracker: {pattern_size_px: 64, roi_size_px: 96, angle_step_deg: 12}",
+       "tracker.angle_step_deg: 12 is outside the allowed range"},
       {"scan: {field_w: 20000, field_h: 240, max_roi_w: 128, max_roi_h: 128}\ntracker: {pattern_size_px: 64, roi_size_px: 96}",
        "scan.field_w: 20000 is outside"},
       {scan + "tracker: {pattern_size_px: 64, roi_size_px: 64}", "the pattern (64 px) is as large as tracker.roi_size_px (64 px)"},

@@ -1400,6 +1400,11 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
       if (flip_open || rival_within_noise || jump_declined || fell || fell_still || !trusted_pose(e, innov)) e.state = TrackState::kUncertain;
       // Followed (the next ROI is centred on it), not vouched for; gated as the field's edge is.
       if (m.on_window_edge && cfg.max_false_probability > 0 && !loss.calibrating()) e.state = TrackState::kUncertain;
+      // So is an angle the walk left at its per-frame bound with no sweep around it: the angle's
+      // peak may lie beyond, and the stream followed the bound frame after frame (max_angle_steps_
+      // per_frame 1, recover_sweep_deg 0, a needle spinning 8° a frame: TRACKING 10.6-14.8° off on
+      // σφ 1.6-2.7°; hostile round 12). After a sweep the angle kept is the best of its range.
+      if (m.unsettled && !swept && cfg.max_false_probability > 0 && !loss.calibrating()) e.state = TrackState::kUncertain;
       if (at_field_edge(e, used_scale)) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonOutOfField;
