@@ -312,18 +312,19 @@ int run_replay(int argc, char** argv) {
   std::map<std::pair<long, int>, Truth> truth;
   if (!truth_path.empty()) {
     std::vector<hal::TruthRow> rows;
-    std::size_t non_finite = 0, widest = 0;
+    std::size_t non_finite = 0;
+    std::string not_read;
     try {
-      rows = hal::read_truth_csv(truth_path, hal::kMaxTargets, &non_finite, &widest);
+      rows = hal::read_truth_csv(truth_path, hal::kMaxTargets, &non_finite, &not_read);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "sempose replay: --truth: %s\n", cli::error_text(e).c_str());
       return 2;
     }
     // Columns past the target (a hand-made truth with a scale, say) were read and dropped without
     // a word: a reader took the summary for a comparison of them too.
-    if (widest > 5) {
-      std::fprintf(stderr, "sempose replay: warning: --truth '%s' has rows of %zu columns: only frame,x_px,y_px,phi_deg,target "
-                   "are compared, columns 6..%zu are not read\n", truth_path.c_str(), widest, widest);
+    if (!not_read.empty()) {
+      std::fprintf(stderr, "sempose replay: warning: --truth '%s': only frame,x_px,y_px,phi_deg,target are compared; not "
+                   "read: %s\n", truth_path.c_str(), not_read.c_str());
     }
     // Rows for frames the recording does not hold: the truth of another (longer) recording.
     const long long recorded = static_cast<long long>(hal::list_pgm_frames(frames_dir).size());

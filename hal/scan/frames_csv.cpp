@@ -188,16 +188,30 @@ std::vector<std::vector<double>> read_numeric_csv(const std::string& path, std::
 }
 
 namespace {
-// A truth file's first line is its header, frame,x_px,y_px,phi_deg[,target], read by position.
-// Found probing: a header naming the columns in another order (frame,y_px,x_px,...) was read
-// as if it did not, and a file with no header lost its first row without a word. A header of
-// other names is taken as it stands (hand-made truths name them as they like); one that names
-// x, y or the angle in another place is refused, and a first line of numbers is a row.
-// Returns the first line's numbers when it is a row (empty: a header).
-std::vector<double> check_truth_header(const std::string& path) {
+const char* const kTruthNames[] = {"frame", "x_px", "y_px", "phi_deg", "target"};
+
+// Where a truth file's quantities stand: frame, x_px, y_px, phi_deg, target (-1: none).
+struct TruthLayout {
+  std::vector<double> first_row;  // the first line's numbers when it is a row (no header)
+  int col[5] = {0, 1, 2, 3, 4};
+  bool by_name = false;           // the header named the columns: a row's 5th cell is not the target
+  bool target_named = false;      // ... and the target's among them
+  std::string not_read;           // header columns read by no one, named for the caller's warning
+};
+
+// A truth file's first line is its header. One that names x, y and the angle (frame,x_px,y_px,
+// phi_deg[,target] or their short names) is read by those names wherever they stand, and its
+// other columns are not read (named for a warning). Found probing: a 5th column `scale` was read
+// as the target index (every row some other target's: nothing compared, exit 0), and `x_nm`,
+// `phi_rad` were compared as pixels and degrees (hostile round 12); y before x was read by place
+// (round 5). A column named for x, y or the angle in other units is refused. A header of names of
+// its own (f,a,b,c: none of x, y, angle) is read by place, as hand-made truths are, and a first
+// line of numbers is a row (a file without a header lost it).
+TruthLayout truth_layout(const std::string& path) {
+  TruthLayout layout;
   std::ifstream f(path);
   std::string line;
-  if (!std::getline(f, line)) return {};
+  if (!std::getline(f, line)) return layout;
   std::vector<std::string> cells;
   std::vector<double> numbers;
   std::stringstream ss(line);
@@ -210,56 +224,93 @@ std::vector<double> check_truth_header(const std::string& path) {
   }
   if (!cells.empty() && numbers.size() == cells.size()) {
     if (numbers.size() < 4) throw std::runtime_error(path + ":1: expected at least 4 columns");
-    return numbers;
+    layout.first_row = numbers;
+    return layout;
   }
-  const struct {
-    std::size_t at;
-    std::initializer_list<const char*> names;
-  } expected[] = {{0, {"frame", "frame_seq", "frame_index"}}, {1, {"x", "x_px"}}, {2, {"y", "y_px"}},
-                  {3, {"phi", "phi_deg", "angle", "angle_deg", "theta"}}, {4, {"target", "target_index"}}};
+  const std::string header = "the header '" + shown(trim(line)) + "'";
+  const std::initializer_list<const char*> names[] = {{"frame", "frame_seq", "frame_index"}, {"x", "x_px"}, {"y", "y_px"},
+                                                      {"phi", "phi_deg", "angle", "angle_deg", "theta"},
+                                                      {"target", "target_index"}};
+  int found[5] = {-1, -1, -1, -1, -1};
   for (std::size_t i = 0; i < cells.size(); ++i) {
-    for (const auto& e : expected) {
-      const bool named = std::find_if(e.names.begin(), e.names.end(), [&](const char* n) { return cells[i] == n; }) != e.names.end();
-      if (named && i != e.at) {
-        throw std::runtime_error(path + ":1: the header '" + shown(trim(line)) + "' has '" + cells[i] + "' in column " +
-                                 std::to_string(i + 1) + ": the columns are read in the order frame,x_px,y_px,phi_deg[,target]");
+    for (int q = 0; q < 5; ++q) {
+      if (std::find_if(names[q].begin(), names[q].end(), [&](const char* n) { return cells[i] == n; }) == names[q].end()) continue;
+      if (found[q] >= 0) {
+        throw std::runtime_error(path + ":1: " + header + " names " + kTruthNames[q] + " twice (columns " +
+                                 std::to_string(found[q] + 1) + " and " + std::to_string(i + 1) + ")");
+      }
+      found[q] = static_cast<int>(i);
+    }
+    // x, y or the angle in other units (x_nm, phi_rad): compared as pixels and degrees they lie.
+    for (const char* stem : {"x_", "y_", "phi_", "angle_", "theta_"}) {
+      if (cells[i].rfind(stem, 0) == 0 && cells[i] != "x_px" && cells[i] != "y_px" && cells[i] != "phi_deg" &&
+          cells[i] != "angle_deg") {
+        throw std::runtime_error(path + ":1: " + header + " has '" + cells[i] + "' in column " + std::to_string(i + 1) +
+                                 ": the truth is compared in pixels and degrees (x_px, y_px, phi_deg); convert the column "
+                                 "and name it so");
       }
     }
   }
-  return {};
+  if (found[1] < 0 && found[2] < 0 && found[3] < 0) return layout;  // names of its own: by place
+  for (int q = 0; q < 4; ++q) {
+    if (found[q] < 0) {
+      throw std::runtime_error(path + ":1: " + header + " has no " + kTruthNames[q] +
+                               " column: a header naming the columns needs frame, x_px, y_px and phi_deg (target optional)");
+    }
+  }
+  layout.by_name = true;
+  for (int q = 0; q < 5; ++q) layout.col[q] = found[q];
+  layout.target_named = found[4] >= 0;
+  // A 5th cell past a header of four names is the target by place, as frame,x_px,y_px,phi_deg[,target] says.
+  if (found[4] < 0 && cells.size() == 4) layout.col[4] = 4;
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    if (std::find(std::begin(found), std::end(found), static_cast<int>(i)) != std::end(found)) continue;
+    layout.not_read += std::string(layout.not_read.empty() ? "" : ", ") + "'" + shown(cells[i]) + "' (column " +
+                       std::to_string(i + 1) + ")";
+  }
+  return layout;
 }
 }  // namespace
 
 std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows,
-                                     std::size_t* widest_row) {
+                                     std::string* not_read) {
   std::vector<std::size_t> lines;
   const std::vector<std::vector<double>> rows = read_numeric_csv(path, 4, &lines);
-  const std::vector<double> first_row = check_truth_header(path);  // a file without a header: its first line is a row
+  const TruthLayout layout = truth_layout(path);
+  const int* col = layout.col;
+  const std::size_t needed = layout.by_name ? static_cast<std::size_t>(*std::max_element(col, col + (layout.target_named ? 5 : 4))) + 1 : 4;
   std::vector<TruthRow> truth;
   std::map<std::pair<long long, int>, std::size_t> line_of;  // (frame, target) -> its line
   std::size_t non_finite = 0, widest = 0;
   auto take = [&](const std::vector<double>& r, std::size_t line) {
     widest = std::max(widest, r.size());
     const std::string at = path + ":" + std::to_string(line) + ": ";
-    auto whole = [](double v, double below) { return v >= 0 && v < below && v == std::floor(v); };
-    if (!whole(r[0], 1e15)) {
-      throw std::runtime_error(at + "frame " + shown_number(r[0]) + " is not a frame index (a whole number >= 0)");
+    if (r.size() < needed) {
+      throw std::runtime_error(at + "expected at least " + std::to_string(needed) + " columns (the header names column " +
+                               std::to_string(needed) + "), got " + std::to_string(r.size()));
     }
-    if (r.size() >= 5 && !whole(r[4], max_targets)) {
-      throw std::runtime_error(at + "target " + shown_number(r[4]) + " is not a target index in [0, " +
+    auto whole = [](double v, double below) { return v >= 0 && v < below && v == std::floor(v); };
+    if (!whole(r[col[0]], 1e15)) {
+      throw std::runtime_error(at + "frame " + shown_number(r[col[0]]) + " is not a frame index (a whole number >= 0)");
+    }
+    // The target: the named column, or by place the 5th (a header of names of its own, none).
+    const int target_col = layout.by_name ? col[4] : 4;
+    const bool has_target = target_col >= 0 && r.size() > static_cast<std::size_t>(target_col);
+    if (has_target && !whole(r[target_col], max_targets)) {
+      throw std::runtime_error(at + "target " + shown_number(r[target_col]) + " is not a target index in [0, " +
                                std::to_string(max_targets - 1) + "]");
     }
     // A pose no scan field holds (1e308 px gave rms_px=inf and a 300-digit max): refused. Non-finite
     // is the target not on that frame (`sempose sim` writes nan there), counted for the caller.
-    const char* names[] = {"x_px", "y_px", "phi_deg"};
     for (int k = 1; k <= 3; ++k) {
       const double limit = k == 3 ? 1e6 : 1e7;
-      if (std::isfinite(r[k]) && std::fabs(r[k]) > limit) {
-        throw std::runtime_error(at + names[k - 1] + " " + shown_number(r[k]) + " is out of range [" + shown_number(-limit) +
-                                 ", " + shown_number(limit) + "]");
+      if (std::isfinite(r[col[k]]) && std::fabs(r[col[k]]) > limit) {
+        throw std::runtime_error(at + kTruthNames[k] + " " + shown_number(r[col[k]]) + " is out of range [" +
+                                 shown_number(-limit) + ", " + shown_number(limit) + "]");
       }
     }
-    TruthRow t{static_cast<long long>(r[0]), r.size() >= 5 ? static_cast<int>(r[4]) : 0, r[1], r[2], r[3]};
+    TruthRow t{static_cast<long long>(r[col[0]]), has_target ? static_cast<int>(r[target_col]) : 0, r[col[1]], r[col[2]],
+               r[col[3]]};
     if (const auto [it, fresh] = line_of.emplace(std::make_pair(t.frame, t.target), line); !fresh) {
       throw std::runtime_error(at + "a second row for frame " + std::to_string(t.frame) + " target " +
                                std::to_string(t.target) + " (the first is on line " + std::to_string(it->second) +
@@ -268,10 +319,15 @@ std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, s
     if (std::isfinite(t.x_px) && std::isfinite(t.y_px) && std::isfinite(t.phi_deg)) truth.push_back(t);
     else ++non_finite;
   };
-  if (!first_row.empty()) take(first_row, 1);
+  if (!layout.first_row.empty()) take(layout.first_row, 1);
   for (std::size_t i = 0; i < rows.size(); ++i) take(rows[i], lines[i]);
   if (non_finite_rows) *non_finite_rows = non_finite;
-  if (widest_row) *widest_row = widest;
+  // What is not compared: the header's unread columns by name, or (no names) cells past the 5th.
+  if (not_read) {
+    *not_read = layout.by_name ? layout.not_read
+                : widest > 5   ? "columns 6.." + std::to_string(widest)
+                               : std::string();
+  }
   return truth;
 }
 

@@ -1414,7 +1414,7 @@ TEST(CliFaults, ReplayTruthColumnsPastTheTargetAreNamedAsNotCompared) {
   std::ofstream(t) << wide.str();
   const Outcome r = replay(t);
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.err.find("has rows of 7 columns: only frame,x_px,y_px,phi_deg,target are compared, columns 6..7 are not read"),
+  EXPECT_NE(r.err.find("only frame,x_px,y_px,phi_deg,target are compared; not read: 'scale' (column 6), 'note' (column 7)"),
             std::string::npos) << r.err;
   EXPECT_EQ(field(r.out, "poses_compared"), field(plain.out, "poses_compared")) << r.out;
   EXPECT_EQ(field(r.out, "rms_px"), field(plain.out, "rms_px")) << r.out;

@@ -240,15 +240,49 @@ TEST(FramesCsv, TruthRowsNameOneWholeFrameAndTargetEach) {
       EXPECT_NE(std::string(e.what()).find(path + c.expect), std::string::npos) << e.what();
     }
   }
-  // Found probing: a header naming y before x was read by position, a file without a header
-  // lost its first row, nan rows were dropped without a count (1e308: in the cases above).
+  // Found probing: a header naming y before x was read by position (round 5), a file without a
+  // header lost its first row, nan rows were dropped without a count (1e308: in the cases above).
+  // A header naming the columns is read by those names wherever they stand.
   std::ofstream(path) << "frame,y_px,x_px,phi_deg\n0,10,20,0\n";
-  try {
-    read_truth_csv(path, 4);
-    ADD_FAILURE() << "a header naming y_px in x_px's column was read by position";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find(":1: the header 'frame,y_px,x_px,phi_deg' has 'y_px' in column 2"), std::string::npos)
-        << e.what();
+  std::vector<TruthRow> swapped = read_truth_csv(path, 4);
+  ASSERT_EQ(swapped.size(), 1u);
+  EXPECT_EQ(swapped[0].x_px, 20);
+  EXPECT_EQ(swapped[0].y_px, 10);
+  std::ofstream(path) << "target,phi,frame,x,y\n1,5,3,10,20\n";
+  swapped = read_truth_csv(path, 4);
+  ASSERT_EQ(swapped.size(), 1u);
+  EXPECT_EQ(swapped[0].frame, 3);
+  EXPECT_EQ(swapped[0].target, 1);
+  EXPECT_EQ(swapped[0].x_px, 10);
+  EXPECT_EQ(swapped[0].phi_deg, 5);
+  // Hostile round 12: a 5th column `scale` was read as the target index (nothing compared, exit
+  // 0), `x_nm` and `phi_rad` as pixels and degrees. Named columns past frame, x, y, angle and
+  // target are not read, and said so; a coordinate in other units, a quantity named twice or
+  // missing, and a row shorter than the header's columns are refused.
+  std::ofstream(path) << "frame,x_px,y_px,phi_deg,scale\n0,10,20,0,1.25\n";
+  std::string not_read;
+  const std::vector<TruthRow> scaled = read_truth_csv(path, 4, nullptr, &not_read);
+  ASSERT_EQ(scaled.size(), 1u);
+  EXPECT_EQ(scaled[0].target, 0) << "the scale column was read as the target";
+  EXPECT_EQ(not_read, "'scale' (column 5)");
+  const struct {
+    const char* text;
+    const char* expect;
+  } refused[] = {
+      {"frame,x_nm,y_nm,phi_rad\n0,10,20,0\n", ":1: the header 'frame,x_nm,y_nm,phi_rad' has 'x_nm' in column 2: the truth is compared in pixels and degrees"},
+      {"frame,x_px,y_px,phi_rad\n0,10,20,0\n", "has 'phi_rad' in column 4"},
+      {"frame,x,x_px,y,phi\n0,10,20,0,0\n", ":1: the header 'frame,x,x_px,y,phi' names x_px twice (columns 2 and 3)"},
+      {"frame,x_px,y_px,note\n0,10,20,0\n", ":1: the header 'frame,x_px,y_px,note' has no phi_deg column"},
+      {"frame,x_px,y_px,phi_deg,target\n0,10,20,0\n", ":2: expected at least 5 columns (the header names column 5), got 4"},
+  };
+  for (const auto& c : refused) {
+    std::ofstream(path) << c.text;
+    try {
+      read_truth_csv(path, 4);
+      ADD_FAILURE() << "accepted: " << c.text;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(c.expect), std::string::npos) << e.what();
+    }
   }
   std::ofstream(path) << "0,10,20,0\n1,11,20,0\n";
   std::vector<TruthRow> headerless = read_truth_csv(path, 4);

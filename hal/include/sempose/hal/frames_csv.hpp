@@ -36,10 +36,11 @@ struct TruthRow {
 // -3 or a target of 0.5 dropped without a word, and of two rows for one frame the last one won
 // silently. Each of these throws naming the file, the line and the cell (a second row: both
 // lines). A row whose pose is not finite is skipped (no truth on that frame), counted in
-// non_finite_rows; a pose beyond ±1e7 px or ±1e6° throws. The header is checked (a column named
-// in another place throws) and a first line of numbers is read as a row. widest_row: the most
-// cells of any row, so the caller can say that columns past the target are not compared.
+// non_finite_rows; a pose beyond ±1e7 px or ±1e6° throws. A header that names x, y and the angle
+// is read by those names wherever they stand (x or the angle in other units throws); a header of
+// names of its own is read by place; a first line of numbers is a row. not_read: what is not
+// compared — the header's other columns by name, or without names the cells past the 5th.
 std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, std::size_t* non_finite_rows = nullptr,
-                                     std::size_t* widest_row = nullptr);
+                                     std::string* not_read = nullptr);
 
 }  // namespace sempose::hal
