@@ -197,6 +197,7 @@ struct TruthLayout {
   bool by_name = false;           // the header named the columns: a row's 5th cell is not the target
   bool target_named = false;      // ... and the target's among them
   std::string not_read;           // header columns read by no one, named for the caller's warning
+  std::size_t named_cells = 0;    // the header's cells (by name), or 5 (by place)
 };
 
 // A truth file's first line is its header. One that names x, y and the angle (frame,x_px,y_px,
@@ -229,7 +230,7 @@ TruthLayout truth_layout(const std::string& path) {
   }
   const std::string header = "the header '" + shown(trim(line)) + "'";
   const std::initializer_list<const char*> names[] = {{"frame", "frame_seq", "frame_index"}, {"x", "x_px"}, {"y", "y_px"},
-                                                      {"phi", "phi_deg", "angle", "angle_deg", "theta"},
+                                                      {"phi", "phi_deg", "angle", "angle_deg", "theta", "theta_deg"},
                                                       {"target", "target_index"}};
   int found[5] = {-1, -1, -1, -1, -1};
   for (std::size_t i = 0; i < cells.size(); ++i) {
@@ -242,9 +243,12 @@ TruthLayout truth_layout(const std::string& path) {
       found[q] = static_cast<int>(i);
     }
     // x, y or the angle in other units (x_nm, phi_rad): compared as pixels and degrees they lie.
+    // (Other columns, x_sigma say, are not read and named.)
     for (const char* stem : {"x_", "y_", "phi_", "angle_", "theta_"}) {
-      if (cells[i].rfind(stem, 0) == 0 && cells[i] != "x_px" && cells[i] != "y_px" && cells[i] != "phi_deg" &&
-          cells[i] != "angle_deg") {
+      if (cells[i].rfind(stem, 0) != 0) continue;
+      const std::string unit = cells[i].substr(std::string(stem).size());
+      for (const char* other : {"nm", "um", "\u00b5m", "mm", "m", "rad", "mrad", "urad"}) {
+        if (unit != other) continue;
         throw std::runtime_error(path + ":1: " + header + " has '" + cells[i] + "' in column " + std::to_string(i + 1) +
                                  ": the truth is compared in pixels and degrees (x_px, y_px, phi_deg); convert the column "
                                  "and name it so");
@@ -259,6 +263,7 @@ TruthLayout truth_layout(const std::string& path) {
     }
   }
   layout.by_name = true;
+  layout.named_cells = std::max<std::size_t>(cells.size(), found[4] < 0 && cells.size() == 4 ? 5 : 0);
   for (int q = 0; q < 5; ++q) layout.col[q] = found[q];
   layout.target_named = found[4] >= 0;
   // A 5th cell past a header of four names is the target by place, as frame,x_px,y_px,phi_deg[,target] says.
@@ -322,11 +327,15 @@ std::vector<TruthRow> read_truth_csv(const std::string& path, int max_targets, s
   if (!layout.first_row.empty()) take(layout.first_row, 1);
   for (std::size_t i = 0; i < rows.size(); ++i) take(rows[i], lines[i]);
   if (non_finite_rows) *non_finite_rows = non_finite;
-  // What is not compared: the header's unread columns by name, or (no names) cells past the 5th.
+  // What is not compared: the header's unread columns by name, and cells past the header's
+  // columns (by place: past the 5th).
   if (not_read) {
-    *not_read = layout.by_name ? layout.not_read
-                : widest > 5   ? "columns 6.." + std::to_string(widest)
-                               : std::string();
+    const std::size_t named = layout.by_name ? layout.named_cells : 5;
+    *not_read = layout.not_read;
+    if (widest > named) {
+      *not_read += std::string(not_read->empty() ? "" : ", ") + "columns " + std::to_string(named + 1) + ".." +
+                   std::to_string(widest) + (layout.by_name ? " (past the header's)" : "");
+    }
   }
   return truth;
 }

@@ -265,6 +265,18 @@ TEST(FramesCsv, TruthRowsNameOneWholeFrameAndTargetEach) {
   ASSERT_EQ(scaled.size(), 1u);
   EXPECT_EQ(scaled[0].target, 0) << "the scale column was read as the target";
   EXPECT_EQ(not_read, "'scale' (column 5)");
+  // Another column about x (its σ) is not read, not refused; theta_deg is the angle in degrees;
+  // cells past a header of four names and a target by place are named by their columns.
+  std::ofstream(path) << "frame,x_px,y_px,theta_deg,x_sigma\n0,10,20,7,0.5\n";
+  const std::vector<TruthRow> with_sigma = read_truth_csv(path, 4, nullptr, &not_read);
+  ASSERT_EQ(with_sigma.size(), 1u);
+  EXPECT_EQ(with_sigma[0].phi_deg, 7);
+  EXPECT_EQ(not_read, "'x_sigma' (column 5)");
+  std::ofstream(path) << "frame,x_px,y_px,phi_deg\n0,10,20,0,1,1.25,7\n";
+  const std::vector<TruthRow> wide = read_truth_csv(path, 4, nullptr, &not_read);
+  ASSERT_EQ(wide.size(), 1u);
+  EXPECT_EQ(wide[0].target, 1);
+  EXPECT_EQ(not_read, "columns 6..7 (past the header's)");
   const struct {
     const char* text;
     const char* expect;
