@@ -334,7 +334,10 @@ TEST(NoFalseTracking, GripperJawsDoNotDragATrackedPose) {
     std::printf("gripper jaws dose %4.1f: TRACKING %d/%d, false %d, searches %d\n", dose, c.tracked, s.frames, c.false_n,
                 c.searches);
     EXPECT_EQ(c.false_n, 0) << "TRACKING while > 3 px or > 10 deg off";
-    EXPECT_GE(c.tracked, s.frames / 5) << "tracked again whenever the jaws close";
+    // At least 10 of 60 (12 / 12 before the parts check, States: parts moving apart; it keeps 2
+    // more frames at 20 e-/px UNCERTAIN while the jaws are still apart, 10, and gives 2 back at
+    // 6 e-/px, 14; the same rows of `pose_accuracy_bench --quick`).
+    EXPECT_GE(c.tracked, s.frames / 6) << "tracked again whenever the jaws close";
   }
 }
 

@@ -301,6 +301,7 @@ Tracker::Impl::FieldCut Tracker::Impl::load_field_cut(const std::uint16_t* px, c
     load_bits = RoiRescaler::out_bits(bits);
   }
   cut.valid = loader.load(load_px, cut.w, cut.h, load_stride, load_bits);
+  ++load_seq;
   return cut;
 }
 
@@ -419,6 +420,46 @@ bool Tracker::Impl::fell_below_search_level(float score) const noexcept {
   return level > 0 && !loss.confirmed(score) && score < level - significance_z() * flip_sd(level);
 }
 
+// A score below a level the stream kept (scanned at level_dwell_ns, taken to this frame's dwell)
+// by more than the confirmed margin's share of its room and the noise of a score difference.
+bool Tracker::Impl::scored_below(double score, double level, double level_dwell_ns) const noexcept {
+  const double l = score_at_dwell(level, level_dwell_ns, frame_dwell_ns);
+  return score < l - std::max(LossPolicy::kConfirmShare * (1.0 - l * l), significance_z() * flip_sd(l));
+}
+
+// Parts of the window that move differently (the tiles of split_consistency.hpp off one affine
+// field: significant at max_false_probability and at least kTilesApartPx): the pattern's static
+// background holds the pose while the target moves on (hostile round 13: a needle tip over
+// textured real background moving 1 px a frame, TRACKING 5-16 px behind it at 20-2.5 e-/px), or
+// a gripper's jaws open. The tiles see it only while the parts are within the linear step's
+// reach (~2-8 px): beyond it the target's tiles no longer fit and the background's agree again.
+// So the doubt stays open while the score stays below the level before it (scored_below): the
+// stream's fit is not back to what it was. A loss or a new search forgets it.
+bool Tracker::Impl::parts_doubted(const Measurement& m, const PatternBank& bank, double used_scale,
+                                  const PoseEstimate& e) noexcept {
+  if (!(cfg.max_false_probability > 0) || loss.calibrating() || !last_known) {
+    parts_doubt = false;
+    parts_before = {};
+    return false;
+  }
+  // A target turning while its ROI is scanned bends across the rows (each row sees it turned a
+  // little further), which no affine field holds: the probe's spins of 15-45° a frame lost 6-32
+  // points of TRACKING to this check. Judged only while the stream turns less than kTilesTurnDeg
+  // a frame.
+  const bool turning = motion.has_velocity() &&
+                       std::fabs(rt::wrap_deg(motion.predicted_phi_deg() - motion.phi_deg())) >= kTilesTurnDeg;
+  if (parts_doubt) {
+    parts_doubt = scored_below(e.score, parts_level, parts_dwell_ns);
+  } else if (m.valid && !turning && parts_disagree(m, bank, used_scale) && parts_before.known) {
+    parts_doubt = true;
+    parts_level = parts_before.score;
+    parts_dwell_ns = parts_before.dwell_ns;
+  }
+  // The level a doubt opened on the next frame is judged against: this frame's, unless doubted.
+  if (!parts_doubt) parts_before = {true, e.score, frame_dwell_ns};
+  return parts_doubt;
+}
+
 // Static clutter recorded with the target (README Known limitations, look-alike background): a
 // pattern that is mostly background standing still at the recording spot holds the pose there
 // when the target moves away. The pose then does not move, so its innovations and the stream's
@@ -456,10 +497,7 @@ bool Tracker::Impl::fell_while_still(const PoseEstimate& e) noexcept {
   // as scored, that fall opened the doubt on the governor's first shorter frame and the score
   // never came back: `sempose run` on the default needle standing still was TRACKING on 1 pose
   // of 3033 (the pipeline's own TrackingStep test found it).
-  const auto below = [&](double level, double level_dwell_ns) {
-    const double l = score_at_dwell(level, level_dwell_ns, frame_dwell_ns);
-    return e.score < l - std::max(LossPolicy::kConfirmShare * (1.0 - l * l), z * flip_sd(l));
-  };
+  const auto below = [&](double level, double level_dwell_ns) { return scored_below(e.score, level, level_dwell_ns); };
   if (still_doubt) {
     still_doubt = below(still_level, still_dwell_ns);
   } else if (below(last_score, last_dwell_ns)) {
@@ -544,14 +582,14 @@ Tracker::Impl::SplitAllowance Tracker::Impl::split_allowance(const PoseFrame& fr
 // the x component alone, significant at the same χ² (2 dof) bound and beyond kTornApartPx plus
 // the motion's shear only, is torn too: frame 46 is caught and the gate stays open on 47-49. The
 // gate stays on both (without it on the x component the `gripper` jaws at 20 e-/px kept 11 of 60
-// frames TRACKING where GripperJawsDoNotDragATrackedPose needs 12, and a 3 px hum wave lost 36
+// frames TRACKING where GripperJawsDoNotDragATrackedPose needed 12, and a 3 px hum wave lost 36
 // of 960 probe frames, 23 with it). A tear along y, which the scale reading takes for a change
 // of size, is kept from the tracked scale by the hold at the scale's update.
 bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double used_scale, double shear_per_row,
                          double scale_per_row, bool* together) const noexcept {
   if (together) *together = false;  // not known until measured
   if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
-  const SplitConsistency s = split.measure(bank, m.j, m.ux, m.uy);
+  const SplitConsistency s = split_at(bank, m);
   if (!s.valid) return false;
   if (together) *together = s.z < kTogetherZ && s.line_z < kTogetherZ;
   // The parts' distance is a 2-D Mahalanobis one, the largest of kCuts: significant when its
@@ -563,6 +601,24 @@ bool Tracker::Impl::torn(const Measurement& m, const PatternBank& bank, double u
   const bool apart_along_lines = s.line_z * s.line_z >= bound_sq &&
                                  used_scale * (s.line_apart_px - shear_per_row * std::fabs(s.line_rows_apart)) >= kTornApartPx;
   return apart || apart_along_lines;
+}
+
+// The split check's measurement at the pose, once per loaded ROI (torn() and parts_disagree() both ask).
+SplitConsistency Tracker::Impl::split_at(const PatternBank& bank, const Measurement& m) const noexcept {
+  if (split_cache.seq != load_seq || split_cache.bank != &bank || split_cache.j != m.j || split_cache.ux != m.ux ||
+      split_cache.uy != m.uy)
+    split_cache = {load_seq, &bank, m.j, m.ux, m.uy, split.measure(bank, m.j, m.ux, m.uy)};
+  return split_cache.s;
+}
+
+bool Tracker::Impl::parts_disagree(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept {
+  if (!(cfg.max_false_probability > 0) || loss.calibrating()) return false;
+  const SplitConsistency s = split_at(bank, m);
+  if (!s.tiles_valid || s.tiles_dof < 2) return false;
+  const double z = upper_normal_quantile(cfg.max_false_probability);
+  const double k = s.tiles_dof, h = 2.0 / (9.0 * k);
+  const double bound = k * std::pow(1.0 - h + z * std::sqrt(h), 3);
+  return s.tiles_chi2 > bound && used_scale * s.tiles_apart_px >= kTilesApartPx;
 }
 
 // A target leaving the field across an edge or a corner (pose_envelope_probe --case leave_): the
@@ -839,7 +895,8 @@ void Tracker::Impl::go_lost() noexcept {
   loss.reset();
   motion.reset();
   last_known = false;
-  still_doubt = false;
+  still_doubt = parts_doubt = false;
+  parts_before = {};
   blur_run_known = false;
 }
 
@@ -1010,7 +1067,10 @@ void Tracker::Impl::accept(PoseEstimate& e, const PoseFrame& frame, bool fresh, 
   motion.accept(e.x_px, e.y_px, e.phi_deg, fresh, frame_dwell_ns, e.score);
   loss.accepted(static_cast<float>(std::min<double>(e.score, level_cap)));
   tracking = true;
-  if (fresh) still_doubt = false;
+  if (fresh) {
+    still_doubt = parts_doubt = false;
+    parts_before = {};
+  }
   last_known = true;
   last_x = e.x_px;
   last_y = e.y_px;
@@ -1285,6 +1345,7 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
     load_stride = std::min(scored.w, sizes.roi_fft_px);
     load_bits = RoiRescaler::out_bits(frame.bits);
   }
+  ++load_seq;  // (the split cache's key: what the loader holds)
   if (scored.w < pattern_px || scored.h < pattern_px || !loader.load(load_px, scored.w, scored.h, load_stride, load_bits)) {
     e.state = TrackState::kLost;
     e.reason_bits = static_cast<std::uint8_t>((scored.w < pattern_px || scored.h < pattern_px) ? kReasonOutOfField
@@ -1420,6 +1481,10 @@ PoseEstimate Tracker::Impl::update(const PoseFrame& frame) noexcept {
         e.reason_bits |= kReasonUnexplained;
       }
       if (split_apart && e.state == TrackState::kTracking) {
+        e.state = TrackState::kUncertain;
+        e.reason_bits |= kReasonUnexplained;
+      }
+      if (parts_doubted(m, bank, used_scale, e) && e.state == TrackState::kTracking) {
         e.state = TrackState::kUncertain;
         e.reason_bits |= kReasonUnexplained;
       }

@@ -363,9 +363,17 @@ struct Tracker::Impl {
   // stood still (within the noise of its σ) opens a doubt, kept while the pose stands still and
   // the score stays below the level before the fall; its poses are followed, UNCERTAIN.
   bool fell_while_still(const PoseEstimate& e) noexcept;
+  bool scored_below(double score, double level, double level_dwell_ns) const noexcept;
+  bool parts_doubted(const Measurement& m, const PatternBank& bank, double used_scale, const PoseEstimate& e) noexcept;
   bool last_known = false;  // the last accepted pose (and its score) below are set
   double last_x = 0, last_y = 0, last_phi = 0, last_score = 0;
   bool still_doubt = false;  // a fall while still is open
+  bool parts_doubt = false;  // parts of the window moved apart (parts_doubted); the level before it:
+  double parts_level = 0, parts_dwell_ns = 0;
+  struct LevelBefore {
+    bool known = false;
+    double score = 0, dwell_ns = 0;
+  } parts_before;  // the last frame's score while no doubt was open
   double still_level = 0;    // the last accepted score before that fall
   double last_dwell_ns = 0, still_dwell_ns = 0;  // the dwells last_score and still_level were scanned at
   // The motion check's sweep found a second hypothesis more than the false-pose rule's 3 px /
@@ -537,6 +545,18 @@ struct Tracker::Impl {
   // tore. Followed, reported UNCERTAIN with kReasonUnexplained.
   // together (optional): the parts lie clearly together (every cut within kTogetherZ SDs; false
   // when not measured).
+  // Parts of the window that move differently (split_consistency.hpp, the tiles): see tracker.cpp.
+  bool parts_disagree(const Measurement& m, const PatternBank& bank, double used_scale) const noexcept;
+  static constexpr double kTilesApartPx = 0.75, kTilesTurnDeg = 1.0;
+  std::uint64_t load_seq = 0;  // ROIs loaded: the split cache's key
+  SplitConsistency split_at(const PatternBank& bank, const Measurement& m) const noexcept;
+  struct SplitCache {
+    std::uint64_t seq = ~std::uint64_t{0};
+    const PatternBank* bank = nullptr;
+    int j = -1, ux = 0, uy = 0;
+    SplitConsistency s;
+  };
+  mutable SplitCache split_cache;
   bool torn(const Measurement& m, const PatternBank& bank, double used_scale, double shear_per_row,
             double scale_per_row, bool* together = nullptr) const noexcept;
   // How far apart the target's own motion during the scan puts the parts per row, how much the

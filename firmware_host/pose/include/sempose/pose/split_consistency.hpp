@@ -14,6 +14,12 @@
 // score noise model is (mask pixels over score_samples). The linear step reads a jump beyond
 // the pattern's smoothing scale short (an 8 px tear: 0.8–1.3 px), so δ is a direction and a
 // significance, not the tear's size.
+// The same pass sums the support's kTiles × kTiles tiles, each fitted the same way, and one
+// affine displacement field (shift, turn, change of size, shear: what a rigid target scanned
+// while it moves and its tracked scale lags leaves) is fitted to them: parts left off that field
+// move differently from the rest (a target moving over a static background its pattern holds;
+// a gripper's jaws opening). As for the cuts, the linear step sees a disagreement only within
+// a few px.
 // RT: one pass over the support (15 sums per pixel), no allocation.
 #pragma once
 
@@ -35,12 +41,22 @@ struct SplitConsistency {
   // in its SDs: a change of the target's size pulls the parts apart along the slow axis (rows
   // below the centre show it lower), not along the lines; a tear that moves the lines does.
   double line_z = 0, line_apart_px = 0, line_rows_apart = 0;
+  // The pattern's tiles (kTiles × kTiles over its support) each fitted on its own the same way,
+  // and one affine displacement field fitted to all of them: what is left says parts of the
+  // window move differently (a target moving over a static background the pattern holds, the
+  // pose between the two). tiles_chi2 over tiles_dof (2 per tile fitted − 6), and the largest
+  // tile's own distance from the fitted field (loaded-ROI px) among the tiles that lie
+  // significantly off it (their own χ², 2 dof, above 9.21: 1 %).
+  bool tiles_valid = false;
+  double tiles_chi2 = 0, tiles_apart_px = 0;
+  int tiles_dof = 0;
 };
 
 class SplitConsistencyCheck {
  public:
   static constexpr int kParts = 4;  // row quarters; cuts between them
   static constexpr int kCuts = kParts - 1;
+  static constexpr int kTiles = 3;  // tiles per side of the support (kTiles² parts)
   // noise_inflation: the score noise model's pixels per independent noise sample (mask pixels
   // over score_samples; set at setup once they are known).
   SplitConsistencyCheck(const ExactScorer& scorer, double noise_inflation) noexcept
